@@ -1,0 +1,404 @@
+"""The ShaderLab vocabulary shared by every layer: enums and frozen dataclasses.
+
+Every enum member is named exactly as ShaderLab spells it (``Blend SrcAlpha
+OneMinusSrcAlpha``, ``ZTest LEqual``, ``Cull Off``); its ``value`` is the same
+string, which is also the Blender EnumProperty identifier of shared/SPEC.md §3.
+Field names of :class:`Pass` and :class:`Material` are the Blender property
+names of that section, so the bpy bridge, the ShaderLab importer/exporter and
+the JSON output all map one to one.
+
+This module knows nothing of Blender and nothing of numpy.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields, replace
+from enum import Enum
+from typing import Any
+
+
+class _Named(str, Enum):
+    """A string enum whose value is its ShaderLab spelling."""
+
+    def __str__(self) -> str:  # so f"{Cull.Off}" reads "Off"
+        return self.value
+
+    @classmethod
+    def parse(cls, text: str):
+        """Member from a ShaderLab word, case-insensitively; ValueError names the choices."""
+        for member in cls:
+            if member.value.lower() == str(text).lower():
+                return member
+        choices = ", ".join(m.value for m in cls)
+        raise ValueError(f"unknown {cls.__name__} {text!r} (expected one of: {choices})")
+
+
+class Queue(_Named):
+    """``Tags {"Queue"=...}``: the named render queues and their numbers."""
+
+    Background = "Background"
+    Geometry = "Geometry"
+    AlphaTest = "AlphaTest"
+    Transparent = "Transparent"
+    Overlay = "Overlay"
+
+    @property
+    def number(self) -> int:
+        return QUEUE_NUMBERS[self]
+
+
+QUEUE_NUMBERS: dict[Queue, int] = {
+    Queue.Background: 1000,
+    Queue.Geometry: 2000,
+    Queue.AlphaTest: 2450,
+    Queue.Transparent: 3000,
+    Queue.Overlay: 4000,
+}
+
+#: Queues up to this number are drawn front to back, later ones back to front.
+LAST_OPAQUE_QUEUE = 2500
+
+
+class Cull(_Named):
+    Back = "Back"
+    Front = "Front"
+    Off = "Off"
+
+
+class CompareFunction(_Named):
+    """``ZTest`` and ``Stencil { Comp }``; ZTest never uses ``Never``."""
+
+    Never = "Never"
+    Less = "Less"
+    Greater = "Greater"
+    LEqual = "LEqual"
+    GEqual = "GEqual"
+    Equal = "Equal"
+    NotEqual = "NotEqual"
+    Always = "Always"
+
+
+ZTEST_FUNCTIONS = tuple(c for c in CompareFunction if c is not CompareFunction.Never)
+
+
+class BlendFactor(_Named):
+    One = "One"
+    Zero = "Zero"
+    SrcColor = "SrcColor"
+    SrcAlpha = "SrcAlpha"
+    DstColor = "DstColor"
+    DstAlpha = "DstAlpha"
+    OneMinusSrcColor = "OneMinusSrcColor"
+    OneMinusSrcAlpha = "OneMinusSrcAlpha"
+    OneMinusDstColor = "OneMinusDstColor"
+    OneMinusDstAlpha = "OneMinusDstAlpha"
+    SrcAlphaSaturate = "SrcAlphaSaturate"
+
+
+class BlendOp(_Named):
+    Add = "Add"
+    Sub = "Sub"
+    RevSub = "RevSub"
+    Min = "Min"
+    Max = "Max"
+
+
+class StencilOp(_Named):
+    Keep = "Keep"
+    Zero = "Zero"
+    Replace = "Replace"
+    IncrSat = "IncrSat"
+    DecrSat = "DecrSat"
+    Invert = "Invert"
+    IncrWrap = "IncrWrap"
+    DecrWrap = "DecrWrap"
+
+
+class TextureFilter(_Named):
+    Bilinear = "Bilinear"
+    Point = "Point"
+
+
+class TextureWrap(_Named):
+    Repeat = "Repeat"
+    Clamp = "Clamp"
+
+
+class Lighting(_Named):
+    Lambert = "Lambert"
+    Unlit = "Unlit"
+
+
+class ColorSpace(_Named):
+    Gamma = "Gamma"
+    Linear = "Linear"
+
+
+class SortMode(_Named):
+    Default = "Default"
+    Perspective = "Perspective"
+    Orthographic = "Orthographic"
+    CustomAxis = "CustomAxis"
+
+
+#: ColorMask channels in ShaderLab order.
+CHANNELS = ("R", "G", "B", "A")
+ALL_CHANNELS = frozenset(CHANNELS)
+
+
+def color_mask_text(mask: frozenset[str]) -> str:
+    """ShaderLab spelling of a colour mask: ``"RGBA"``, ``"RB"``, or ``"0"`` for the empty set."""
+    text = "".join(c for c in CHANNELS if c in mask)
+    return text or "0"
+
+
+def parse_color_mask(text: str) -> frozenset[str]:
+    """``"0"`` → empty set, ``"rgb"`` → {R, G, B}; ValueError on anything else."""
+    word = str(text).strip().upper()
+    if word == "0":
+        return frozenset()
+    if not word or any(c not in CHANNELS for c in word) or len(set(word)) != len(word):
+        raise ValueError(f"bad ColorMask {text!r} (expected 0 or a subset of RGBA)")
+    return frozenset(word)
+
+
+@dataclass(frozen=True)
+class Pass:
+    """One ``Pass { ... }``: the fixed-function state of one draw call (SPEC §3)."""
+
+    name: str = "Pass"
+    cull: Cull = Cull.Back
+    zwrite: bool = True
+    ztest: CompareFunction = CompareFunction.LEqual
+    blend: bool = False
+    src_blend: BlendFactor = BlendFactor.One
+    dst_blend: BlendFactor = BlendFactor.Zero
+    blend_op: BlendOp = BlendOp.Add
+    separate_alpha: bool = False
+    src_blend_alpha: BlendFactor = BlendFactor.One
+    dst_blend_alpha: BlendFactor = BlendFactor.Zero
+    blend_op_alpha: BlendOp = BlendOp.Add
+    color_mask: frozenset[str] = ALL_CHANNELS
+    offset_factor: float = 0.0
+    offset_units: float = 0.0
+    alpha_test: bool = False
+    stencil: bool = False
+    stencil_ref: int = 0
+    stencil_read_mask: int = 255
+    stencil_write_mask: int = 255
+    stencil_comp: CompareFunction = CompareFunction.Always
+    stencil_pass: StencilOp = StencilOp.Keep
+    stencil_fail: StencilOp = StencilOp.Keep
+    stencil_zfail: StencilOp = StencilOp.Keep
+
+    def __post_init__(self) -> None:
+        if self.ztest is CompareFunction.Never:
+            raise ValueError("ZTest Never does not exist in ShaderLab")
+        for name in ("stencil_ref", "stencil_read_mask", "stencil_write_mask"):
+            value = getattr(self, name)
+            if not (isinstance(value, int) and 0 <= value <= 255):
+                raise ValueError(f"{name} must be an integer 0..255, got {value!r}")
+        object.__setattr__(self, "color_mask", frozenset(self.color_mask))
+        if not self.color_mask <= ALL_CHANNELS:
+            raise ValueError(f"color_mask must be a subset of RGBA, got {sorted(self.color_mask)}")
+
+    # The effective alpha blend state (separate or the colour one).
+    @property
+    def alpha_factors(self) -> tuple[BlendFactor, BlendFactor, BlendOp]:
+        if self.separate_alpha:
+            return self.src_blend_alpha, self.dst_blend_alpha, self.blend_op_alpha
+        return self.src_blend, self.dst_blend, self.blend_op
+
+    def shaderlab(self) -> str:
+        """One-line ShaderLab preview, e.g. ``Cull Off ZWrite Off Blend SrcAlpha OneMinusSrcAlpha``."""
+        words = [f"Cull {self.cull}", f"ZWrite {'On' if self.zwrite else 'Off'}", f"ZTest {self.ztest}"]
+        if not self.blend:
+            words.append("Blend Off")
+        else:
+            blend = f"Blend {self.src_blend} {self.dst_blend}"
+            if self.separate_alpha:
+                blend += f", {self.src_blend_alpha} {self.dst_blend_alpha}"
+            words.append(blend)
+            ops = (self.blend_op, self.blend_op_alpha if self.separate_alpha else self.blend_op)
+            if ops != (BlendOp.Add, BlendOp.Add):
+                words.append(f"BlendOp {ops[0]}" + (f", {ops[1]}" if ops[1] != ops[0] else ""))
+        if self.color_mask != ALL_CHANNELS:
+            words.append(f"ColorMask {color_mask_text(self.color_mask)}")
+        if self.offset_factor or self.offset_units:
+            words.append(f"Offset {self.offset_factor:g}, {self.offset_units:g}")
+        if self.alpha_test:
+            words.append("clip(a - _Cutoff)")
+        if self.stencil:
+            words.append(
+                f"Stencil {{ Ref {self.stencil_ref} ReadMask {self.stencil_read_mask} "
+                f"WriteMask {self.stencil_write_mask} Comp {self.stencil_comp} Pass {self.stencil_pass} "
+                f"Fail {self.stencil_fail} ZFail {self.stencil_zfail} }}"
+            )
+        return " ".join(words)
+
+
+@dataclass(frozen=True, eq=False)
+class Texture:
+    """An image for ``_MainTex``.
+
+    ``pixels``: numpy array (H, W, 4) float32, straight (not premultiplied)
+    alpha, row 0 = the bottom of the image (v = 0), as Blender and OpenGL store
+    it. ``encoding`` says what the RGB values are: ``"sRGB"`` (encoded values,
+    e.g. a Blender byte image), ``"Linear"`` (linear values of a colour image,
+    e.g. a Blender float image) or ``"Data"`` (non-colour: never converted).
+    ``missing`` marks a stand-in for an image file that could not be read.
+    """
+
+    pixels: Any
+    encoding: str = "sRGB"
+    name: str = ""
+    missing: bool = False
+
+    def __post_init__(self) -> None:
+        if self.encoding not in ("sRGB", "Linear", "Data"):
+            raise ValueError(f"texture {self.name!r}: encoding must be sRGB, Linear or Data")
+        shape = getattr(self.pixels, "shape", None)
+        if shape is None or len(shape) != 3 or shape[2] != 4 or shape[0] < 1 or shape[1] < 1:
+            raise ValueError(f"texture {self.name!r}: pixels must be an (H>=1, W>=1, 4) array, got shape {shape}")
+
+
+@dataclass(frozen=True)
+class Material:
+    """The Unity material of SPEC §3 (``Material.unity``), resolved for rendering.
+
+    ``color`` is ``_Color`` as authored (COLOR_GAMMA: sRGB-encoded values).
+    ``passes`` are drawn in order; an empty tuple means one default pass.
+    """
+
+    name: str = "Material"
+    queue: Queue = Queue.Geometry
+    queue_offset: int = 0
+    color: tuple[float, float, float, float] = (1.0, 1.0, 1.0, 1.0)
+    main_tex: Texture | None = None
+    main_tex_tiling: tuple[float, float] = (1.0, 1.0)
+    main_tex_offset: tuple[float, float] = (0.0, 0.0)
+    main_tex_filter: TextureFilter = TextureFilter.Bilinear
+    main_tex_wrap: TextureWrap = TextureWrap.Repeat
+    alpha_scale: float = 1.0
+    cutoff: float = 0.5
+    lighting: Lighting = Lighting.Lambert
+    passes: tuple[Pass, ...] = field(default_factory=lambda: (Pass(),))
+
+    @property
+    def render_queue(self) -> int:
+        """The queue number, e.g. 3001 for ``"Transparent+1"``."""
+        return self.queue.number + int(self.queue_offset)
+
+    @property
+    def draw_passes(self) -> tuple[Pass, ...]:
+        return self.passes or (Pass(),)
+
+
+def queue_text(queue: Queue, offset: int) -> str:
+    """``"Transparent"``, ``"Transparent+1"``, ``"Geometry-10"``."""
+    if offset == 0:
+        return queue.value
+    return f"{queue.value}{offset:+d}"
+
+
+def pass_to_dict(p: Pass) -> dict[str, Any]:
+    """JSON-ready dict with SPEC §3 names; enums as identifiers, color_mask as a sorted RGBA list."""
+    out: dict[str, Any] = {}
+    for f in fields(p):
+        value = getattr(p, f.name)
+        if isinstance(value, Enum):
+            value = value.value
+        elif f.name == "color_mask":
+            value = [c for c in CHANNELS if c in value]
+        out[f.name] = value
+    return out
+
+
+_PASS_ENUMS = {f.name: f.type for f in fields(Pass)}
+
+
+def pass_from_dict(data: dict[str, Any]) -> Pass:
+    """Inverse of :func:`pass_to_dict`; unknown keys raise ValueError."""
+    kwargs: dict[str, Any] = {}
+    defaults = Pass()
+    for key, value in data.items():
+        if key not in _PASS_ENUMS:
+            raise ValueError(f"unknown pass property {key!r}")
+        default = getattr(defaults, key)
+        if isinstance(default, Enum):
+            value = type(default).parse(value)
+        elif key == "color_mask":
+            value = frozenset(value)
+        kwargs[key] = value
+    return replace(defaults, **kwargs)
+
+
+#: Pass-state presets of the tutorials; the add-on's presets menu and the tests use these.
+_BLEND = dict(blend=True, zwrite=False)
+PASS_PRESETS: dict[str, dict[str, Any]] = {
+    "Opaque": dict(queue=Queue.Geometry, passes=[dict()]),
+    "Alpha Test": dict(queue=Queue.AlphaTest, passes=[dict(alpha_test=True)]),
+    "Alpha Test Both Sided": dict(queue=Queue.AlphaTest, passes=[dict(alpha_test=True, cull=Cull.Off)]),
+    "Alpha Blend": dict(
+        queue=Queue.Transparent,
+        passes=[dict(**_BLEND, src_blend=BlendFactor.SrcAlpha, dst_blend=BlendFactor.OneMinusSrcAlpha)],
+    ),
+    "Alpha Blend ZWrite": dict(
+        queue=Queue.Transparent,
+        passes=[
+            dict(name="Depth Prepass", zwrite=True, color_mask=frozenset()),
+            dict(name="Blend", **_BLEND, src_blend=BlendFactor.SrcAlpha, dst_blend=BlendFactor.OneMinusSrcAlpha),
+        ],
+    ),
+    "Alpha Blend Both Sided": dict(
+        queue=Queue.Transparent,
+        passes=[
+            dict(name="Back Faces", cull=Cull.Front, **_BLEND,
+                 src_blend=BlendFactor.SrcAlpha, dst_blend=BlendFactor.OneMinusSrcAlpha),
+            dict(name="Front Faces", cull=Cull.Back, **_BLEND,
+                 src_blend=BlendFactor.SrcAlpha, dst_blend=BlendFactor.OneMinusSrcAlpha),
+        ],
+    ),
+    "Premultiplied": dict(
+        queue=Queue.Transparent,
+        passes=[dict(**_BLEND, src_blend=BlendFactor.One, dst_blend=BlendFactor.OneMinusSrcAlpha)],
+    ),
+    "Additive": dict(queue=Queue.Transparent, passes=[dict(**_BLEND, src_blend=BlendFactor.One, dst_blend=BlendFactor.One)]),
+    "Soft Additive": dict(
+        queue=Queue.Transparent,
+        passes=[dict(**_BLEND, src_blend=BlendFactor.OneMinusDstColor, dst_blend=BlendFactor.One)],
+    ),
+    "Multiply": dict(
+        queue=Queue.Transparent,
+        passes=[dict(**_BLEND, src_blend=BlendFactor.DstColor, dst_blend=BlendFactor.Zero)],
+    ),
+    "2x Multiply": dict(
+        queue=Queue.Transparent,
+        passes=[dict(**_BLEND, src_blend=BlendFactor.DstColor, dst_blend=BlendFactor.SrcColor)],
+    ),
+    "Darken": dict(
+        queue=Queue.Transparent,
+        passes=[dict(**_BLEND, src_blend=BlendFactor.One, dst_blend=BlendFactor.One, blend_op=BlendOp.Min)],
+    ),
+    "Lighten": dict(
+        queue=Queue.Transparent,
+        passes=[dict(**_BLEND, src_blend=BlendFactor.One, dst_blend=BlendFactor.One, blend_op=BlendOp.Max)],
+    ),
+    "Screen": dict(
+        queue=Queue.Transparent,
+        passes=[dict(**_BLEND, src_blend=BlendFactor.One, dst_blend=BlendFactor.OneMinusSrcColor)],
+    ),
+    "Linear Dodge": dict(
+        queue=Queue.Transparent,
+        passes=[dict(**_BLEND, src_blend=BlendFactor.One, dst_blend=BlendFactor.One)],
+    ),
+}
+# The book writes Screen as "Blend OneMinusDstColor One" "or equivalently" "Blend One OneMinusSrcColor";
+# we use the second spelling so Screen differs from Soft Additive. Linear Dodge is "Blend One One",
+# the same state as Additive: the book's catalogue lists them apart, so the presets do too.
+
+
+def preset(name: str) -> tuple[Queue, tuple[Pass, ...]]:
+    """The queue and passes of a named preset from :data:`PASS_PRESETS`."""
+    spec = PASS_PRESETS[name]
+    return spec["queue"], tuple(Pass(**p) for p in spec["passes"])
