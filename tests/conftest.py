@@ -1,0 +1,19 @@
+"""Test set-up shared by every test module.
+
+Blender and Mesa write caches and configuration under HOME and XDG_*: point them at a
+throw-away folder before anything imports bpy or creates a GL context.
+"""
+
+import os
+import sys
+import tempfile
+from pathlib import Path
+
+_SANDBOX = Path(tempfile.mkdtemp(prefix="unity-passes-tests-"))
+for _var in ("HOME", "XDG_CACHE_HOME", "XDG_CONFIG_HOME", "XDG_DATA_HOME"):
+    os.environ[_var] = str(_SANDBOX / _var.lower())
+    Path(os.environ[_var]).mkdir(parents=True, exist_ok=True)
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+if str(REPO_ROOT) not in sys.path:
+    sys.path.insert(0, str(REPO_ROOT))
