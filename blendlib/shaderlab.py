@@ -13,11 +13,11 @@ This module knows nothing of Blender and nothing of numpy.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields, replace
-from enum import Enum
+from enum import Enum, StrEnum
 from typing import Any
 
 
-class _Named(str, Enum):
+class _Named(StrEnum):
     """A string enum whose value is its ShaderLab spelling."""
 
     def __str__(self) -> str:  # so f"{Cull.Off}" reads "Off"
@@ -363,7 +363,10 @@ PASS_PRESETS: dict[str, dict[str, Any]] = {
         queue=Queue.Transparent,
         passes=[dict(**_BLEND, src_blend=BlendFactor.One, dst_blend=BlendFactor.OneMinusSrcAlpha)],
     ),
-    "Additive": dict(queue=Queue.Transparent, passes=[dict(**_BLEND, src_blend=BlendFactor.One, dst_blend=BlendFactor.One)]),
+    "Additive": dict(
+        queue=Queue.Transparent,
+        passes=[dict(**_BLEND, src_blend=BlendFactor.One, dst_blend=BlendFactor.One)],
+    ),
     "Soft Additive": dict(
         queue=Queue.Transparent,
         passes=[dict(**_BLEND, src_blend=BlendFactor.OneMinusDstColor, dst_blend=BlendFactor.One)],

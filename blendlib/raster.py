@@ -1,0 +1,448 @@
+"""Vertex → clip → raster stages (docs/pipeline.md §1–§6), vectorised numpy.
+
+- :func:`setup_triangles`: a renderer's mesh → :class:`TriangleSetup` (clip-space
+  transform, near/far/guard-band clipping, snapping to 1/256 pixel, areas). Done
+  once per renderer and shared by its passes.
+- :func:`coverage_rows`: the triangles a pass draws → per-row candidate spans.
+- :func:`rasterize_rows`: a slice of those rows → :class:`Fragments` (exact integer
+  top-left coverage), in draw order.
+- :func:`interpolate`: fragments → 24-bit depth and perspective-correct weights.
+
+Work is proportional to covered pixels plus rows (spans), not to bounding boxes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .scene import Camera, Mesh
+from .shaderlab import Cull
+
+SUBPIXEL = 256
+HALF = SUBPIXEL // 2
+GUARD_BAND = 4.0
+DEPTH_MAX = 2**24 - 1
+_MAX_POLY = 3 + 6  # a triangle clipped by six planes has at most nine vertices
+
+
+def matmul4(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """4x4 product with the explicit left-to-right sums of docs/pipeline.md §1 (float64)."""
+    a = [[float(v) for v in row] for row in np.asarray(a, dtype=np.float64)]
+    b = [[float(v) for v in row] for row in np.asarray(b, dtype=np.float64)]
+    out = [[((a[i][0] * b[0][j] + a[i][1] * b[1][j]) + a[i][2] * b[2][j]) + a[i][3] * b[3][j]
+            for j in range(4)] for i in range(4)]
+    return np.array(out, dtype=np.float64)
+
+
+def normal_matrix(matrix_world: np.ndarray) -> tuple[np.ndarray, float]:
+    """Sign-corrected cofactor matrix of the upper 3x3 and its determinant (docs/pipeline.md §1)."""
+    m = [[float(v) for v in row[:3]] for row in np.asarray(matrix_world, dtype=np.float64)[:3]]
+    c = [[m[(i + 1) % 3][(j + 1) % 3] * m[(i + 2) % 3][(j + 2) % 3]
+          - m[(i + 1) % 3][(j + 2) % 3] * m[(i + 2) % 3][(j + 1) % 3] for j in range(3)] for i in range(3)]
+    det = (m[0][0] * c[0][0] + m[0][1] * c[0][1]) + m[0][2] * c[0][2]
+    if det < 0:
+        c = [[-v for v in row] for row in c]
+    return np.array(c, dtype=np.float64), det
+
+
+def _affine_rows(m: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray, rows: int) -> list[np.ndarray]:
+    """``((m[i,0]*x + m[i,1]*y) + m[i,2]*z) + m[i,3]`` for i < rows (m[i,3] omitted when m has 3 columns)."""
+    out = []
+    for i in range(rows):
+        v = (m[i, 0] * x + m[i, 1] * y) + m[i, 2] * z
+        if m.shape[1] == 4:
+            v = v + m[i, 3]
+        out.append(v)
+    return out
+
+
+@dataclass(eq=False)
+class TriangleSetup:
+    """Screen-space triangles of one renderer, after clipping, in draw order.
+
+    n triangles; all arrays indexed by triangle:
+    - ``X``, ``Y`` (n, 3) int64: snapped window positions in 1/256 pixel, y up.
+    - ``zw`` (n, 3) float64 window depth; ``iw`` (n, 3) float64 ``1/w``.
+    - ``area2`` (n,) int64 twice the signed area (> 0: counter-clockwise).
+    - ``src`` (n,) int64: index of the mesh triangle it came from.
+    - ``weights`` (n, 3, 3) float64 or None: original-triangle weights of each
+      vertex for clipped triangles (row k = vertex k); None when nothing was clipped.
+    - ``clipped`` (n,) bool.
+    - ``front`` (n,) bool: the triangle shows its front side.
+    - ``world_normals`` (T, 3, 3) float64 per source-triangle corner.
+    """
+
+    X: np.ndarray
+    Y: np.ndarray
+    zw: np.ndarray
+    iw: np.ndarray
+    area2: np.ndarray
+    src: np.ndarray
+    weights: np.ndarray | None
+    clipped: np.ndarray
+    front: np.ndarray
+    world_normals: np.ndarray
+    uvs: np.ndarray | None
+    skipped_nonfinite: int = 0
+    degenerate: int = 0
+    _slope: np.ndarray | None = None
+
+    @property
+    def count(self) -> int:
+        return int(self.src.shape[0])
+
+    def slope(self) -> np.ndarray:
+        """(n,) float64 ``max(|dz/dx|, |dz/dy|)`` in window units (polygon offset, §5)."""
+        if self._slope is None:
+            x = self.X.astype(np.float64) / SUBPIXEL
+            y = self.Y.astype(np.float64) / SUBPIXEL
+            z = self.zw
+            a = (x[:, 1] - x[:, 0]) * (y[:, 2] - y[:, 0]) - (x[:, 2] - x[:, 0]) * (y[:, 1] - y[:, 0])
+            with np.errstate(divide="ignore", invalid="ignore"):
+                dzdx = ((z[:, 1] - z[:, 0]) * (y[:, 2] - y[:, 0]) - (z[:, 2] - z[:, 0]) * (y[:, 1] - y[:, 0])) / a
+                dzdy = ((z[:, 2] - z[:, 0]) * (x[:, 1] - x[:, 0]) - (z[:, 1] - z[:, 0]) * (x[:, 2] - x[:, 0])) / a
+            self._slope = np.maximum(np.abs(dzdx), np.abs(dzdy))
+        return self._slope
+
+
+def _plane_distance(v: np.ndarray, plane: int) -> np.ndarray:
+    """Signed distance of clip-space vertices ``v[..., 0:4]`` to clip plane ``plane`` (§2 order)."""
+    x, y, z, w = v[..., 0], v[..., 1], v[..., 2], v[..., 3]
+    if plane == 0:
+        return z + w
+    if plane == 1:
+        return w - z
+    g = GUARD_BAND * w
+    return (g - x, g + x, g - y, g + y)[plane - 2]
+
+
+def _clip_polygons(tri: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Sutherland–Hodgman over the six planes for m triangles carrying 7 values per vertex.
+
+    ``tri`` (m, 3, 7) float64 (x, y, z, w, B0, B1, B2) → polygons (m, 9, 7), counts (m,).
+    """
+    m = tri.shape[0]
+    poly = np.zeros((m, _MAX_POLY, 7), dtype=np.float64)
+    poly[:, :3] = tri
+    count = np.full(m, 3, dtype=np.int64)
+    slots = np.arange(_MAX_POLY)
+    for plane in range(6):
+        d = _plane_distance(poly, plane)  # (m, K)
+        valid = slots[None, :] < count[:, None]
+        nxt = np.where(slots[None, :] + 1 < count[:, None], slots[None, :] + 1, 0)
+        b = np.take_along_axis(poly, nxt[:, :, None], axis=1)
+        db = np.take_along_axis(d, nxt, axis=1)
+        a_in = d >= 0
+        b_in = db >= 0
+        emit_a = valid & a_in
+        emit_i = valid & (a_in != b_in)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = d / (d - db)
+        inter = poly + t[:, :, None] * (b - poly)
+        cand = np.empty((m, 2 * _MAX_POLY, 7), dtype=np.float64)
+        cand[:, 0::2] = poly
+        cand[:, 1::2] = inter
+        flags = np.empty((m, 2 * _MAX_POLY), dtype=bool)
+        flags[:, 0::2] = emit_a
+        flags[:, 1::2] = emit_i
+        pos = np.cumsum(flags, axis=1) - 1
+        count = flags.sum(axis=1)
+        if np.any(count > _MAX_POLY):  # cannot happen for convex input; guard against float surprises
+            raise AssertionError("clipped polygon exceeds nine vertices")
+        out = np.zeros_like(poly)
+        rows, cols = np.nonzero(flags)
+        out[rows, pos[rows, cols]] = cand[rows, cols]
+        poly = out
+    return poly, count
+
+
+def _to_window(clip: np.ndarray, camera: Camera) -> tuple[np.ndarray, ...]:
+    """Clip coordinates (..., 4) → X, Y (int64 1/256 px), zw, iw (float64), finite mask."""
+    x, y, z, w = clip[..., 0], clip[..., 1], clip[..., 2], clip[..., 3]
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        iw = 1.0 / w
+        xw = (x * iw * 0.5 + 0.5) * camera.width
+        yw = (y * iw * 0.5 + 0.5) * camera.height
+        zw = z * iw * 0.5 + 0.5
+        fx = np.floor(xw * SUBPIXEL + 0.5)
+        fy = np.floor(yw * SUBPIXEL + 0.5)
+    finite = np.isfinite(fx) & np.isfinite(fy) & np.isfinite(zw) & np.isfinite(iw)
+    fx = np.where(finite, fx, 0.0)
+    fy = np.where(finite, fy, 0.0)
+    return fx.astype(np.int64), fy.astype(np.int64), zw, iw, finite
+
+
+def setup_triangles(mesh: Mesh, matrix_world: np.ndarray, camera: Camera) -> TriangleSetup:
+    """Vertex stage, clipping, viewport and snapping for one renderer (docs/pipeline.md §1–§4)."""
+    mv = matmul4(camera.view_matrix, matrix_world)
+    mvp = matmul4(camera.projection, mv)
+    nmat, det = normal_matrix(matrix_world)
+
+    pos = np.asarray(mesh.positions, dtype=np.float64)
+    tris = np.asarray(mesh.triangles, dtype=np.int64)
+    t_count = tris.shape[0]
+    px, py, pz = pos[:, 0], pos[:, 1], pos[:, 2]
+    clip_v = np.stack(_affine_rows(mvp, px, py, pz, 4), axis=-1) if pos.shape[0] else np.zeros((0, 4))
+
+    normals = np.asarray(mesh.normals, dtype=np.float64).reshape(t_count, 3, 3)
+    wn = _affine_rows(nmat, normals[..., 0], normals[..., 1], normals[..., 2], 3)
+    world_normals = np.stack(wn, axis=-1) if t_count else np.zeros((0, 3, 3))
+    uvs = None if mesh.uvs is None else np.asarray(mesh.uvs, dtype=np.float64).reshape(t_count, 3, 2)
+
+    clip = clip_v[tris] if t_count else np.zeros((0, 3, 4))  # (T, 3, 4)
+    finite = np.all(np.isfinite(clip), axis=(1, 2))
+    skipped = int(t_count - np.count_nonzero(finite))
+
+    # Object-space degenerate triangles (zero area) are reported; they draw nothing.
+    p = pos[tris] if t_count else np.zeros((0, 3, 3))
+    e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+    cross = np.cross(e1, e2) if t_count else np.zeros((0, 3))
+    degenerate = int(np.count_nonzero(finite & ~np.any(cross != 0, axis=1)))
+
+    dist = np.stack([_plane_distance(clip, k) for k in range(6)], axis=-1) if t_count else np.zeros((0, 3, 6))
+    inside = dist >= 0  # (T, 3, 6)
+    keep_whole = finite & np.all(inside, axis=(1, 2))
+    dropped = ~finite | np.any(~np.any(inside, axis=1), axis=1)
+    to_clip = ~keep_whole & ~dropped
+
+    whole = np.nonzero(keep_whole)[0]
+    # Unclipped triangles: window coordinates per vertex, gathered per corner.
+    X, Y, zw, iw, ok = _to_window(clip[whole], camera)
+    good = np.all(ok, axis=1)
+    whole, X, Y, zw, iw = whole[good], X[good], Y[good], zw[good], iw[good]
+    parts = [(whole, X, Y, zw, iw, None)]
+
+    clip_idx = np.nonzero(to_clip)[0]
+    if clip_idx.size:
+        carried = np.zeros((clip_idx.size, 3, 7), dtype=np.float64)
+        carried[:, :, :4] = clip[clip_idx]
+        carried[:, :, 4:] = np.eye(3)[None]
+        poly, count = _clip_polygons(carried)
+        fan_src, fan_verts = [], []
+        for j in range(1, _MAX_POLY - 1):  # fan triangles (v0, vj, vj+1), at most seven per polygon
+            has = count >= j + 2
+            if not np.any(has):
+                break
+            rows = np.nonzero(has)[0]
+            fan_src.append(np.stack([rows, np.full(rows.size, j)], axis=1))
+            fan_verts.append(np.stack([poly[rows, 0], poly[rows, j], poly[rows, j + 1]], axis=1))
+        if fan_src:
+            fs = np.concatenate(fan_src)
+            fv = np.concatenate(fan_verts)
+            order = np.lexsort((fs[:, 1], fs[:, 0]))  # by polygon, then fan position
+            fs, fv = fs[order], fv[order]
+            cX, cY, czw, ciw, cok = _to_window(fv[:, :, :4], camera)
+            cgood = np.all(cok, axis=1)
+            parts.append((clip_idx[fs[cgood, 0]], cX[cgood], cY[cgood], czw[cgood], ciw[cgood], fv[cgood, :, 4:]))
+
+    src = np.concatenate([q[0] for q in parts]).astype(np.int64)
+    order = np.argsort(src, kind="stable")
+    src = src[order]
+    X = np.concatenate([q[1] for q in parts])[order]
+    Y = np.concatenate([q[2] for q in parts])[order]
+    zw = np.concatenate([q[3] for q in parts])[order]
+    iw = np.concatenate([q[4] for q in parts])[order]
+    clipped = np.concatenate([np.zeros(parts[0][0].size, bool)] + [np.ones(q[0].size, bool) for q in parts[1:]])
+    clipped = clipped[order]
+    weights = None
+    if len(parts) > 1:
+        weights = np.concatenate([np.broadcast_to(np.eye(3), (parts[0][0].size, 3, 3))] + [q[5] for q in parts[1:]])
+        weights = np.ascontiguousarray(weights[order])
+
+    area2 = (X[:, 1] - X[:, 0]) * (Y[:, 2] - Y[:, 0]) - (X[:, 2] - X[:, 0]) * (Y[:, 1] - Y[:, 0])
+    nonzero = area2 != 0
+    if not np.all(nonzero):
+        X, Y, zw, iw, src, clipped, area2 = (a[nonzero] for a in (X, Y, zw, iw, src, clipped, area2))
+        if weights is not None:
+            weights = weights[nonzero]
+    front = (area2 > 0) if det >= 0 else (area2 < 0)
+    return TriangleSetup(
+        X=X, Y=Y, zw=zw, iw=iw, area2=area2, src=src, weights=weights, clipped=clipped, front=front,
+        world_normals=world_normals, uvs=uvs, skipped_nonfinite=skipped, degenerate=degenerate,
+    )
+
+
+def cull_select(setup: TriangleSetup, cull: Cull) -> np.ndarray:
+    """Indices (int64) of the setup's triangles that a pass with ``cull`` draws, in draw order."""
+    if cull is Cull.Off:
+        return np.arange(setup.count, dtype=np.int64)
+    keep = setup.front if cull is Cull.Back else ~setup.front
+    return np.nonzero(keep)[0].astype(np.int64)
+
+
+@dataclass(eq=False)
+class Rows:
+    """Candidate spans of a pass: one entry per (triangle, pixel row), in draw order.
+
+    ``tri`` (R,) int64 setup index; ``y`` (R,) int64 pixel row (from the bottom);
+    ``x0`` (R,) int64 first candidate column; ``length`` (R,) int64 candidates;
+    ``c`` (R, 3) int64 and ``dy`` (R, 3) int64: edge function ``E_k = c_k - dy_k*Px``
+    for counter-clockwise edges (b→c, c→a, a→b); ``bias`` (R, 3) int64: 0 for top-left
+    edges, else 1 (covered when ``E_k >= bias_k``); ``swap`` (R,) bool: the triangle
+    was clockwise and its coverage order is (v0, v2, v1); ``area`` (R,) int64 |area2|.
+    """
+
+    tri: np.ndarray
+    y: np.ndarray
+    x0: np.ndarray
+    length: np.ndarray
+    c: np.ndarray
+    dy: np.ndarray
+    bias: np.ndarray
+    swap: np.ndarray
+    area: np.ndarray
+
+    @property
+    def count(self) -> int:
+        return int(self.tri.shape[0])
+
+
+def _ceil_div(a: np.ndarray, b: int) -> np.ndarray:
+    return -((-a) // b)
+
+
+def coverage_rows(setup: TriangleSetup, selected: np.ndarray, width: int, height: int) -> Rows:
+    """Per-row candidate spans for the selected triangles (exactness comes in :func:`rasterize_rows`)."""
+    X, Y = setup.X[selected], setup.Y[selected]
+    swap = setup.area2[selected] < 0
+    # Counter-clockwise vertex order (a, b, c) = (v0, v1, v2), or (v0, v2, v1) when clockwise.
+    ax, ay = X[:, 0], Y[:, 0]
+    bx = np.where(swap, X[:, 2], X[:, 1])
+    by = np.where(swap, Y[:, 2], Y[:, 1])
+    cx = np.where(swap, X[:, 1], X[:, 2])
+    cy = np.where(swap, Y[:, 1], Y[:, 2])
+    x_lo = np.maximum(_ceil_div(np.minimum(np.minimum(ax, bx), cx) - HALF, SUBPIXEL), 0)
+    x_hi = np.minimum((np.maximum(np.maximum(ax, bx), cx) - HALF) // SUBPIXEL, width - 1)
+    y_lo = np.maximum(_ceil_div(np.minimum(np.minimum(ay, by), cy) - HALF, SUBPIXEL), 0)
+    y_hi = np.minimum((np.maximum(np.maximum(ay, by), cy) - HALF) // SUBPIXEL, height - 1)
+    nrows = np.where((x_lo <= x_hi) & (y_lo <= y_hi), y_hi - y_lo + 1, 0)
+
+    local = np.repeat(np.arange(selected.size, dtype=np.int64), nrows)
+    starts = np.cumsum(nrows) - nrows
+    y = y_lo[local] + (np.arange(local.size, dtype=np.int64) - starts[local])
+    py = y * SUBPIXEL + HALF
+
+    # Edges p -> q: b->c (opposite a), c->a (opposite b), a->b (opposite c).
+    edges = ((bx, by, cx, cy), (cx, cy, ax, ay), (ax, ay, bx, by))
+    c = np.empty((local.size, 3), dtype=np.int64)
+    dys = np.empty((local.size, 3), dtype=np.int64)
+    bias = np.empty((local.size, 3), dtype=np.int64)
+    lo_px = np.full(local.size, -np.inf)
+    hi_px = np.full(local.size, np.inf)
+    for k, (xp, yp, xq, yq) in enumerate(edges):
+        dx = (xq - xp)[local]
+        dy = (yq - yp)[local]
+        xp_r, yp_r = xp[local], yp[local]
+        ck = dx * (py - yp_r) + dy * xp_r  # E = ck - dy*Px
+        top_left = (dy < 0) | ((dy == 0) & (dx < 0))
+        bk = np.where(top_left, 0, 1)
+        c[:, k], dys[:, k], bias[:, k] = ck, dy, bk
+        with np.errstate(divide="ignore", invalid="ignore"):
+            bound = (ck - bk).astype(np.float64) / dy.astype(np.float64)
+        lo_px = np.where(dy < 0, np.maximum(lo_px, bound), lo_px)  # -dy*Px >= bk - ck
+        hi_px = np.where(dy > 0, np.minimum(hi_px, bound), hi_px)
+    # Float bounds, widened by a pixel each side; the integer test decides.
+    with np.errstate(invalid="ignore", over="ignore"):
+        lo_f = np.ceil((lo_px - HALF) / SUBPIXEL) - 1
+        hi_f = np.floor((hi_px - HALF) / SUBPIXEL) + 1
+    bx_lo, bx_hi = x_lo[local].astype(np.float64), x_hi[local].astype(np.float64)
+    lo_f = np.clip(np.nan_to_num(lo_f, nan=-np.inf), bx_lo, bx_hi + 1)
+    hi_f = np.clip(np.nan_to_num(hi_f, nan=np.inf), bx_lo - 1, bx_hi)
+    x0 = lo_f.astype(np.int64)
+    length = np.maximum(hi_f.astype(np.int64) - x0 + 1, 0)
+    area = np.abs(setup.area2[selected])[local]
+    return Rows(tri=selected[local], y=y, x0=x0, length=length, c=c, dy=dys, bias=bias, swap=swap[local], area=area)
+
+
+def row_chunks(rows: Rows, max_candidates: int) -> list[tuple[int, int]]:
+    """Split rows into consecutive ranges of at most ``max_candidates`` candidates (at least one row)."""
+    if rows.count == 0:
+        return []
+    ends = np.cumsum(rows.length)
+    total = int(ends[-1])
+    if total == 0:
+        return []
+    bounds = [0]
+    while bounds[-1] < rows.count:
+        start = bounds[-1]
+        base = int(ends[start - 1]) if start else 0
+        stop = int(np.searchsorted(ends, base + max_candidates, side="right"))
+        bounds.append(max(stop, start + 1))
+    return list(zip(bounds[:-1], bounds[1:], strict=True))
+
+
+@dataclass(eq=False)
+class Fragments:
+    """Covered pixels of a chunk, in draw order (fragments of one triangle hit distinct pixels).
+
+    ``pix`` (N,) int64 window pixel index ``y*W + x`` (y from the bottom);
+    ``tri`` (N,) int64 setup triangle index; ``bary`` (N, 3) float64 screen-space
+    barycentrics in the triangle's own vertex order.
+    """
+
+    pix: np.ndarray
+    tri: np.ndarray
+    bary: np.ndarray
+
+    @property
+    def count(self) -> int:
+        return int(self.pix.shape[0])
+
+
+def rasterize_rows(rows: Rows, start: int, stop: int, width: int) -> Fragments:
+    """Exact top-left coverage of rows ``[start, stop)`` (docs/pipeline.md §4)."""
+    length = rows.length[start:stop]
+    n = int(length.sum())
+    r = np.repeat(np.arange(start, stop, dtype=np.int64), length)
+    offsets = np.arange(n, dtype=np.int64) - np.repeat(np.cumsum(length) - length, length)
+    x = rows.x0[r] + offsets
+    px = x * SUBPIXEL + HALF
+    e = [rows.c[r, k] - rows.dy[r, k] * px for k in range(3)]
+    covered = (e[0] >= rows.bias[r, 0]) & (e[1] >= rows.bias[r, 1]) & (e[2] >= rows.bias[r, 2])
+    r = r[covered]
+    x = x[covered]
+    area = rows.area[r].astype(np.float64)
+    ea, eb, ec = (ek[covered].astype(np.float64) / area for ek in e)
+    swap = rows.swap[r]
+    bary = np.empty((r.size, 3), dtype=np.float64)
+    bary[:, 0] = ea
+    bary[:, 1] = np.where(swap, ec, eb)
+    bary[:, 2] = np.where(swap, eb, ec)
+    return Fragments(pix=rows.y[r] * width + x, tri=rows.tri[r], bary=bary)
+
+
+def interpolate(
+    setup: TriangleSetup, frags: Fragments, offset_factor: float = 0.0, offset_units: float = 0.0
+) -> tuple[np.ndarray, np.ndarray]:
+    """Depth and perspective-correct source-triangle weights of fragments (§5, §6).
+
+    Returns ``depth`` (N,) int64 in 0..2**24-1 and ``weights`` (N, 3) float64 — the
+    weights of the *source* mesh triangle's corners (clipping undone).
+    """
+    t = frags.tri
+    b0, b1, b2 = frags.bary[:, 0], frags.bary[:, 1], frags.bary[:, 2]
+    zw = setup.zw[t]
+    z = (b0 * zw[:, 0] + b1 * zw[:, 1]) + b2 * zw[:, 2]
+    if offset_factor != 0.0 or offset_units != 0.0:
+        z = z + (float(offset_factor) * setup.slope()[t] + float(offset_units) * 2.0**-24)
+    z = np.minimum(np.maximum(z, 0.0), 1.0)
+    depth = np.floor(z * DEPTH_MAX + 0.5).astype(np.int64)
+
+    iw = setup.iw[t]
+    t0, t1, t2 = b0 * iw[:, 0], b1 * iw[:, 1], b2 * iw[:, 2]
+    s = (t0 + t1) + t2
+    p = np.stack([t0 / s, t1 / s, t2 / s], axis=1)
+    if setup.weights is not None:
+        clipped = setup.clipped[t]
+        if np.any(clipped):
+            w = setup.weights[t[clipped]]  # (M, 3 vertices, 3 source corners)
+            pc = p[clipped]
+            p[clipped] = (pc[:, 0:1] * w[:, 0] + pc[:, 1:2] * w[:, 1]) + pc[:, 2:3] * w[:, 2]
+    return depth, p
+
+
+def interpolate_attribute(weights: np.ndarray, corners: np.ndarray) -> np.ndarray:
+    """``(o0*a0 + o1*a1) + o2*a2`` per component: weights (N, 3), corners (N, 3, C) → (N, C) float64."""
+    return (weights[:, 0:1] * corners[:, 0] + weights[:, 1:2] * corners[:, 1]) + weights[:, 2:3] * corners[:, 2]
