@@ -14,8 +14,9 @@ defaults of shared/SPEC.md §3.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -84,8 +85,8 @@ _FACTOR_DOC = "Blend factor"
 
 PASS_FIELDS: tuple[Field, ...] = (
     Field("name", "string", "Pass", "Name", "Pass name (ShaderLab Name \"...\"); for your reference only"),
-    Field("cull", "enum", "Back", "Cull", "Cull: which faces are not drawn (front = the side Blender's normal points to)",
-          enum=Cull),
+    Field("cull", "enum", "Back", "Cull",
+          "Cull: which faces are not drawn (front = the side Blender's normal points to)", enum=Cull),
     Field("zwrite", "bool", True, "ZWrite", "ZWrite On/Off: write the fragment depth to the depth buffer"),
     Field("ztest", "enum", "LEqual", "ZTest", "ZTest: depth comparison that a fragment must pass",
           enum=CompareFunction, enum_items=tuple(c for c in CompareFunction if c is not CompareFunction.Never)),
@@ -386,7 +387,8 @@ class _Extractor:
             mat = mats[slot] if slot < len(mats) else None
             if mat is None and len(arrays["triangles"]):
                 if mats:
-                    self.warnings.append(f"object {name!r} slot {slot}: empty material slot, using the default material")
+                    self.warnings.append(
+                        f"object {name!r} slot {slot}: empty material slot, using the default material")
             uvs = arrays["uvs"]
             sub = Mesh(
                 positions=positions,
