@@ -26,6 +26,8 @@ _COMPARE = {
     CompareFunction.NotEqual: np.not_equal,
 }
 _CHANNEL_INDEX = {"R": 0, "G": 1, "B": 2, "A": 3}
+#: float32(q / 255.0) for the 256 8-bit codes (the output value of an LDR code).
+_CODE_VALUES = (np.arange(256) / 255.0).astype(np.float32)
 
 
 def compare(func: CompareFunction, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -107,7 +109,7 @@ class FrameBuffers:
         if self.hdr:
             color = self.color.reshape(h, w, 4)[::-1].copy()
         else:
-            color = (self.color.reshape(h, w, 4)[::-1] / 255.0).astype(np.float32)
+            color = _CODE_VALUES[self.color.reshape(h, w, 4)[::-1]]
         depth = (self.depth.reshape(h, w)[::-1] / float(DEPTH_MAX)).astype(np.float32)
         stencil = self.stencil.reshape(h, w)[::-1].copy()
         return color, depth, stencil
@@ -202,30 +204,42 @@ def apply_layer(buf: FrameBuffers, p: Pass, pix: np.ndarray, depth: np.ndarray, 
         buf.color[pix[:, None], np.array(mask)[None, :]] = result[:, mask]
 
 
+#: Up to this many fragments per pixel, layers are peeled (one ``minimum.at`` per layer);
+#: deeper draw calls rank all fragments with one stable sort instead.
+PEEL_LAYERS = 8
+
+
 def merge(buf: FrameBuffers, p: Pass, pix: np.ndarray, depth: np.ndarray, rgba: np.ndarray) -> int:
     """Apply a chunk of fragments (in draw order) exactly as one-by-one; returns the layer count."""
     n = pix.shape[0]
     if n == 0:
         return 0
     lo = int(pix.min())
-    counts = np.bincount(pix - lo, minlength=int(pix.max()) - lo + 1)
-    shared = counts[pix - lo] > 1
-    if not np.any(shared):
+    local = pix - lo
+    counts = np.bincount(local, minlength=int(pix.max()) - lo + 1)
+    layers = int(counts.max())
+    if layers == 1:
         apply_layer(buf, p, pix, depth, rgba)
         return 1
-    alone = ~shared
-    if np.any(alone):
-        apply_layer(buf, p, pix[alone], depth[alone], rgba[alone])
-    idx = np.nonzero(shared)[0]
-    order = idx[np.argsort(pix[idx], kind="stable")]
-    sp = pix[order]
+    if layers <= PEEL_LAYERS:
+        # Layer k = the first remaining fragment of each pixel, found with an unbuffered minimum.
+        first = np.full(counts.size, n, dtype=np.int64)
+        remaining = np.arange(n, dtype=np.int64)
+        while remaining.size:
+            where = local[remaining]
+            np.minimum.at(first, where, remaining)
+            is_first = first[where] == remaining
+            sel = remaining[is_first]
+            apply_layer(buf, p, pix[sel], depth[sel], rgba[sel])
+            first[where] = n
+            remaining = remaining[~is_first]
+        return layers
+    order = np.argsort(local, kind="stable")
+    sp = local[order]
     starts = np.ones(sp.size, dtype=bool)
     starts[1:] = sp[1:] != sp[:-1]
-    first = np.maximum.accumulate(np.where(starts, np.arange(sp.size), 0))
-    rank = np.arange(sp.size) - first
-    layers = int(rank.max()) + 1
-    rank_dtype = np.int16 if layers < 2**15 else np.int64
-    by_rank = order[np.argsort(rank.astype(rank_dtype), kind="stable")]
+    rank = np.arange(sp.size) - np.maximum.accumulate(np.where(starts, np.arange(sp.size), 0))
+    by_rank = order[np.argsort(rank.astype(np.int32), kind="stable")]
     bounds = np.concatenate([[0], np.cumsum(np.bincount(rank, minlength=layers))])
     for k in range(layers):
         sel = by_rank[bounds[k]:bounds[k + 1]]

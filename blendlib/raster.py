@@ -191,33 +191,42 @@ def setup_triangles(mesh: Mesh, matrix_world: np.ndarray, camera: Camera) -> Tri
     world_normals = np.stack(wn, axis=-1) if t_count else np.zeros((0, 3, 3))
     uvs = None if mesh.uvs is None else np.asarray(mesh.uvs, dtype=np.float64).reshape(t_count, 3, 2)
 
-    clip = clip_v[tris] if t_count else np.zeros((0, 3, 4))  # (T, 3, 4)
-    finite = np.all(np.isfinite(clip), axis=(1, 2))
+    # Per-vertex work first (V <= 3T), gathered per corner afterwards.
+    finite_v = np.all(np.isfinite(clip_v), axis=1)
+    outcode_v = np.zeros(clip_v.shape[0], dtype=np.uint8)
+    for k in range(6):
+        outcode_v |= (_plane_distance(clip_v, k) < 0).astype(np.uint8) << np.uint8(k)
+    a, b, c = tris[:, 0], tris[:, 1], tris[:, 2]
+    finite = finite_v[a] & finite_v[b] & finite_v[c]
     skipped = int(t_count - np.count_nonzero(finite))
+    out_or = outcode_v[a] | outcode_v[b] | outcode_v[c]
+    out_and = outcode_v[a] & outcode_v[b] & outcode_v[c]
+    keep_whole = finite & (out_or == 0)
+    to_clip = finite & (out_or != 0) & (out_and == 0)
 
     # Object-space degenerate triangles (zero area) are reported; they draw nothing.
-    p = pos[tris] if t_count else np.zeros((0, 3, 3))
-    e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
-    cross = np.cross(e1, e2) if t_count else np.zeros((0, 3))
-    degenerate = int(np.count_nonzero(finite & ~np.any(cross != 0, axis=1)))
-
-    dist = np.stack([_plane_distance(clip, k) for k in range(6)], axis=-1) if t_count else np.zeros((0, 3, 6))
-    inside = dist >= 0  # (T, 3, 6)
-    keep_whole = finite & np.all(inside, axis=(1, 2))
-    dropped = ~finite | np.any(~np.any(inside, axis=1), axis=1)
-    to_clip = ~keep_whole & ~dropped
+    p32 = np.asarray(mesh.positions, dtype=np.float32)
+    e1 = p32[b] - p32[a]
+    e2 = p32[c] - p32[a]
+    cross_zero = ((e1[:, 1] * e2[:, 2] - e1[:, 2] * e2[:, 1]) == 0) & \
+                 ((e1[:, 2] * e2[:, 0] - e1[:, 0] * e2[:, 2]) == 0) & \
+                 ((e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]) == 0)
+    degenerate = int(np.count_nonzero(finite & cross_zero))
 
     whole = np.nonzero(keep_whole)[0]
     # Unclipped triangles: window coordinates per vertex, gathered per corner.
-    X, Y, zw, iw, ok = _to_window(clip[whole], camera)
-    good = np.all(ok, axis=1)
-    whole, X, Y, zw, iw = whole[good], X[good], Y[good], zw[good], iw[good]
+    Xv, Yv, zwv, iwv, okv = _to_window(clip_v, camera)
+    tw = tris[whole]
+    good = np.all(okv[tw], axis=1)
+    if not np.all(good):
+        whole, tw = whole[good], tw[good]
+    X, Y, zw, iw = Xv[tw], Yv[tw], zwv[tw], iwv[tw]
     parts = [(whole, X, Y, zw, iw, None)]
 
     clip_idx = np.nonzero(to_clip)[0]
     if clip_idx.size:
         carried = np.zeros((clip_idx.size, 3, 7), dtype=np.float64)
-        carried[:, :, :4] = clip[clip_idx]
+        carried[:, :, :4] = clip_v[tris[clip_idx]]
         carried[:, :, 4:] = np.eye(3)[None]
         poly, count = _clip_polygons(carried)
         fan_src, fan_verts = [], []
@@ -237,18 +246,21 @@ def setup_triangles(mesh: Mesh, matrix_world: np.ndarray, camera: Camera) -> Tri
             cgood = np.all(cok, axis=1)
             parts.append((clip_idx[fs[cgood, 0]], cX[cgood], cY[cgood], czw[cgood], ciw[cgood], fv[cgood, :, 4:]))
 
-    src = np.concatenate([q[0] for q in parts]).astype(np.int64)
-    order = np.argsort(src, kind="stable")
-    src = src[order]
-    X = np.concatenate([q[1] for q in parts])[order]
-    Y = np.concatenate([q[2] for q in parts])[order]
-    zw = np.concatenate([q[3] for q in parts])[order]
-    iw = np.concatenate([q[4] for q in parts])[order]
-    clipped = np.concatenate([np.zeros(parts[0][0].size, bool)] + [np.ones(q[0].size, bool) for q in parts[1:]])
-    clipped = clipped[order]
     weights = None
-    if len(parts) > 1:
-        weights = np.concatenate([np.broadcast_to(np.eye(3), (parts[0][0].size, 3, 3))] + [q[5] for q in parts[1:]])
+    if len(parts) == 1:  # nothing clipped: already in draw order
+        src = whole.astype(np.int64)
+        clipped = np.zeros(src.size, dtype=bool)
+    else:
+        src = np.concatenate([q[0] for q in parts]).astype(np.int64)
+        order = np.argsort(src, kind="stable")
+        src = src[order]
+        X = np.concatenate([q[1] for q in parts])[order]
+        Y = np.concatenate([q[2] for q in parts])[order]
+        zw = np.concatenate([q[3] for q in parts])[order]
+        iw = np.concatenate([q[4] for q in parts])[order]
+        clipped = np.concatenate([np.zeros(whole.size, bool)] + [np.ones(q[0].size, bool) for q in parts[1:]])
+        clipped = clipped[order]
+        weights = np.concatenate([np.broadcast_to(np.eye(3), (whole.size, 3, 3))] + [q[5] for q in parts[1:]])
         weights = np.ascontiguousarray(weights[order])
 
     area2 = (X[:, 1] - X[:, 0]) * (Y[:, 2] - Y[:, 0]) - (X[:, 2] - X[:, 0]) * (Y[:, 1] - Y[:, 0])
@@ -279,9 +291,10 @@ class Rows:
     ``tri`` (R,) int64 setup index; ``y`` (R,) int64 pixel row (from the bottom);
     ``x0`` (R,) int64 first candidate column; ``length`` (R,) int64 candidates;
     ``c`` (R, 3) int64 and ``dy`` (R, 3) int64: edge function ``E_k = c_k - dy_k*Px``
-    for counter-clockwise edges (b→c, c→a, a→b); ``bias`` (R, 3) int64: 0 for top-left
-    edges, else 1 (covered when ``E_k >= bias_k``); ``swap`` (R,) bool: the triangle
-    was clockwise and its coverage order is (v0, v2, v1); ``area`` (R,) int64 |area2|.
+    for counter-clockwise edges (b→c, c→a, a→b); the span ``[x0, x0 + length)`` is
+    exactly the covered pixels of the row (top-left rule applied in integers);
+    ``swap`` (R,) bool: the triangle was clockwise and its coverage order is
+    (v0, v2, v1); ``area`` (R,) int64 |area2|.
     """
 
     tri: np.ndarray
@@ -290,7 +303,6 @@ class Rows:
     length: np.ndarray
     c: np.ndarray
     dy: np.ndarray
-    bias: np.ndarray
     swap: np.ndarray
     area: np.ndarray
 
@@ -304,7 +316,7 @@ def _ceil_div(a: np.ndarray, b: int) -> np.ndarray:
 
 
 def coverage_rows(setup: TriangleSetup, selected: np.ndarray, width: int, height: int) -> Rows:
-    """Per-row candidate spans for the selected triangles (exactness comes in :func:`rasterize_rows`)."""
+    """Per-row spans of exactly the covered pixels of the selected triangles (docs/pipeline.md §4)."""
     X, Y = setup.X[selected], setup.Y[selected]
     swap = setup.area2[selected] < 0
     # Counter-clockwise vertex order (a, b, c) = (v0, v1, v2), or (v0, v2, v1) when clockwise.
@@ -328,32 +340,27 @@ def coverage_rows(setup: TriangleSetup, selected: np.ndarray, width: int, height
     edges = ((bx, by, cx, cy), (cx, cy, ax, ay), (ax, ay, bx, by))
     c = np.empty((local.size, 3), dtype=np.int64)
     dys = np.empty((local.size, 3), dtype=np.int64)
-    bias = np.empty((local.size, 3), dtype=np.int64)
-    lo_px = np.full(local.size, -np.inf)
-    hi_px = np.full(local.size, np.inf)
+    # Exact integer span per row: the pixel centres Px = x*S + S/2 with E_k(Px) >= bias_k for
+    # every edge, where E_k = c_k - dy_k*Px and bias_k = 0 on top-left edges, else 1. So
+    # dy_k*Px <= c_k - bias_k: an upper bound on Px when dy_k > 0, a lower bound when dy_k < 0,
+    # and all-or-nothing for horizontal edges.
+    x0 = x_lo[local].copy()
+    x1 = x_hi[local].copy()
     for k, (xp, yp, xq, yq) in enumerate(edges):
         dx = (xq - xp)[local]
         dy = (yq - yp)[local]
-        xp_r, yp_r = xp[local], yp[local]
-        ck = dx * (py - yp_r) + dy * xp_r  # E = ck - dy*Px
-        top_left = (dy < 0) | ((dy == 0) & (dx < 0))
-        bk = np.where(top_left, 0, 1)
-        c[:, k], dys[:, k], bias[:, k] = ck, dy, bk
-        with np.errstate(divide="ignore", invalid="ignore"):
-            bound = (ck - bk).astype(np.float64) / dy.astype(np.float64)
-        lo_px = np.where(dy < 0, np.maximum(lo_px, bound), lo_px)  # -dy*Px >= bk - ck
-        hi_px = np.where(dy > 0, np.minimum(hi_px, bound), hi_px)
-    # Float bounds, widened by a pixel each side; the integer test decides.
-    with np.errstate(invalid="ignore", over="ignore"):
-        lo_f = np.ceil((lo_px - HALF) / SUBPIXEL) - 1
-        hi_f = np.floor((hi_px - HALF) / SUBPIXEL) + 1
-    bx_lo, bx_hi = x_lo[local].astype(np.float64), x_hi[local].astype(np.float64)
-    lo_f = np.clip(np.nan_to_num(lo_f, nan=-np.inf), bx_lo, bx_hi + 1)
-    hi_f = np.clip(np.nan_to_num(hi_f, nan=np.inf), bx_lo - 1, bx_hi)
-    x0 = lo_f.astype(np.int64)
-    length = np.maximum(hi_f.astype(np.int64) - x0 + 1, 0)
+        ck = dx * (py - yp[local]) + dy * xp[local]
+        c[:, k], dys[:, k] = ck, dy
+        rhs = ck - np.where((dy < 0) | ((dy == 0) & (dx < 0)), 0, 1)
+        divisor = np.where(dy == 0, 1, dy)
+        p_min = -((-rhs) // divisor)  # ceil(rhs / dy): the smallest Px allowed when dy < 0
+        p_max = rhs // divisor  # floor(rhs / dy): the largest Px allowed when dy > 0
+        x0 = np.where(dy < 0, np.maximum(x0, _ceil_div(p_min - HALF, SUBPIXEL)), x0)
+        x1 = np.where(dy > 0, np.minimum(x1, (p_max - HALF) // SUBPIXEL), x1)
+        x1 = np.where((dy == 0) & (rhs < 0), x0 - 1, x1)
+    length = np.maximum(x1 - x0 + 1, 0)
     area = np.abs(setup.area2[selected])[local]
-    return Rows(tri=selected[local], y=y, x0=x0, length=length, c=c, dy=dys, bias=bias, swap=swap[local], area=area)
+    return Rows(tri=selected[local], y=y, x0=x0, length=length, c=c, dy=dys, swap=swap[local], area=area)
 
 
 def row_chunks(rows: Rows, max_candidates: int) -> list[tuple[int, int]]:
@@ -392,24 +399,24 @@ class Fragments:
 
 
 def rasterize_rows(rows: Rows, start: int, stop: int, width: int) -> Fragments:
-    """Exact top-left coverage of rows ``[start, stop)`` (docs/pipeline.md §4)."""
+    """The covered pixels of rows ``[start, stop)`` with their barycentrics (docs/pipeline.md §4)."""
     length = rows.length[start:stop]
     n = int(length.sum())
     r = np.repeat(np.arange(start, stop, dtype=np.int64), length)
     offsets = np.arange(n, dtype=np.int64) - np.repeat(np.cumsum(length) - length, length)
     x = rows.x0[r] + offsets
     px = x * SUBPIXEL + HALF
-    e = [rows.c[r, k] - rows.dy[r, k] * px for k in range(3)]
-    covered = (e[0] >= rows.bias[r, 0]) & (e[1] >= rows.bias[r, 1]) & (e[2] >= rows.bias[r, 2])
-    r = r[covered]
-    x = x[covered]
-    area = rows.area[r].astype(np.float64)
-    ea, eb, ec = (ek[covered].astype(np.float64) / area for ek in e)
+    area = rows.area[r]
+    ea = rows.c[r, 0] - rows.dy[r, 0] * px
+    eb = rows.c[r, 1] - rows.dy[r, 1] * px
+    ec = area - ea - eb  # the three edge functions sum to the doubled area
+    farea = area.astype(np.float64)
+    ba, bb, bc = ea / farea, eb / farea, ec / farea
     swap = rows.swap[r]
-    bary = np.empty((r.size, 3), dtype=np.float64)
-    bary[:, 0] = ea
-    bary[:, 1] = np.where(swap, ec, eb)
-    bary[:, 2] = np.where(swap, eb, ec)
+    bary = np.empty((n, 3), dtype=np.float64)
+    bary[:, 0] = ba
+    bary[:, 1] = np.where(swap, bc, bb)
+    bary[:, 2] = np.where(swap, bb, bc)
     return Fragments(pix=rows.y[r] * width + x, tri=rows.tri[r], bary=bary)
 
 
