@@ -1,0 +1,77 @@
+"""Unity Passes for Blender: the add-on.
+
+Registers ``Material.unity`` / ``Scene.unity``, the "Unity Material" and "Unity
+Camera" panels, the pass operators and presets, and the "Unity Passes" render
+engine (``UNITY_PASSES``). The renderer is the bpy-free :mod:`blendlib` package:
+on ``sys.path`` when run from the repository, installed from the wheel bundled
+in the extension zip otherwise (``scripts/build_extension.py``).
+
+``import addon; addon.register()`` works with the repository root on ``sys.path``;
+``register()`` and ``unregister()`` may each be called twice in a row.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+bl_info = {
+    "name": "Unity Passes",
+    "author": "Unity Passes for Blender contributors",
+    "version": (0, 1, 0),
+    "blender": (4, 2, 0),
+    "location": "Render Properties > Render Engine: Unity Passes; Material Properties > Unity Material",
+    "description": "Renders exactly what Unity's built-in pipeline draws for transparent and multi-pass materials",
+    "category": "Render",
+}
+
+_registered = False
+_optional_modules: list = []
+
+
+def _load_optional():
+    """Sibling modules written separately (ShaderLab import/export); absent ones are skipped."""
+    found = []
+    for name in ("shaderlab_ops",):
+        try:
+            found.append(importlib.import_module(f".{name}", __name__))
+        except ModuleNotFoundError as exc:
+            if exc.name != f"{__name__}.{name}":
+                raise
+    return found
+
+
+def register() -> None:
+    global _registered, _optional_modules
+    if _registered:
+        unregister()
+    import bpy
+
+    from . import engine, operators, properties, ui
+
+    properties.register()  # first: panels and operators use the properties
+    for cls in operators.CLASSES + ui.CLASSES:
+        bpy.utils.register_class(cls)
+    engine.register()
+    _optional_modules = _load_optional()
+    for module in _optional_modules:
+        module.register()
+    _registered = True
+
+
+def unregister() -> None:
+    global _registered, _optional_modules
+    if not _registered:
+        return
+    import bpy
+
+    from . import engine, operators, properties, ui
+
+    for module in reversed(_optional_modules):
+        module.unregister()
+    _optional_modules = []
+    engine.unregister()
+    for cls in reversed(operators.CLASSES + ui.CLASSES):
+        if getattr(cls, "is_registered", False):
+            bpy.utils.unregister_class(cls)
+    properties.unregister()
+    _registered = False

@@ -1,0 +1,115 @@
+"""The "Unity Passes" render engine (F12, Ctrl+F12, ``blender -b file.blend -E UNITY_PASSES -f 1``).
+
+Passes of the render result:
+- ``Combined``: the frame as linear RGB with alpha 1 — what a screen shows. Gamma mode and
+  Linear LDR store sRGB-encoded values; they are decoded here, so the Standard view
+  transform (no look, no dither) turns them back into exactly the stored 8-bit values.
+- ``UnityAlpha``: the frame's own alpha channel (e.g. the clear colour's alpha).
+- ``Depth``: the depth buffer as OpenGL window depth 0..1 (not Blender's camera distance).
+"""
+
+from __future__ import annotations
+
+import bpy
+import numpy as np
+
+from blendlib import bridge
+from blendlib.pipeline import RenderCancelled
+from blendlib.scene import SceneError
+
+ALPHA_PASS = "UnityAlpha"
+DEPTH_PASS = "Depth"
+
+
+def result_arrays(frame, encoded: bool) -> dict[str, np.ndarray]:
+    """Pass name → (H*W, channels) float32, bottom row first (Blender's order)."""
+    combined = bridge.linear_rgba(frame, encoded=encoded, opaque=True)
+    h, w = combined.shape[:2]
+    return {
+        "Combined": np.ascontiguousarray(combined[::-1]).reshape(h * w, 4),
+        ALPHA_PASS: np.ascontiguousarray(frame.color[::-1, :, 3], dtype=np.float32).reshape(h * w, 1),
+        DEPTH_PASS: np.ascontiguousarray(frame.depth[::-1], dtype=np.float32).reshape(h * w, 1),
+    }
+
+
+class UnityPassesRenderEngine(bpy.types.RenderEngine):
+    """Renders what Unity's built-in pipeline draws (render queues, ZWrite/ZTest, Blend, ColorMask, ...)."""
+
+    bl_idname = "UNITY_PASSES"
+    bl_label = "Unity Passes"
+    bl_use_preview = False
+    bl_use_postprocess = True
+    bl_use_eevee_viewport = True  # the viewport's Material Preview keeps working
+
+    def update_render_passes(self, scene=None, renderlayer=None):
+        self.register_pass(scene, renderlayer, "Combined", 4, "RGBA", "COLOR")
+        self.register_pass(scene, renderlayer, ALPHA_PASS, 1, "A", "VALUE")
+        self.register_pass(scene, renderlayer, DEPTH_PASS, 1, "Z", "VALUE")
+
+    def render(self, depsgraph):
+        scene = depsgraph.scene
+        width, height = self.resolution_x, self.resolution_y
+        self.update_stats("", "Unity Passes: reading the scene")
+        self.update_progress(0.0)
+        try:
+            draw = bridge.build_draw_scene(scene, depsgraph)
+            if (draw.camera.width, draw.camera.height) != (width, height):
+                raise SceneError(f"render size {width}x{height} differs from the camera's "
+                                 f"{draw.camera.width}x{draw.camera.height} (border/crop rendering is not supported)")
+            self.update_stats("", f"Unity Passes: {len(draw.renderers)} renderers")
+            frame = bridge.pipeline.render_scene(draw, progress=self._progress, should_cancel=self.test_break)
+        except RenderCancelled:
+            self.update_stats("", "Unity Passes: cancelled")
+            return
+        except SceneError as exc:
+            self.report({"ERROR"}, f"Unity Passes: {exc}")
+            return
+        except MemoryError:
+            self.report({"ERROR"}, "Unity Passes: out of memory (lower the resolution)")
+            return
+        except Exception as exc:  # noqa: BLE001 - a report, not a traceback in the UI
+            self.report({"ERROR"}, f"Unity Passes: internal error: {type(exc).__name__}: {exc}")
+            return
+        for warning in frame.warnings:
+            self.report({"WARNING"}, f"Unity Passes: {warning}")
+        if self.test_break():
+            return
+        arrays = result_arrays(frame, encoded=bridge.frame_is_encoded(bridge.scene_settings(scene)))
+        view_layer = depsgraph.view_layer
+        self.add_pass(ALPHA_PASS, 1, "A")
+        if not view_layer.use_pass_z:
+            self.add_pass(DEPTH_PASS, 1, "Z")
+        result = self.begin_result(0, 0, width, height)
+        try:
+            layer = result.layers[0]
+            for p in layer.passes:
+                if p.name in arrays:
+                    p.rect = arrays[p.name]
+        finally:
+            self.end_result(result)
+        self.update_progress(1.0)
+
+    def _progress(self, fraction: float) -> None:
+        self.update_progress(float(fraction))
+
+
+def _compat_panels():
+    """Built-in property panels (dimensions, light, world, material slots) shown for this engine too."""
+    wanted = {"EEVEE_MATERIAL_PT_context_material", "EEVEE_WORLD_PT_surface", "DATA_PT_EEVEE_light"}
+    for panel in bpy.types.Panel.__subclasses__():
+        engines = getattr(panel, "COMPAT_ENGINES", None)
+        if isinstance(engines, set) and ("BLENDER_RENDER" in engines or panel.__name__ in wanted):
+            yield panel
+
+
+def register() -> None:
+    bpy.utils.register_class(UnityPassesRenderEngine)
+    for panel in _compat_panels():
+        panel.COMPAT_ENGINES.add(UnityPassesRenderEngine.bl_idname)
+
+
+def unregister() -> None:
+    for panel in _compat_panels():
+        panel.COMPAT_ENGINES.discard(UnityPassesRenderEngine.bl_idname)
+    if getattr(UnityPassesRenderEngine, "is_registered", False):
+        bpy.utils.unregister_class(UnityPassesRenderEngine)

@@ -1,0 +1,223 @@
+"""Operators of the Unity Material panel: pass list editing, presets, Fill from Principled BSDF."""
+
+from __future__ import annotations
+
+from enum import Enum
+
+import bpy
+
+from blendlib.bridge import PASS_FIELDS, pass_from_values, principled_inputs, read_group
+from blendlib.shaderlab import PASS_PRESETS, Pass, preset
+
+
+def pass_from_item(item) -> Pass:
+    """The :class:`blendlib.shaderlab.Pass` of a pass property group."""
+    return pass_from_values(read_group(item, PASS_FIELDS))
+
+
+def store_pass(item, p: Pass) -> None:
+    """Write every field of ``p`` into a pass property group."""
+    for f in PASS_FIELDS:
+        value = getattr(p, f.name)
+        if isinstance(value, Enum):
+            value = value.value
+        elif f.kind == "flags":
+            value = set(value)
+        setattr(item, f.name, value)
+
+
+def copy_pass(src, dst) -> None:
+    for f in PASS_FIELDS:
+        setattr(dst, f.name, getattr(src, f.name))
+
+
+def apply_preset(mat, name: str) -> None:
+    """Set ``mat.unity`` to a preset of :data:`PASS_PRESETS`: enabled, its queue (offset 0) and passes."""
+    queue, passes = preset(name)
+    unity = mat.unity
+    unity.enabled = True
+    unity.queue = queue.value
+    unity.queue_offset = 0
+    unity.passes.clear()
+    for p in passes:
+        store_pass(unity.passes.add(), p)
+    unity.active_pass_index = 0
+
+
+def fill_from_principled(mat) -> bool:
+    """_Color from the Principled BSDF Base Color (sRGB-encoded) and Alpha, _MainTex from an Image
+    Texture linked to Base Color. Returns False when the material has no Principled BSDF."""
+    tree = getattr(mat, "node_tree", None)
+    if tree is None or not any(n.type == "BSDF_PRINCIPLED" for n in tree.nodes):
+        return False
+    color, image = principled_inputs(mat)
+    mat.unity.color = color
+    mat.unity.main_tex = image
+    return True
+
+
+class _MaterialOperator:
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return getattr(context, "material", None) is not None
+
+
+class UNITY_OT_pass_add(_MaterialOperator, bpy.types.Operator):
+    """Add a pass after the selected one"""
+
+    bl_idname = "unity.pass_add"
+    bl_label = "Add Pass"
+
+    def execute(self, context):
+        unity = context.material.unity
+        item = unity.passes.add()
+        item.name = f"Pass {len(unity.passes)}"
+        target = min(unity.active_pass_index + 1, len(unity.passes) - 1) if len(unity.passes) > 1 else 0
+        unity.passes.move(len(unity.passes) - 1, target)
+        unity.active_pass_index = target
+        return {"FINISHED"}
+
+
+class UNITY_OT_pass_remove(_MaterialOperator, bpy.types.Operator):
+    """Remove the selected pass"""
+
+    bl_idname = "unity.pass_remove"
+    bl_label = "Remove Pass"
+
+    @classmethod
+    def poll(cls, context):
+        mat = getattr(context, "material", None)
+        return mat is not None and len(mat.unity.passes) > 0
+
+    def execute(self, context):
+        unity = context.material.unity
+        index = min(unity.active_pass_index, len(unity.passes) - 1)
+        unity.passes.remove(index)
+        unity.active_pass_index = max(0, min(index, len(unity.passes) - 1))
+        return {"FINISHED"}
+
+
+class UNITY_OT_pass_move(_MaterialOperator, bpy.types.Operator):
+    """Move the selected pass up or down (passes draw from top to bottom)"""
+
+    bl_idname = "unity.pass_move"
+    bl_label = "Move Pass"
+
+    direction: bpy.props.EnumProperty(
+        items=[("UP", "Up", "Draw earlier"), ("DOWN", "Down", "Draw later")], name="Direction", default="UP")
+
+    @classmethod
+    def poll(cls, context):
+        mat = getattr(context, "material", None)
+        return mat is not None and len(mat.unity.passes) > 1
+
+    def execute(self, context):
+        unity = context.material.unity
+        index = min(unity.active_pass_index, len(unity.passes) - 1)
+        target = index - 1 if self.direction == "UP" else index + 1
+        if not 0 <= target < len(unity.passes):
+            return {"CANCELLED"}
+        unity.passes.move(index, target)
+        unity.active_pass_index = target
+        return {"FINISHED"}
+
+
+class UNITY_OT_pass_duplicate(_MaterialOperator, bpy.types.Operator):
+    """Duplicate the selected pass (the copy is drawn right after it)"""
+
+    bl_idname = "unity.pass_duplicate"
+    bl_label = "Duplicate Pass"
+
+    @classmethod
+    def poll(cls, context):
+        mat = getattr(context, "material", None)
+        return mat is not None and len(mat.unity.passes) > 0
+
+    def execute(self, context):
+        unity = context.material.unity
+        index = min(unity.active_pass_index, len(unity.passes) - 1)
+        item = unity.passes.add()
+        copy_pass(unity.passes[index], item)
+        unity.passes.move(len(unity.passes) - 1, index + 1)
+        unity.active_pass_index = index + 1
+        return {"FINISHED"}
+
+
+class UNITY_OT_apply_preset(_MaterialOperator, bpy.types.Operator):
+    """Replace the queue and passes with a preset from the tutorials (enables the Unity material)"""
+
+    bl_idname = "unity.apply_preset"
+    bl_label = "Apply Unity Preset"
+
+    preset: bpy.props.EnumProperty(
+        items=[(name, name, f"Apply the {name} preset") for name in PASS_PRESETS], name="Preset")
+
+    def execute(self, context):
+        apply_preset(context.material, self.preset)
+        self.report({"INFO"}, f"Applied preset {self.preset!r}")
+        return {"FINISHED"}
+
+
+class UNITY_OT_fill_from_principled(_MaterialOperator, bpy.types.Operator):
+    """Set _Color from the Principled BSDF Base Color and Alpha, and _MainTex from an Image Texture
+    linked to Base Color"""
+
+    bl_idname = "unity.fill_from_principled"
+    bl_label = "Fill from Principled BSDF"
+
+    def execute(self, context):
+        if not fill_from_principled(context.material):
+            self.report({"WARNING"}, f"Material {context.material.name!r} has no Principled BSDF node")
+            return {"CANCELLED"}
+        return {"FINISHED"}
+
+
+class UNITY_OT_use_standard_view(bpy.types.Operator):
+    """Set the Standard view transform, no look, exposure 0, gamma 1, no curves and no dither, so that
+    displayed and saved 8-bit images hold exactly the Unity frame values"""
+
+    bl_idname = "unity.use_standard_view"
+    bl_label = "Use Standard View Transform"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return context.scene is not None
+
+    def execute(self, context):
+        scene = context.scene
+        view = scene.view_settings
+        scene.display_settings.display_device = "sRGB"
+        view.view_transform = "Standard"
+        view.look = "None"
+        view.exposure = 0.0
+        view.gamma = 1.0
+        view.use_curve_mapping = False
+        scene.render.dither_intensity = 0.0
+        return {"FINISHED"}
+
+
+class UNITY_MT_presets(bpy.types.Menu):
+    """Pass-state presets of the tutorials"""
+
+    bl_idname = "UNITY_MT_presets"
+    bl_label = "Unity Presets"
+
+    def draw(self, context):
+        layout = self.layout
+        for name in PASS_PRESETS:
+            layout.operator(UNITY_OT_apply_preset.bl_idname, text=name).preset = name
+
+
+CLASSES = (
+    UNITY_OT_pass_add,
+    UNITY_OT_pass_remove,
+    UNITY_OT_pass_move,
+    UNITY_OT_pass_duplicate,
+    UNITY_OT_apply_preset,
+    UNITY_OT_fill_from_principled,
+    UNITY_OT_use_standard_view,
+    UNITY_MT_presets,
+)

@@ -1,0 +1,244 @@
+"""Material-panel operators: Import ShaderLab (file / clipboard) and Export ShaderLab.
+
+Import parses the whole ``.shader`` text first (:mod:`blendlib.shaderlab_io`); on a
+parse error it reports one line (``FILE:LINE:COL: message``) and changes nothing.
+On success it replaces the material's Unity settings (``material.unity``, SPEC §3)
+in one step: queue, offset, ``_Color``, ``_AlphaScale``, ``_Cutoff``, lighting and
+the pass list (cleared and rebuilt), and turns ``enabled`` on. If assigning fails
+half-way, the previous settings are restored.
+
+A ``.shader`` file holds no texture image, tiling/offset or sampler settings (in
+Unity they belong to the material and the texture asset, and switching a
+material's shader keeps them), so import keeps the material's ``main_tex``,
+``main_tex_tiling``, ``main_tex_offset``, ``main_tex_filter`` and ``main_tex_wrap``
+unless "Reset Texture Settings" is on, which sets them to the defaults.
+"""
+
+from __future__ import annotations
+
+import os
+
+import bpy
+from bpy.props import BoolProperty, StringProperty
+from bpy.types import Operator
+from bpy_extras.io_utils import ExportHelper, ImportHelper
+
+from blendlib import shaderlab_io
+from blendlib.shaderlab import pass_to_dict, queue_text
+
+_TEXTURE_FIELDS = ("main_tex", "main_tex_tiling", "main_tex_offset", "main_tex_filter", "main_tex_wrap")
+_SCALAR_FIELDS = ("enabled", "queue", "queue_offset", "color", "alpha_scale", "cutoff", "lighting")
+_PASS_KEYS = tuple(pass_to_dict(shaderlab_io.Pass()).keys())
+
+
+def _plain(value):
+    """A result value as a bpy property value (enum members → identifiers, tuples stay)."""
+    if isinstance(value, str):
+        return str(value.value) if hasattr(value, "value") else value
+    return value
+
+
+def result_settings(result: shaderlab_io.ShaderLabResult, reset_texture: bool = False) -> dict:
+    """The ``material.unity`` assignments of an import: ``{field: value, "passes": [dict, ...]}``."""
+    fields = _SCALAR_FIELDS + (_TEXTURE_FIELDS if reset_texture else ())
+    values = {key: _plain(result.material[key]) for key in fields}
+    values["passes"] = [pass_to_dict(p) for p in result.passes]
+    return values
+
+
+def _read_settings(unity) -> dict:
+    """Everything :func:`_write_settings` may change, for restoring on failure."""
+    values = {key: _copy(getattr(unity, key)) for key in _SCALAR_FIELDS + _TEXTURE_FIELDS}
+    values["passes"] = [{key: _copy(getattr(item, key)) for key in _PASS_KEYS} for item in unity.passes]
+    return values
+
+
+def _copy(value):
+    if isinstance(value, (str, int, float, bool)) or value is None or isinstance(value, bpy.types.ID):
+        return value
+    if isinstance(value, set):
+        return set(value)
+    try:
+        return tuple(value)
+    except TypeError:
+        return value
+
+
+def _write_settings(unity, values: dict) -> None:
+    for key, value in values.items():
+        if key == "passes":
+            continue
+        setattr(unity, key, set(value) if isinstance(value, (set, frozenset)) else value)
+    unity.passes.clear()
+    for data in values["passes"]:
+        item = unity.passes.add()
+        for key, value in data.items():
+            if key == "color_mask":
+                value = set(value)
+            setattr(item, key, value)
+    if hasattr(unity, "active_pass_index"):
+        unity.active_pass_index = 0
+
+
+def apply_result(material, result: shaderlab_io.ShaderLabResult, reset_texture: bool = False) -> None:
+    """Replace ``material.unity`` with an import result, all or nothing."""
+    unity = material.unity
+    new = result_settings(result, reset_texture)
+    old = _read_settings(unity)
+    try:
+        _write_settings(unity, new)
+    except Exception:
+        _write_settings(unity, old)
+        raise
+
+
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split())
+
+
+class _ImportMixin:
+    reset_texture: BoolProperty(
+        name="Reset Texture Settings",
+        description=("Also reset _MainTex, its tiling/offset and sampler settings to the defaults; a .shader "
+                     "file does not hold them, so by default they are kept (as Unity keeps them when a "
+                     "material's shader changes)"),
+        default=False,
+    )
+
+    @classmethod
+    def poll(cls, context):
+        mat = getattr(context, "material", None)
+        return mat is not None and hasattr(mat, "unity")
+
+    def import_text(self, context, text: str, filename: str):
+        try:
+            result = shaderlab_io.parse_shaderlab(text, filename=filename)
+        except shaderlab_io.ShaderLabError as exc:
+            self.report({"ERROR"}, _one_line(str(exc)))
+            return {"CANCELLED"}
+        try:
+            apply_result(context.material, result, self.reset_texture)
+        except (TypeError, ValueError, AttributeError) as exc:
+            self.report({"ERROR"}, _one_line(f"{filename}: cannot apply the settings: {exc}"))
+            return {"CANCELLED"}
+        for warning in result.warnings:
+            self.report({"WARNING"}, _one_line(f"{filename}:{warning}"))
+        n = len(result.passes)
+        queue = queue_text(result.material["queue"], int(result.material["queue_offset"]))
+        self.report({"INFO"}, f'Imported "{result.name}": {n} pass{"" if n == 1 else "es"}, queue {queue}')
+        return {"FINISHED"}
+
+
+class UNITY_OT_shaderlab_import(_ImportMixin, Operator, ImportHelper):
+    """Replace this material's Unity settings with those of a ShaderLab .shader file"""
+
+    bl_idname = "unity.shaderlab_import"
+    bl_label = "Import ShaderLab…"
+    bl_options = {"REGISTER", "UNDO"}
+
+    filename_ext = ".shader"
+    filter_glob: StringProperty(default="*.shader", options={"HIDDEN"})
+
+    def execute(self, context):
+        path = self.filepath
+        try:
+            with open(path, encoding="utf-8-sig") as fh:
+                text = fh.read()
+        except (OSError, UnicodeDecodeError) as exc:
+            self.report({"ERROR"}, _one_line(f"{path}: cannot read: {getattr(exc, 'strerror', None) or exc}"))
+            return {"CANCELLED"}
+        return self.import_text(context, text, os.path.basename(path) or path)
+
+
+class UNITY_OT_shaderlab_import_clipboard(_ImportMixin, Operator):
+    """Replace this material's Unity settings with the ShaderLab shader on the clipboard"""
+
+    bl_idname = "unity.shaderlab_import_clipboard"
+    bl_label = "Import ShaderLab from Clipboard"
+    bl_options = {"REGISTER", "UNDO"}
+
+    text: StringProperty(
+        name="Text",
+        description="ShaderLab source to import instead of the clipboard (for scripts)",
+        default="",
+        options={"HIDDEN", "SKIP_SAVE"},
+    )
+
+    def execute(self, context):
+        text = self.text or context.window_manager.clipboard
+        if not text.strip():
+            self.report({"ERROR"}, "The clipboard is empty: copy a ShaderLab shader first")
+            return {"CANCELLED"}
+        return self.import_text(context, text, "<clipboard>")
+
+
+class UNITY_OT_shaderlab_export(Operator, ExportHelper):
+    """Write this material's Unity settings as a ShaderLab .shader file that Unity compiles"""
+
+    bl_idname = "unity.shaderlab_export"
+    bl_label = "Export ShaderLab…"
+    bl_options = {"REGISTER"}
+
+    filename_ext = ".shader"
+    filter_glob: StringProperty(default="*.shader", options={"HIDDEN"})
+    shader_name: StringProperty(
+        name="Shader Name",
+        description='The Shader "..." name (empty: "Unity Passes/<material name>")',
+        default="",
+    )
+
+    @classmethod
+    def poll(cls, context):
+        mat = getattr(context, "material", None)
+        return mat is not None and hasattr(mat, "unity")
+
+    def invoke(self, context, event):
+        if not self.filepath:
+            stem = bpy.path.clean_name(context.material.name) or "material"
+            self.filepath = os.path.join(os.path.dirname(bpy.data.filepath) or os.path.expanduser("~"),
+                                         stem + self.filename_ext)
+        return ExportHelper.invoke(self, context, event)
+
+    def execute(self, context):
+        mat = context.material
+        material = shaderlab_io.read_blender_material(mat)
+        name = self.shader_name.strip() or f"Unity Passes/{mat.name}"
+        text = shaderlab_io.export_shaderlab(material, name)
+        path = bpy.path.abspath(self.filepath)
+        tmp = path + ".tmp"
+        try:
+            with open(tmp, "w", encoding="utf-8", newline="\n") as fh:
+                fh.write(text)
+            os.replace(tmp, path)
+        except OSError as exc:
+            if os.path.exists(tmp):
+                os.remove(tmp)
+            self.report({"ERROR"}, _one_line(f"{path}: cannot write: {exc.strerror or exc}"))
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"Exported {name!r} to {path}")
+        return {"FINISHED"}
+
+
+def draw_import_export(layout) -> None:
+    """The Import/Export row for the Unity Material panel."""
+    row = layout.row(align=True)
+    row.operator(UNITY_OT_shaderlab_import.bl_idname, text="Import ShaderLab…", icon="IMPORT")
+    row.operator(UNITY_OT_shaderlab_import_clipboard.bl_idname, text="", icon="PASTEDOWN")
+    row.operator(UNITY_OT_shaderlab_export.bl_idname, text="Export ShaderLab…", icon="EXPORT")
+
+
+classes = (UNITY_OT_shaderlab_import, UNITY_OT_shaderlab_import_clipboard, UNITY_OT_shaderlab_export)
+
+
+def register() -> None:
+    """Register the operators; calling it again is harmless."""
+    for cls in classes:
+        if not getattr(cls, "is_registered", False):
+            bpy.utils.register_class(cls)
+
+
+def unregister() -> None:
+    """Unregister the operators (in reverse order); calling it again is harmless."""
+    for cls in reversed(classes):
+        if getattr(cls, "is_registered", False):
+            bpy.utils.unregister_class(cls)

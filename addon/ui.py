@@ -1,0 +1,210 @@
+"""Panels: "Unity Material" (Material Properties) and "Unity Camera" (Render Properties)."""
+
+from __future__ import annotations
+
+import bpy
+
+from blendlib.shaderlab import Queue, queue_text
+
+from .operators import (
+    UNITY_MT_presets,
+    UNITY_OT_fill_from_principled,
+    UNITY_OT_pass_add,
+    UNITY_OT_pass_duplicate,
+    UNITY_OT_pass_move,
+    UNITY_OT_pass_remove,
+    UNITY_OT_use_standard_view,
+    pass_from_item,
+)
+
+ENGINE = "UNITY_PASSES"
+
+
+def shaderlab_preview(item) -> str:
+    try:
+        return pass_from_item(item).shaderlab()
+    except ValueError as exc:  # e.g. an out-of-range stored value
+        return f"invalid pass: {exc}"
+
+
+def exact_view(scene) -> bool:
+    """Whether the colour management shows and saves the frame values exactly."""
+    view = scene.view_settings
+    return (view.view_transform == "Standard" and view.look == "None" and view.exposure == 0.0
+            and view.gamma == 1.0 and not view.use_curve_mapping
+            and scene.display_settings.display_device == "sRGB")
+
+
+class UNITY_UL_passes(bpy.types.UIList):
+    """Passes of a Unity material, drawn from top to bottom"""
+
+    bl_idname = "UNITY_UL_passes"
+
+    def draw_item(self, context, layout, data, item, icon, active_data, active_propname, index=0, flt_flag=0):
+        if self.layout_type in {"DEFAULT", "COMPACT"}:
+            split = layout.split(factor=0.3)
+            split.prop(item, "name", text="", emboss=False, icon="RENDERLAYERS")
+            split.label(text=shaderlab_preview(item))
+        else:
+            layout.alignment = "CENTER"
+            layout.label(text=str(index + 1))
+
+
+class _MaterialPanel:
+    bl_space_type = "PROPERTIES"
+    bl_region_type = "WINDOW"
+    bl_context = "material"
+
+    @classmethod
+    def poll(cls, context):
+        return getattr(context, "material", None) is not None and hasattr(context.material, "unity")
+
+
+class UNITY_PT_material(_MaterialPanel, bpy.types.Panel):
+    bl_idname = "UNITY_PT_material"
+    bl_label = "Unity Material"
+
+    def draw_header(self, context):
+        self.layout.prop(context.material.unity, "enabled", text="")
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        unity = context.material.unity
+        row = layout.row(align=True)
+        row.menu(UNITY_MT_presets.bl_idname, icon="PRESET")
+        row.operator(UNITY_OT_fill_from_principled.bl_idname, icon="NODE_MATERIAL")
+        if not unity.enabled:
+            box = layout.box()
+            box.label(text="Off: renders opaque (queue Geometry, one default pass, Lambert)", icon="INFO")
+            box.label(text="with the Principled BSDF Base Color/Alpha and its linked Image Texture.")
+        body = layout.column()
+        body.active = unity.enabled
+        col = body.column(align=True)
+        col.prop(unity, "queue")
+        col.prop(unity, "queue_offset")
+        number = Queue.parse(unity.queue).number + unity.queue_offset
+        col.label(text=f'Render queue {number}  ("Queue"="{queue_text(Queue.parse(unity.queue), unity.queue_offset)}")')
+        body.separator()
+        body.prop(unity, "color")
+        body.template_ID(unity, "main_tex", new="image.new", open="image.open")
+        col = body.column(align=True)
+        col.prop(unity, "main_tex_tiling")
+        col.prop(unity, "main_tex_offset")
+        col = body.column(align=True)
+        col.prop(unity, "main_tex_filter")
+        col.prop(unity, "main_tex_wrap")
+        body.prop(unity, "alpha_scale")
+        body.prop(unity, "cutoff")
+        body.prop(unity, "lighting")
+
+
+class UNITY_PT_material_passes(_MaterialPanel, bpy.types.Panel):
+    bl_idname = "UNITY_PT_material_passes"
+    bl_label = "Passes"
+    bl_parent_id = "UNITY_PT_material"
+
+    def draw(self, context):
+        layout = self.layout
+        unity = context.material.unity
+        layout.active = unity.enabled
+        row = layout.row()
+        row.template_list(UNITY_UL_passes.bl_idname, "", unity, "passes", unity, "active_pass_index", rows=3)
+        side = row.column(align=True)
+        side.operator(UNITY_OT_pass_add.bl_idname, icon="ADD", text="")
+        side.operator(UNITY_OT_pass_remove.bl_idname, icon="REMOVE", text="")
+        side.separator()
+        side.operator(UNITY_OT_pass_duplicate.bl_idname, icon="DUPLICATE", text="")
+        side.menu(UNITY_MT_presets.bl_idname, icon="PRESET", text="")
+        side.separator()
+        side.operator(UNITY_OT_pass_move.bl_idname, icon="TRIA_UP", text="").direction = "UP"
+        side.operator(UNITY_OT_pass_move.bl_idname, icon="TRIA_DOWN", text="").direction = "DOWN"
+        if not unity.passes:
+            layout.label(text="No passes: one default pass (Cull Back ZWrite On ZTest LEqual Blend Off)",
+                         icon="INFO")
+            return
+        item = unity.passes[min(unity.active_pass_index, len(unity.passes) - 1)]
+        draw_pass(layout, item)
+
+
+def draw_pass(layout, item) -> None:
+    box = layout.box()
+    box.label(text=shaderlab_preview(item), icon="TEXT")
+    col = box.column()
+    col.use_property_split = True
+    col.use_property_decorate = False
+    col.prop(item, "name")
+    sub = col.column(align=True)
+    sub.prop(item, "cull")
+    sub.prop(item, "zwrite")
+    sub.prop(item, "ztest")
+    col.separator()
+    col.prop(item, "blend")
+    sub = col.column(align=True)
+    sub.active = item.blend
+    sub.prop(item, "src_blend")
+    sub.prop(item, "dst_blend")
+    sub.prop(item, "blend_op")
+    sub.prop(item, "separate_alpha")
+    alpha = sub.column(align=True)
+    alpha.active = item.blend and item.separate_alpha
+    alpha.prop(item, "src_blend_alpha")
+    alpha.prop(item, "dst_blend_alpha")
+    alpha.prop(item, "blend_op_alpha")
+    col.separator()
+    row = col.row(align=True, heading="ColorMask")
+    row.prop(item, "color_mask", expand=True)
+    sub = col.column(align=True)
+    sub.prop(item, "offset_factor")
+    sub.prop(item, "offset_units")
+    col.prop(item, "alpha_test")
+    col.separator()
+    col.prop(item, "stencil")
+    sub = col.column(align=True)
+    sub.active = item.stencil
+    for name in ("stencil_ref", "stencil_read_mask", "stencil_write_mask", "stencil_comp",
+                 "stencil_pass", "stencil_fail", "stencil_zfail"):
+        sub.prop(item, name)
+
+
+class UNITY_PT_camera(bpy.types.Panel):
+    bl_idname = "UNITY_PT_camera"
+    bl_label = "Unity Camera"
+    bl_space_type = "PROPERTIES"
+    bl_region_type = "WINDOW"
+    bl_context = "render"
+
+    @classmethod
+    def poll(cls, context):
+        return context.scene is not None and hasattr(context.scene, "unity")
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        scene = context.scene
+        unity = scene.unity
+        if scene.render.engine != ENGINE:
+            layout.label(text="Select the Unity Passes render engine to render with these settings", icon="INFO")
+        layout.prop(unity, "color_space")
+        layout.prop(unity, "hdr")
+        layout.prop(unity, "clear_color")
+        layout.prop(unity, "ambient_from_world")
+        sub = layout.column()
+        sub.active = not unity.ambient_from_world
+        sub.prop(unity, "ambient_color")
+        layout.prop(unity, "sort_mode")
+        sub = layout.column()
+        sub.active = unity.sort_mode == "CustomAxis"
+        sub.prop(unity, "sort_axis")
+        box = layout.box()
+        box.label(text="Combined = the frame as linear RGB, alpha 1; passes UnityAlpha, Depth.", icon="INFO")
+        box.label(text="The Standard view transform (no look, no dither) reproduces the frame values exactly.")
+        if not exact_view(scene) or scene.render.dither_intensity != 0.0:
+            box.label(text=f"Now: {scene.view_settings.view_transform}, dither "
+                           f"{scene.render.dither_intensity:g}: displayed values differ", icon="ERROR")
+            box.operator(UNITY_OT_use_standard_view.bl_idname, icon="CHECKMARK")
+
+
+CLASSES = (UNITY_UL_passes, UNITY_PT_material, UNITY_PT_material_passes, UNITY_PT_camera)
