@@ -1,16 +1,17 @@
 """The frame driver: draw list → per draw call (vertex → raster → shade → output merger) → Frame.
 
-Raster and shade of a chunk are pure functions of the chunk; they run on a small
-thread pool (numpy releases the GIL in its array loops) while the main thread merges
-the previous chunk, so both CPU cores work. Merging stays strictly in draw order.
+Each draw call's rows are split into horizontal screen bands of about equal fragment
+counts; one worker thread per band rasterises, shades and merges its band (numpy
+releases the GIL in its array loops, so both CPU cores work). Bands own disjoint pixels
+and each band is processed in draw order, so the result is exact.
 """
 
 from __future__ import annotations
 
 import os
-from collections import deque
+import threading
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor, wait
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -19,7 +20,7 @@ from . import raster, shade
 from .drawlist import sorted_renderers
 from .merger import FrameBuffers, merge
 from .scene import DrawScene, SceneError, validate_scene
-from .shaderlab import Pass
+from .shaderlab import Lighting, Pass
 
 #: Candidate pixels per chunk: bounds the memory of one chunk's arrays to a few hundred MB.
 CHUNK_CANDIDATES = 1 << 20
@@ -47,23 +48,81 @@ class Frame:
 
 
 def _shade_chunk(setup, rows, start, stop, width, p: Pass, material, texels, lights, color_space):
-    """Raster + interpolate + shade + alpha test of rows [start, stop): (pix, depth, rgba) in draw order."""
+    """Raster + interpolate + shade + alpha test of rows [start, stop): (pix, depth, rgba) in draw order.
+
+    Triangles whose inputs to shading are constant (no texture or flat UVs, Unlit or flat
+    normals: §6) are shaded once per triangle; the others once per fragment.
+    """
     frags = raster.rasterize_rows(rows, start, stop, width)
     if frags.count == 0:
         return None
-    depth, weights = raster.interpolate(setup, frags, p.offset_factor, p.offset_units)
     src = setup.src[frags.tri]
-    if setup.uvs is None:
-        uv = np.zeros((frags.count, 2), dtype=np.float64)
-    else:
-        uv = raster.interpolate_attribute(weights, setup.uvs[src])
-    normal = raster.interpolate_attribute(weights, setup.world_normals[src])
-    rgba = shade.shade(material, texels, lights, color_space, uv, normal)
+    use_uv = texels is not None and setup.uvs is not None
+    use_normal = material.lighting is not Lighting.Unlit
+    constant = np.ones(frags.count, dtype=bool)
+    if use_uv:
+        constant &= setup.uvs_flat[src]
+    if use_normal:
+        constant &= setup.normals_flat[src]
+    varying = ~constant
+    any_varying = bool(np.any(varying))
+    depth, weights = raster.interpolate(setup, frags, p.offset_factor, p.offset_units, weights=any_varying)
+    rgba = np.empty((frags.count, 4), dtype=np.float64)
+
+    def shade_rows(sel_src: np.ndarray, w: np.ndarray | None) -> np.ndarray:
+        n = sel_src.size
+        if not use_uv:
+            uv = np.zeros((n, 2), dtype=np.float64)
+        elif w is None:
+            uv = setup.uvs[sel_src, 0]
+        else:
+            uv = raster.interpolate_attribute(w, setup.uvs[sel_src], setup.uvs_flat[sel_src])
+        if not use_normal:
+            normal = np.zeros((n, 3), dtype=np.float64)
+        elif w is None:
+            normal = setup.world_normals[sel_src, 0]
+        else:
+            normal = raster.interpolate_attribute(w, setup.world_normals[sel_src], setup.normals_flat[sel_src])
+        return shade.shade(material, texels, lights, color_space, uv, normal)
+
+    if np.any(constant):
+        # Fragments come in triangle order, so each triangle's fragments are one run.
+        const_src = src[constant]
+        starts = np.ones(const_src.size, dtype=bool)
+        starts[1:] = const_src[1:] != const_src[:-1]
+        run = np.cumsum(starts) - 1
+        rgba[constant] = shade_rows(const_src[starts], None)[run]
+    if any_varying:
+        rgba[varying] = shade_rows(src[varying], weights[varying])
     pix = frags.pix
     if p.alpha_test:
         keep = ~(rgba[:, 3] - float(material.cutoff) < 0)
         pix, depth, rgba = pix[keep], depth[keep], rgba[keep]
     return pix, depth, rgba
+
+
+def _draw_band(buf, setup, rows, chunk_candidates, tail, stop_flag) -> None:
+    """Raster, shade and merge one screen band of a draw call, chunk by chunk in draw order."""
+    p = tail[1]
+    for a, b in raster.row_chunks(rows, chunk_candidates):
+        if stop_flag.is_set():
+            return
+        res = _shade_chunk(setup, rows, a, b, *tail)
+        if res is not None:
+            merge(buf, p, *res)
+
+
+def _wait(futures, should_cancel, stop_flag) -> None:
+    """Wait for band workers, polling ``should_cancel`` from this (the calling) thread."""
+    pending = set(futures)
+    while pending:
+        done, pending = wait(pending, timeout=0.05)
+        for f in done:
+            f.result()  # re-raise worker errors
+        if should_cancel is not None and should_cancel():
+            stop_flag.set()
+            wait(pending)
+            return
 
 
 def render_scene(
@@ -100,6 +159,7 @@ def render_scene(
             raise RenderCancelled("render cancelled")
 
     done = 0
+    stop_flag = threading.Event()
     pool = ThreadPoolExecutor(max_workers=workers) if workers > 1 else None
     try:
         for renderer in order:
@@ -125,30 +185,16 @@ def render_scene(
                 cancelled()
                 selected = raster.cull_select(setup, p.cull)
                 rows = raster.coverage_rows(setup, selected, width, height)
-                chunks = raster.row_chunks(rows, chunk_candidates)
-                args = (setup, rows)
                 tail = (width, p, material, texels, lights, cs)
-                if pool is None:
-                    results = (_shade_chunk(*args, a, b, *tail) for a, b in chunks)
-                    for res in results:
-                        cancelled()
-                        if res is not None:
-                            merge(buf, p, *res)
+                bands = rows.split_bands(workers, height) if pool is not None else [rows]
+                if len(bands) == 1:
+                    _draw_band(buf, setup, bands[0], chunk_candidates, tail, stop_flag)
                 else:
-                    pending: deque = deque()
-                    it = iter(chunks)
-                    for a, b in it:
-                        pending.append(pool.submit(_shade_chunk, *args, a, b, *tail))
-                        if len(pending) >= workers:
-                            break
-                    while pending:
-                        res = pending.popleft().result()
-                        nxt = next(it, None)
-                        if nxt is not None:
-                            pending.append(pool.submit(_shade_chunk, *args, nxt[0], nxt[1], *tail))
-                        cancelled()
-                        if res is not None:
-                            merge(buf, p, *res)
+                    futures = [pool.submit(_draw_band, buf, setup, band, chunk_candidates, tail, stop_flag)
+                               for band in bands]
+                    _wait(futures, should_cancel, stop_flag)
+                if stop_flag.is_set():
+                    raise RenderCancelled("render cancelled")
                 done += 1
                 if progress is not None:
                     progress(done / max(calls, 1))

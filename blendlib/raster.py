@@ -71,7 +71,9 @@ class TriangleSetup:
       vertex for clipped triangles (row k = vertex k); None when nothing was clipped.
     - ``clipped`` (n,) bool.
     - ``front`` (n,) bool: the triangle shows its front side.
-    - ``world_normals`` (T, 3, 3) float64 per source-triangle corner.
+    - ``world_normals`` (T, 3, 3) float64 per source-triangle corner; ``uvs`` (T, 3, 2)
+      float64 or None; ``normals_flat`` / ``uvs_flat`` (T,) bool: the corner values are
+      equal (the attribute is constant over the triangle, §6).
     """
 
     X: np.ndarray
@@ -87,6 +89,8 @@ class TriangleSetup:
     uvs: np.ndarray | None
     skipped_nonfinite: int = 0
     degenerate: int = 0
+    normals_flat: np.ndarray | None = None
+    uvs_flat: np.ndarray | None = None
     _slope: np.ndarray | None = None
 
     @property
@@ -190,6 +194,8 @@ def setup_triangles(mesh: Mesh, matrix_world: np.ndarray, camera: Camera) -> Tri
     wn = _affine_rows(nmat, normals[..., 0], normals[..., 1], normals[..., 2], 3)
     world_normals = np.stack(wn, axis=-1) if t_count else np.zeros((0, 3, 3))
     uvs = None if mesh.uvs is None else np.asarray(mesh.uvs, dtype=np.float64).reshape(t_count, 3, 2)
+    normals_flat = flat_corners(world_normals)
+    uvs_flat = np.ones(t_count, dtype=bool) if uvs is None else flat_corners(uvs)
 
     # Per-vertex work first (V <= 3T), gathered per corner afterwards.
     finite_v = np.all(np.isfinite(clip_v), axis=1)
@@ -273,6 +279,7 @@ def setup_triangles(mesh: Mesh, matrix_world: np.ndarray, camera: Camera) -> Tri
     return TriangleSetup(
         X=X, Y=Y, zw=zw, iw=iw, area2=area2, src=src, weights=weights, clipped=clipped, front=front,
         world_normals=world_normals, uvs=uvs, skipped_nonfinite=skipped, degenerate=degenerate,
+        normals_flat=normals_flat, uvs_flat=uvs_flat,
     )
 
 
@@ -309,6 +316,26 @@ class Rows:
     @property
     def count(self) -> int:
         return int(self.tri.shape[0])
+
+    def take(self, mask: np.ndarray) -> Rows:
+        """The rows where ``mask`` is True, order kept."""
+        return Rows(tri=self.tri[mask], y=self.y[mask], x0=self.x0[mask], length=self.length[mask],
+                    c=self.c[mask], dy=self.dy[mask], swap=self.swap[mask], area=self.area[mask])
+
+    def split_bands(self, bands: int, height: int) -> list[Rows]:
+        """Split into up to ``bands`` horizontal screen bands of about equal fragment counts.
+
+        Bands cover disjoint pixel rows, so they can be merged independently and exactly.
+        """
+        if bands <= 1 or self.count == 0:
+            return [self]
+        per_y = np.bincount(self.y, weights=self.length, minlength=height)
+        total = per_y.sum()
+        if total == 0:
+            return [self]
+        cuts = np.searchsorted(np.cumsum(per_y), total * np.arange(1, bands) / bands, side="right")
+        band = np.searchsorted(cuts, self.y, side="right")
+        return [part for k in range(bands) if (part := self.take(band == k)).count]
 
 
 def _ceil_div(a: np.ndarray, b: int) -> np.ndarray:
@@ -421,12 +448,14 @@ def rasterize_rows(rows: Rows, start: int, stop: int, width: int) -> Fragments:
 
 
 def interpolate(
-    setup: TriangleSetup, frags: Fragments, offset_factor: float = 0.0, offset_units: float = 0.0
-) -> tuple[np.ndarray, np.ndarray]:
+    setup: TriangleSetup, frags: Fragments, offset_factor: float = 0.0, offset_units: float = 0.0,
+    weights: bool = True,
+) -> tuple[np.ndarray, np.ndarray | None]:
     """Depth and perspective-correct source-triangle weights of fragments (§5, §6).
 
     Returns ``depth`` (N,) int64 in 0..2**24-1 and ``weights`` (N, 3) float64 — the
-    weights of the *source* mesh triangle's corners (clipping undone).
+    weights of the *source* mesh triangle's corners (clipping undone) — or None when
+    ``weights`` is False (no attribute needs them).
     """
     t = frags.tri
     b0, b1, b2 = frags.bary[:, 0], frags.bary[:, 1], frags.bary[:, 2]
@@ -436,6 +465,8 @@ def interpolate(
         z = z + (float(offset_factor) * setup.slope()[t] + float(offset_units) * 2.0**-24)
     z = np.minimum(np.maximum(z, 0.0), 1.0)
     depth = np.floor(z * DEPTH_MAX + 0.5).astype(np.int64)
+    if not weights:
+        return depth, None
 
     iw = setup.iw[t]
     t0, t1, t2 = b0 * iw[:, 0], b1 * iw[:, 1], b2 * iw[:, 2]
@@ -450,6 +481,17 @@ def interpolate(
     return depth, p
 
 
-def interpolate_attribute(weights: np.ndarray, corners: np.ndarray) -> np.ndarray:
-    """``(o0*a0 + o1*a1) + o2*a2`` per component: weights (N, 3), corners (N, 3, C) → (N, C) float64."""
-    return (weights[:, 0:1] * corners[:, 0] + weights[:, 1:2] * corners[:, 1]) + weights[:, 2:3] * corners[:, 2]
+def flat_corners(corners: np.ndarray) -> np.ndarray:
+    """(T,) bool: the three corner values of each triangle are equal (corners (T, 3, C))."""
+    return np.all((corners[:, 0] == corners[:, 1]) & (corners[:, 0] == corners[:, 2]), axis=1)
+
+
+def interpolate_attribute(weights: np.ndarray, corners: np.ndarray, flat: np.ndarray | None = None) -> np.ndarray:
+    """``(o0*a0 + o1*a1) + o2*a2`` per component: weights (N, 3), corners (N, 3, C) → (N, C) float64.
+
+    Where ``flat`` (N,) is True the corners are equal and the value is the corner value (§6).
+    """
+    out = (weights[:, 0:1] * corners[:, 0] + weights[:, 1:2] * corners[:, 1]) + weights[:, 2:3] * corners[:, 2]
+    if flat is not None and np.any(flat):
+        out[flat] = corners[flat, 0]
+    return out
