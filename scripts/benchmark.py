@@ -1,0 +1,1028 @@
+#!/usr/bin/env python3
+"""Benchmark: the project's renderer against OpenGL (Mesa llvmpipe), EEVEE and Workbench.
+
+    .venv/bin/python scripts/benchmark.py                      # the full run (docs/benchmark.md)
+    .venv/bin/python scripts/benchmark.py --quick              # small sizes, a smoke run
+    .venv/bin/python scripts/benchmark.py --scenes S1,S4 --repeats 5 --json out.json --plot docs/benchmark.png
+
+Every scene is a real Blender scene built with bpy (or a file of ``blend_files/``), so that
+every backend starts from the same data:
+
+- ``project``: ``blendlib.bridge.build_draw_scene`` (extraction: evaluated bpy scene → DrawScene)
+  then ``blendlib.render_scene`` (the numpy renderer), timed separately;
+- ``opengl``: the same DrawScene drawn by :class:`blendlib.glref.GLRenderer` (moderngl, EGL,
+  Mesa llvmpipe): clear + every draw call + glFinish + readback of colour, depth and stencil.
+  Context creation, vertex upload and the first (shader-compiling) draw are reported apart;
+- ``eevee``: ``bpy.ops.render.render()`` with ``BLENDER_EEVEE`` and ``taa_render_samples = 1``;
+- ``workbench``: ``bpy.ops.render.render()`` with ``BLENDER_WORKBENCH``.
+
+Each backend lives in its own worker process (so GL contexts, caches and memory figures do not
+mix); the parent builds the scene in every worker, does one untimed warm-up run per backend
+(its time is reported as "first"), then alternates timed runs A, B, C, D, A, B, ... and reports
+medians. Only one worker runs at a time.
+
+Peak memory of the project's render: the worker resets its peak resident set size
+(``/proc/self/clear_refs`` ← 5) just before ``render_scene`` and reads ``VmHWM`` after it:
+"peak RSS over the RSS before the render" is what the render needs on top of the Blender
+process and the input scene (numpy buffers, chunks, the frame). CPU use is the process CPU
+time (all threads) over wall time of the same call: 2.0 means both cores busy.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import platform
+import statistics
+import struct
+import subprocess
+import sys
+import tempfile
+import time
+import traceback
+import zlib
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+BACKENDS = ("project", "opengl", "eevee", "workbench")
+
+# ---------------------------------------------------------------------------------------------
+# The scenes
+# ---------------------------------------------------------------------------------------------
+
+
+def sphere_k(triangles: int) -> int:
+    """A UV sphere with ``2k`` segments and ``k + 1`` rings has ``2*2k*k = 4k²`` triangles."""
+    return max(2, round(math.sqrt(triangles / 4.0)))
+
+
+def plan_cases(args) -> list[dict]:
+    """The cases to run, in order. Each is a plain dict (sent as JSON to the workers)."""
+    quick = args.quick
+    wanted = {s.strip().upper() for s in args.scenes.split(",") if s.strip()}
+    full_hd = (480, 270) if quick else (1920, 1080)
+    cases: list[dict] = []
+    if "S1" in wanted:
+        cases.append(dict(id="S1", group="S1", kind="sphere", k=sphere_k(20_000 if quick else 200_000),
+                          width=full_hd[0], height=full_hd[1], fill=1 / 3,
+                          label="UV sphere, Cull Off, ZWrite Off, alpha blend"))
+    if "S2" in wanted:
+        cases.append(dict(id="S2", group="S2", kind="planes", count=10 if quick else 50,
+                          width=full_hd[0], height=full_hd[1],
+                          label="transparent planes, each half the frame"))
+    if "S3" in wanted:
+        blend_dir = Path(args.blend_dir)
+        files = sorted(blend_dir.glob("*.blend")) if blend_dir.is_dir() else []
+        size = (320, 180) if quick else (1280, 720)
+        for f in files:
+            cases.append(dict(id=f"S3:{f.stem}", group="S3", kind="blend", path=str(f.resolve()),
+                              width=size[0], height=size[1], label=f"blend_files/{f.name}"))
+        if not files:
+            print(f"note: S3 skipped: no .blend files in {blend_dir}", file=sys.stderr)
+    if "S4" in wanted:
+        cases.append(dict(id="S4", group="S4", kind="monkey", levels=3 if quick else 5,
+                          width=full_hd[0], height=full_hd[1], label="subdivided monkey, opaque"))
+    if "SCALING" in wanted:
+        tris = [2_000, 8_000, 32_000] if quick else [10_000, 30_000, 100_000, 300_000, 1_000_000]
+        for t in tris:
+            k = sphere_k(t)
+            cases.append(dict(id=f"tris {4 * k * k}", group="scale-tris", kind="sphere", k=k,
+                              width=full_hd[0], height=full_hd[1], fill=1 / 3,
+                              label="S1 material, triangles vary"))
+        sizes = ([(160, 90), (320, 180), (640, 360)] if quick
+                 else [(854, 480), (1280, 720), (1920, 1080), (2560, 1440), (3840, 2160)])
+        k = sphere_k(8_000 if quick else 200_000)
+        for w, h in sizes:
+            cases.append(dict(id=f"{w}x{h}", group="scale-res", kind="sphere", k=k, width=w, height=h,
+                              fill=1 / 3, label="S1 material, resolution varies"))
+    return cases
+
+
+ALPHA_BLEND = dict(blend=True, zwrite=False, src_blend="SrcAlpha", dst_blend="OneMinusSrcAlpha")
+
+
+def _unity_settings(mat, *, queue: str, color, passes: list[dict], lighting: str = "Lambert") -> None:
+    """Give ``mat`` Unity settings (SPEC §3): through the add-on's ``Material.unity`` when it is
+    registered, else as the stored ID properties that the bridge reads (same names and storage)."""
+    group = getattr(mat, "unity", None)
+    if group is not None and hasattr(group, "bl_rna"):
+        group.enabled = True
+        group.queue = queue
+        group.color = color
+        group.lighting = lighting
+        group.passes.clear()
+        for values in passes:
+            item = group.passes.add()
+            for key, value in values.items():
+                setattr(item, key, set(value) if key == "color_mask" else value)
+        return
+    from blendlib.bridge import FLAG_BITS, MATERIAL_FIELDS, PASS_FIELDS
+
+    def stored(fields, values):
+        out = {}
+        for f in fields:
+            if f.name not in values:
+                continue
+            v = values[f.name]
+            if f.kind == "enum":
+                v = [m.value for m in f.enum].index(v)
+            elif f.kind == "flags":
+                v = sum(FLAG_BITS[c] for c in v)
+            out[f.name] = v
+        return out
+
+    data = stored(MATERIAL_FIELDS, dict(enabled=True, queue=queue, color=tuple(color), lighting=lighting))
+    data["passes"] = [stored(PASS_FIELDS, p) for p in passes]
+    mat.bl_system_properties_get(do_create=True)["unity"] = data
+
+
+def _principled(mat, color, alpha: float, blended: bool, backface_culling: bool) -> None:
+    """The same look for EEVEE/Workbench: Principled BSDF Base Color/Alpha, EEVEE blend mode."""
+    mat.use_nodes = True
+    bsdf = next(n for n in mat.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
+    bsdf.inputs["Base Color"].default_value = (*color, 1.0)
+    bsdf.inputs["Alpha"].default_value = alpha
+    mat.diffuse_color = (*color, alpha)  # Workbench (material colour)
+    mat.surface_render_method = "BLENDED" if blended else "DITHERED"
+    mat.use_backface_culling = backface_culling
+
+
+def _srgb_encode(x: float) -> float:
+    return x * 12.92 if x <= 0.0031308 else 1.055 * x ** (1 / 2.4) - 0.055
+
+
+def _material(name: str, color_linear, alpha: float, *, transparent: bool, cull: str):
+    import bpy
+
+    mat = bpy.data.materials.new(name)
+    _principled(mat, color_linear, alpha, blended=transparent, backface_culling=cull != "Off")
+    color = tuple(_srgb_encode(c) for c in color_linear) + (alpha,)  # _Color is sRGB-encoded
+    if transparent:
+        _unity_settings(mat, queue="Transparent", color=color, passes=[dict(ALPHA_BLEND, cull=cull)])
+    else:
+        _unity_settings(mat, queue="Geometry", color=color, passes=[dict(cull=cull)])
+    return mat
+
+
+def _look_at(obj, target) -> None:
+    from mathutils import Vector
+
+    direction = Vector(target) - obj.location
+    obj.rotation_euler = direction.to_track_quat("-Z", "Y").to_euler()
+
+
+def _common(scene, width: int, height: int) -> None:
+    import bpy
+
+    scene.render.resolution_x, scene.render.resolution_y = int(width), int(height)
+    scene.render.resolution_percentage = 100
+    scene.render.use_compositing = False
+    scene.render.use_sequencer = False
+    if scene.world is None:
+        scene.world = bpy.data.worlds.new("World")
+    scene.eevee.taa_render_samples = 1
+
+
+def _add_camera(scene, location, target, ortho_scale: float | None = None):
+    import bpy
+
+    cam = bpy.data.cameras.new("Camera")
+    cam.clip_start, cam.clip_end = 0.1, 100.0
+    if ortho_scale is not None:
+        cam.type = "ORTHO"
+        cam.ortho_scale = ortho_scale
+    obj = bpy.data.objects.new("Camera", cam)
+    scene.collection.objects.link(obj)
+    obj.location = location
+    _look_at(obj, target)
+    scene.camera = obj
+    return obj
+
+
+def _add_sun(scene) -> None:
+    import bpy
+
+    sun = bpy.data.lights.new("Sun", "SUN")
+    sun.energy = 2.0
+    obj = bpy.data.objects.new("Sun", sun)
+    scene.collection.objects.link(obj)
+    obj.rotation_euler = (0.6, 0.2, 0.8)
+
+
+def build_case(case: dict):
+    """Build the case's Blender scene in this process; returns the scene."""
+    import bmesh
+    import bpy
+
+    if case["kind"] == "blend":
+        bpy.ops.wm.open_mainfile(filepath=case["path"], load_ui=False)
+        scene = bpy.context.scene
+        _common(scene, case["width"], case["height"])
+        return scene
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    _common(scene, case["width"], case["height"])
+    world = scene.world
+    world.color = (0.05, 0.05, 0.05)
+    _add_sun(scene)
+    w, h = case["width"], case["height"]
+
+    if case["kind"] == "sphere":
+        k = int(case["k"])
+        me = bpy.data.meshes.new("Sphere")
+        bm = bmesh.new()
+        bmesh.ops.create_uvsphere(bm, u_segments=2 * k, v_segments=k + 1, radius=1.0)
+        bm.to_mesh(me)
+        bm.free()
+        me.shade_smooth()
+        obj = bpy.data.objects.new("Sphere", me)
+        scene.collection.objects.link(obj)
+        obj.data.materials.append(_material("Glass", (0.2, 0.45, 1.0), 0.5, transparent=True, cull="Off"))
+        # Silhouette radius r_px = f_px / sqrt(d² - 1) with the 50 mm lens on the 36 mm sensor (width fit).
+        f_px = 50.0 / 36.0 * max(w, h)
+        r_px = math.sqrt(case["fill"] * w * h / math.pi)
+        d = math.sqrt((f_px / r_px) ** 2 + 1.0)
+        _add_camera(scene, (0.0, -d, 0.0), (0.0, 0.0, 0.0))
+    elif case["kind"] == "planes":
+        # Orthographic camera looking down -Z; frame = 16 x 9 units; each plane 8 x 9 (half the frame).
+        me = bpy.data.meshes.new("Plane")
+        me.from_pydata([(-4, -4.5, 0), (4, -4.5, 0), (4, 4.5, 0), (-4, 4.5, 0)], [], [(0, 1, 2, 3)])
+        mat = _material("Veil", (1.0, 0.5, 0.2), 0.1, transparent=True, cull="Back")
+        me.materials.append(mat)
+        seed = 12345
+        for i in range(int(case["count"])):
+            seed = (seed * 1103515245 + 12345) % 2**31
+            x = (seed / 2**31 - 0.5) * 8.0  # centre in [-4, 4]: the plane stays inside the frame
+            obj = bpy.data.objects.new(f"Plane.{i:03d}", me)
+            scene.collection.objects.link(obj)
+            obj.location = (x, 0.0, i * 0.05)
+        _add_camera(scene, (0.0, 0.0, 10.0), (0.0, 0.0, 0.0), ortho_scale=16.0 * max(1.0, (16 / 9) / (w / h)))
+    elif case["kind"] == "monkey":
+        bpy.ops.mesh.primitive_monkey_add(size=2.0)
+        obj = bpy.context.object
+        mod = obj.modifiers.new("Subdivision", "SUBSURF")
+        mod.levels = mod.render_levels = int(case["levels"])
+        obj.data.shade_smooth()
+        obj.data.materials.append(_material("Clay", (0.8, 0.6, 0.5), 1.0, transparent=False, cull="Back"))
+        _add_camera(scene, (0.0, -6.5, 0.4), (0.0, 0.0, 0.0))
+    else:
+        raise ValueError(f"unknown case kind {case['kind']!r}")
+    bpy.context.view_layer.update()
+    return scene
+
+
+# ---------------------------------------------------------------------------------------------
+# Workers (one process per backend)
+# ---------------------------------------------------------------------------------------------
+
+
+def _proc_status() -> dict[str, int]:
+    out = {}
+    try:
+        with open("/proc/self/status") as f:
+            for line in f:
+                key, _, rest = line.partition(":")
+                if key in ("VmRSS", "VmHWM"):
+                    out[key] = int(rest.split()[0]) * 1024
+    except OSError:
+        pass
+    return out
+
+
+def _reset_peak() -> bool:
+    try:
+        with open("/proc/self/clear_refs", "w") as f:
+            f.write("5")
+        return True
+    except OSError:
+        return False
+
+
+class Timer:
+    def __enter__(self):
+        self.cpu0, self.t0 = time.process_time(), time.perf_counter()
+        return self
+
+    def __exit__(self, *exc):
+        self.wall = time.perf_counter() - self.t0
+        self.cpu = time.process_time() - self.cpu0
+
+
+class ProjectWorker:
+    def __init__(self, opts: dict):
+        self.opts = opts
+
+    def setup(self, case: dict) -> dict:
+        self.scene = build_case(case)
+        from blendlib import bridge
+
+        bridge.build_draw_scene(self.scene)  # evaluates the depsgraph (untimed), like a viewport would
+        first = self.run(first=True)
+        return {"first_s": first["total_s"], "triangles": first["triangles"], "covered_px": first["covered_px"]}
+
+    def run(self, first: bool = False) -> dict:
+        import numpy as np
+
+        from blendlib import bridge
+        from blendlib.pipeline import render_scene
+
+        kwargs = {}
+        if self.opts.get("workers"):
+            kwargs["workers"] = self.opts["workers"]
+        if self.opts.get("chunk_candidates"):
+            kwargs["chunk_candidates"] = self.opts["chunk_candidates"]
+        with Timer() as te:
+            draw = bridge.build_draw_scene(self.scene)
+        can_peak = _reset_peak()
+        rss0 = _proc_status().get("VmRSS", 0)
+        with Timer() as tr:
+            frame = render_scene(draw, **kwargs)
+        peak = _proc_status().get("VmHWM", 0) if can_peak else 0
+        out = {
+            "extract_s": te.wall, "render_s": tr.wall, "total_s": te.wall + tr.wall,
+            "cpu_ratio": tr.cpu / tr.wall if tr.wall > 0 else 0.0,
+            "peak_mb": max(0, peak - rss0) / 2**20, "rss_mb": peak / 2**20,
+            "triangles": int(sum(r.mesh.triangle_count for r in draw.renderers)),
+        }
+        if first:
+            c = frame.color
+            background = c[0, 0]
+            out["covered_px"] = int(np.count_nonzero(np.any(c != background, axis=-1)))
+        del frame, draw
+        return out
+
+    def end(self) -> dict:
+        self.scene = None
+        return {}
+
+
+class OpenGLWorker:
+    def __init__(self, opts: dict):
+        from blendlib import glref
+
+        with Timer() as t:
+            glref.context()
+        self.context_s = t.wall
+        self.renderer = None
+
+    def setup(self, case: dict) -> dict:
+        from blendlib import bridge, glref
+
+        scene = build_case(case)
+        draw = bridge.build_draw_scene(scene)
+        with Timer() as tu:
+            self.renderer = glref.GLRenderer(draw)
+        with Timer() as tf:
+            self._draw()
+        return {"context_s": self.context_s, "upload_s": tu.wall, "first_s": tf.wall}
+
+    def _draw(self):
+        r = self.renderer
+        r.render()
+        r.finish()
+        return r.read()
+
+    def run(self) -> dict:
+        with Timer() as t:
+            self._draw()
+        return {"total_s": t.wall, "cpu_ratio": t.cpu / t.wall if t.wall > 0 else 0.0}
+
+    def end(self) -> dict:
+        if self.renderer is not None:
+            self.renderer.release()
+            self.renderer = None
+        return {}
+
+
+class BlenderWorker:
+    engine = ""
+
+    def __init__(self, opts: dict):
+        pass
+
+    def setup(self, case: dict) -> dict:
+        import bpy
+
+        self.scene = build_case(case)
+        self.scene.render.engine = self.engine
+        self.scene.eevee.taa_render_samples = 1
+        with Timer() as t:
+            bpy.ops.render.render(write_still=False)
+        return {"first_s": t.wall}
+
+    def run(self) -> dict:
+        import bpy
+
+        with Timer() as t:
+            bpy.ops.render.render(write_still=False)
+        return {"total_s": t.wall, "cpu_ratio": t.cpu / t.wall if t.wall > 0 else 0.0}
+
+    def end(self) -> dict:
+        return {}
+
+
+class EeveeWorker(BlenderWorker):
+    engine = "BLENDER_EEVEE"
+
+
+class WorkbenchWorker(BlenderWorker):
+    engine = "BLENDER_WORKBENCH"
+
+
+WORKERS = {"project": ProjectWorker, "opengl": OpenGLWorker, "eevee": EeveeWorker, "workbench": WorkbenchWorker}
+
+
+def worker_main(kind: str) -> int:
+    """Serve JSON-line commands on stdin; answers go to the original stdout, everything else
+    (Blender's own prints) to stderr."""
+    proto = os.fdopen(os.dup(1), "w", buffering=1)
+    os.dup2(2, 1)
+    sys.stdout = sys.stderr
+    if str(REPO) not in sys.path:
+        sys.path.insert(0, str(REPO))
+    try:
+        import addon  # noqa: F401  (the add-on registers Material.unity when it is there)
+
+        addon.register()
+        registered = True
+    except Exception:  # noqa: BLE001 - without the add-on the bridge reads the stored properties
+        registered = False
+    try:
+        w = WORKERS[kind]({})
+        proto.write(json.dumps({"ok": True, "addon": registered}) + "\n")
+    except Exception as exc:  # noqa: BLE001
+        proto.write(json.dumps({"ok": False, "error": f"{type(exc).__name__}: {exc}"}) + "\n")
+        return 1
+    for line in sys.stdin:
+        msg = json.loads(line)
+        cmd = msg["cmd"]
+        if cmd == "quit":
+            break
+        try:
+            if cmd == "options":
+                if isinstance(w, ProjectWorker):
+                    w.opts.update(msg["options"])
+                res = {}
+            elif cmd == "setup":
+                res = w.setup(msg["case"])
+            elif cmd == "run":
+                res = w.run()
+            elif cmd == "end":
+                res = w.end()
+            else:
+                raise ValueError(f"unknown command {cmd!r}")
+            proto.write(json.dumps({"ok": True, **res}) + "\n")
+        except Exception as exc:  # noqa: BLE001 - reported to the parent, which skips the backend
+            traceback.print_exc()
+            proto.write(json.dumps({"ok": False, "error": f"{type(exc).__name__}: {exc}"}) + "\n")
+    return 0
+
+
+class Worker:
+    """The parent's handle on one worker process."""
+
+    def __init__(self, kind: str, log):
+        self.kind = kind
+        env = dict(os.environ)
+        env["PYTHONPATH"] = str(REPO) + os.pathsep + env.get("PYTHONPATH", "")
+        self.proc = subprocess.Popen(
+            [sys.executable, str(Path(__file__).resolve()), "--worker", kind],
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=log, text=True, bufsize=1, env=env,
+        )
+        hello = self._read()
+        self.ok = hello.get("ok", False)
+        self.error = hello.get("error", "")
+        self.addon = hello.get("addon", False)
+
+    def _read(self) -> dict:
+        line = self.proc.stdout.readline()
+        if not line:
+            return {"ok": False, "error": f"{self.kind} worker exited (see the log)"}
+        return json.loads(line)
+
+    def call(self, cmd: str, **kw) -> dict:
+        if self.proc.poll() is not None:
+            return {"ok": False, "error": f"{self.kind} worker is not running"}
+        self.proc.stdin.write(json.dumps({"cmd": cmd, **kw}) + "\n")
+        self.proc.stdin.flush()
+        return self._read()
+
+    def close(self) -> None:
+        if self.proc.poll() is None:
+            try:
+                self.proc.stdin.write(json.dumps({"cmd": "quit"}) + "\n")
+                self.proc.stdin.flush()
+                self.proc.wait(timeout=30)
+            except (OSError, subprocess.TimeoutExpired):
+                self.proc.kill()
+                self.proc.wait()
+
+
+# ---------------------------------------------------------------------------------------------
+# The run
+# ---------------------------------------------------------------------------------------------
+
+
+def median(values):
+    values = [v for v in values if v is not None]
+    return statistics.median(values) if values else None
+
+
+def run_case(case: dict, workers: dict[str, Worker], repeats: int, say) -> dict:
+    res = {"case": case, "setup": {}, "runs": {k: [] for k in workers}, "errors": {}}
+    active = []
+    for kind, w in workers.items():
+        t = time.perf_counter()
+        r = w.call("setup", case=case)
+        if r.pop("ok"):
+            res["setup"][kind] = r
+            active.append(kind)
+            say(f"  {case['id']}: {kind} ready ({time.perf_counter() - t:.1f} s, first run {r['first_s']:.3f} s)")
+        else:
+            res["errors"][kind] = r.get("error", "?")
+            say(f"  {case['id']}: {kind} FAILED: {res['errors'][kind]}")
+    for _ in range(repeats):
+        for kind in active:  # alternate: A, B, C, D, A, B, ...
+            r = workers[kind].call("run")
+            if r.pop("ok"):
+                res["runs"][kind].append(r)
+            else:
+                res["errors"][kind] = r.get("error", "?")
+    for kind in active:
+        workers[kind].call("end")
+    res["median"] = {}
+    for kind, runs in res["runs"].items():
+        if runs:
+            keys = runs[0].keys()
+            med = {k: median([r.get(k) for r in runs]) for k in keys}
+            if "peak_mb" in keys:
+                med["peak_mb"] = max(r["peak_mb"] for r in runs)
+                med["rss_mb"] = max(r["rss_mb"] for r in runs)
+            res["median"][kind] = med
+    p, g, e = (res["median"].get(k) for k in ("project", "opengl", "eevee"))
+    res["ratio_gl"] = p["render_s"] / g["total_s"] if p and g and g["total_s"] > 0 else None
+    res["ratio_gl_total"] = p["total_s"] / g["total_s"] if p and g and g["total_s"] > 0 else None
+    res["ratio_eevee"] = p["total_s"] / e["total_s"] if p and e and e["total_s"] > 0 else None
+    return res
+
+
+def _fmt_t(v) -> str:
+    if v is None:
+        return "-"
+    if v >= 100:
+        return f"{v:.0f}"
+    if v >= 10:
+        return f"{v:.1f}"
+    if v >= 1:
+        return f"{v:.2f}"
+    return f"{v:.3f}"
+
+
+def _fmt_x(v) -> str:
+    return "-" if v is None else (f"{v:.1f}x" if v < 100 else f"{v:.0f}x")
+
+
+def _fmt_n(v) -> str:
+    if v is None:
+        return "-"
+    if v >= 1e6:
+        return f"{v / 1e6:.2f}M"
+    if v >= 1e3:
+        return f"{v / 1e3:.0f}k"
+    return str(int(v))
+
+
+COLUMNS = ("scene", "tris", "size", "covered", "extract s", "render s", "project s", "OpenGL s",
+           "EEVEE s", "Workbench s", "proj/GL", "proj/EEVEE", "peak MB", "CPU")
+
+
+def table_rows(results: list[dict]) -> list[list[str]]:
+    rows = []
+    for res in results:
+        case = res["case"]
+        m = res["median"]
+        p, g, e, wb = (m.get(k) for k in BACKENDS)
+        ps = res["setup"].get("project", {})
+        rows.append([
+            case["id"], _fmt_n(ps.get("triangles")), f"{case['width']}x{case['height']}",
+            _fmt_n(ps.get("covered_px")),
+            _fmt_t(p and p["extract_s"]), _fmt_t(p and p["render_s"]), _fmt_t(p and p["total_s"]),
+            _fmt_t(g and g["total_s"]), _fmt_t(e and e["total_s"]), _fmt_t(wb and wb["total_s"]),
+            _fmt_x(res["ratio_gl"]), _fmt_x(res["ratio_eevee"]),
+            "-" if not p else f"{p['peak_mb']:.0f}", "-" if not p else f"{p['cpu_ratio']:.2f}",
+        ])
+    return rows
+
+
+def format_table(results: list[dict], markdown: bool = False) -> str:
+    rows = table_rows(results)
+    if markdown:
+        lines = ["| " + " | ".join(COLUMNS) + " |", "|" + "|".join("---" for _ in COLUMNS) + "|"]
+        lines += ["| " + " | ".join(r) + " |" for r in rows]
+        return "\n".join(lines)
+    widths = [max(len(c), *(len(r[i]) for r in rows)) if rows else len(c) for i, c in enumerate(COLUMNS)]
+    fmt = "  ".join(f"{{:{'<' if i == 0 else '>'}{w}}}" for i, w in enumerate(widths))
+    lines = [fmt.format(*COLUMNS), fmt.format(*("-" * w for w in widths))]
+    lines += [fmt.format(*r) for r in rows]
+    return "\n".join(lines)
+
+
+def loglog_slope(xs, ys) -> float | None:
+    pts = [(math.log(x), math.log(y)) for x, y in zip(xs, ys, strict=True) if x and y and x > 0 and y > 0]
+    if len(pts) < 2:
+        return None
+    mx = sum(p[0] for p in pts) / len(pts)
+    my = sum(p[1] for p in pts) / len(pts)
+    sxx = sum((p[0] - mx) ** 2 for p in pts)
+    return sum((p[0] - mx) * (p[1] - my) for p in pts) / sxx if sxx else None
+
+
+def scaling_summary(results: list[dict]) -> dict:
+    out = {}
+    for group, xkey in (("scale-tris", "triangles"), ("scale-res", "covered_px")):
+        rs = [r for r in results if r["case"]["group"] == group]
+        for kind in ("project", "opengl", "eevee"):
+            xs = [r["setup"].get("project", {}).get(xkey) for r in rs]
+            ys = [r["median"].get(kind, {}).get("render_s" if kind == "project" else "total_s") for r in rs]
+            s = loglog_slope(xs, ys)
+            if s is not None:
+                out[f"{group}/{kind}"] = s
+    return out
+
+
+def targets(results: list[dict], quick: bool) -> list[tuple[str, str, bool | None]]:
+    """(target, figure, met?) lines of issue 5."""
+    by_id = {r["case"]["id"]: r for r in results}
+    out = []
+    for sid, limit in (("S1", 8), ("S2", 10), ("S4", 5)):
+        r = by_id.get(sid)
+        if r and r["ratio_gl"] is not None:
+            out.append((f"{sid} render within {limit}x of OpenGL/llvmpipe", _fmt_x(r["ratio_gl"]),
+                        r["ratio_gl"] <= limit))
+    s3 = [r for r in results if r["case"]["group"] == "S3" and r["ratio_eevee"] is not None]
+    for r in s3:
+        out.append((f"{r['case']['id']} faster than EEVEE (1 sample)", _fmt_x(r["ratio_eevee"]), r["ratio_eevee"] < 1))
+    r = by_id.get("S4")
+    p = r and r["median"].get("project")
+    if p:
+        tris = r["setup"]["project"]["triangles"]
+        out.append((f"extraction of the {_fmt_n(tris)}-triangle evaluated mesh under 0.3 s",
+                    f"{p['extract_s']:.3f} s", p["extract_s"] < 0.3))
+        out.append(("S4 peak memory of the render under 2 GB", f"{p['peak_mb']:.0f} MB", p["peak_mb"] < 2048))
+    sc = scaling_summary(results)
+    for key, label in (("scale-tris/project", "triangles"), ("scale-res/project", "covered pixels")):
+        if key in sc:
+            out.append((f"cost grows at most linearly with {label} (log-log slope <= 1.1)",
+                        f"{sc[key]:.2f}", sc[key] <= 1.1))
+    big = [r for r in results if r["case"]["width"] * r["case"]["height"] >= 1920 * 1080
+           and r["median"].get("project")]
+    if big:
+        cpu = median([r["median"]["project"]["cpu_ratio"] for r in big])
+        out.append(("both CPU cores busy on large frames (median CPU time / wall >= 1.5)", f"{cpu:.2f}", cpu >= 1.5))
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# The plot: matplotlib when installed, else a small PNG drawn with numpy
+# ---------------------------------------------------------------------------------------------
+
+_FONT = {  # 3x5 glyphs, rows top to bottom
+    "0": "111101101101111", "1": "010110010010111", "2": "111001111100111", "3": "111001111001111",
+    "4": "101101111001001", "5": "111100111001111", "6": "111100111101111", "7": "111001001010010",
+    "8": "111101111101111", "9": "111101111001111", "A": "010101111101101", "B": "110101110101110",
+    "C": "011100100100011", "D": "110101101101110", "E": "111100110100111", "F": "111100110100100",
+    "G": "011100101101011", "H": "101101111101101", "I": "111010010010111", "J": "001001001101010",
+    "K": "101101110101101", "L": "100100100100111", "M": "101111111101101", "N": "110101101101101",
+    "O": "010101101101010", "P": "110101110100100", "Q": "010101101110011", "R": "110101110101101",
+    "S": "011100010001110", "T": "111010010010010", "U": "101101101101111", "V": "101101101101010",
+    "W": "101101111111101", "X": "101101010101101", "Y": "101101010010010", "Z": "111001010100111",
+    ".": "000000000000010", ",": "000000000010100", "-": "000000111000000", "/": "001001010100100",
+    "(": "010100100100010", ")": "010001001001010", ":": "000010000010000", " ": "000000000000000",
+    "%": "101001010100101", "_": "000000000000111", "=": "000111000111000", "+": "000010111010000",
+    "x": "000101010101000",
+}
+
+
+def _png_bytes(rgb) -> bytes:
+    import numpy as np
+
+    h, w, _ = rgb.shape
+    raw = b"".join(b"\x00" + np.ascontiguousarray(rgb[y]).tobytes() for y in range(h))
+
+    def chunk(kind, data):
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
+
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0))
+            + chunk(b"IDAT", zlib.compress(raw, 9)) + chunk(b"IEND", b""))
+
+
+class _Canvas:
+    def __init__(self, w, h):
+        import numpy as np
+
+        self.np = np
+        self.img = np.full((h, w, 3), 255, np.uint8)
+        self.w, self.h = w, h
+
+    def rect(self, x0, y0, x1, y1, color):
+        x0, x1 = sorted((int(x0), int(x1)))
+        y0, y1 = sorted((int(y0), int(y1)))
+        self.img[max(0, y0):min(self.h, y1 + 1), max(0, x0):min(self.w, x1 + 1)] = color
+
+    def line(self, x0, y0, x1, y1, color, width=2):
+        n = int(max(abs(x1 - x0), abs(y1 - y0))) + 1
+        for t in self.np.linspace(0.0, 1.0, n):
+            x, y = x0 + (x1 - x0) * t, y0 + (y1 - y0) * t
+            self.rect(x - width // 2, y - width // 2, x + (width - 1) // 2, y + (width - 1) // 2, color)
+
+    def text(self, x, y, s, color=(0, 0, 0), scale=2, anchor="left"):
+        s = str(s)
+        if anchor != "left":
+            width = len(s) * 4 * scale
+            x -= width if anchor == "right" else width // 2
+        for i, ch in enumerate(s):
+            glyph = _FONT.get(ch, _FONT.get(ch.upper(), _FONT[" "]))
+            for k, bit in enumerate(glyph):
+                if bit == "1":
+                    gx, gy = x + (i * 4 + k % 3) * scale, y + (k // 3) * scale
+                    self.rect(gx, gy, gx + scale - 1, gy + scale - 1, color)
+
+
+SERIES = (("project", "render_s", (31, 119, 180)), ("opengl", "total_s", (255, 127, 14)),
+          ("eevee", "total_s", (44, 160, 44)), ("workbench", "total_s", (148, 103, 189)))
+
+
+def _panel(cv, box, title, xlabel, series):
+    x0, y0, x1, y1 = box
+    pts = [(x, y) for _, _, s in series for x, y in s if x > 0 and y > 0]
+    if not pts:
+        return
+    lx = [math.log10(p[0]) for p in pts]
+    ly = [math.log10(p[1]) for p in pts]
+    xa, xb = math.floor(min(lx)), math.ceil(max(lx))
+    ya, yb = math.floor(min(ly)), math.ceil(max(ly))
+    xb, yb = max(xb, xa + 1), max(yb, ya + 1)
+
+    def px(x, y):
+        return (x0 + (math.log10(x) - xa) / (xb - xa) * (x1 - x0),
+                y1 - (math.log10(y) - ya) / (yb - ya) * (y1 - y0))
+
+    for e in range(xa, xb + 1):
+        gx = x0 + (e - xa) / (xb - xa) * (x1 - x0)
+        cv.line(gx, y0, gx, y1, (225, 225, 225), 1)
+        cv.text(gx, y1 + 8, _fmt_n(10**e), anchor="center")
+    for e in range(ya, yb + 1):
+        gy = y1 - (e - ya) / (yb - ya) * (y1 - y0)
+        cv.line(x0, gy, x1, gy, (225, 225, 225), 1)
+        cv.text(x0 - 6, gy - 5, f"{10.0**e:g}", anchor="right")
+    cv.rect(x0, y1, x1, y1, (0, 0, 0))
+    cv.rect(x0, y0, x0, y1, (0, 0, 0))
+    cv.text((x0 + x1) // 2, y0 - 26, title, anchor="center")
+    cv.text((x0 + x1) // 2, y1 + 26, xlabel, anchor="center")
+    for _name, color, s in series:
+        s = [p for p in s if p[0] > 0 and p[1] > 0]
+        for (xa_, ya_), (xb_, yb_) in zip(s, s[1:], strict=False):
+            cv.line(*px(xa_, ya_), *px(xb_, yb_), color, 3)
+        for x, y in s:
+            cx, cy = px(x, y)
+            cv.rect(cx - 3, cy - 3, cx + 3, cy + 3, color)
+
+
+def _scaling_series(results, group, xkey):
+    rs = [r for r in results if r["case"]["group"] == group]
+    out = []
+    for kind, key, color in SERIES:
+        s = [(r["setup"].get("project", {}).get(xkey) or 0, (r["median"].get(kind) or {}).get(key) or 0) for r in rs]
+        s = [p for p in s if p[0] and p[1]]
+        if s:
+            out.append((kind, color, s))
+    return out
+
+
+def write_plot(results: list[dict], path: Path, title: str) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tri = _scaling_series(results, "scale-tris", "triangles")
+    res = _scaling_series(results, "scale-res", "covered_px")
+    bars = [r for r in results if r["case"]["group"] in ("S1", "S2", "S3", "S4")]
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        fig, axes = plt.subplots(1, 3, figsize=(16, 5))
+        for ax, series, xl, t in ((axes[0], tri, "triangles", "time vs triangles (1080p)"),
+                                  (axes[1], res, "covered pixels", "time vs covered pixels (200k tris)")):
+            for name, color, s in series:
+                ax.loglog(*zip(*s, strict=True), "o-", color=[c / 255 for c in color], label=name)
+            ax.set_xlabel(xl)
+            ax.set_ylabel("seconds (median)")
+            ax.set_title(t)
+            ax.grid(True, which="both", alpha=0.3)
+            ax.legend()
+        ax = axes[2]
+        names = [r["case"]["id"] for r in bars]
+        for j, (kind, key, color) in enumerate(SERIES):
+            vals = [(r["median"].get(kind) or {}).get(key if kind != "project" else "total_s") or 0 for r in bars]
+            ax.bar([i + j * 0.2 for i in range(len(bars))], vals, 0.2, color=[c / 255 for c in color], label=kind)
+        ax.set_xticks([i + 0.3 for i in range(len(bars))], names, rotation=30, ha="right")
+        ax.set_yscale("log")
+        ax.set_ylabel("seconds (median)")
+        ax.set_title("scenes")
+        ax.legend()
+        fig.suptitle(title)
+        fig.tight_layout()
+        fig.savefig(path, dpi=80)
+        return path
+    except ImportError:
+        pass
+    W, H = 1500, 560
+    cv = _Canvas(W, H)
+    cv.text(W // 2, 12, title, anchor="center")
+    _panel(cv, (110, 80, 500, 470), "TIME (S) VS TRIANGLES", "TRIANGLES", tri)
+    _panel(cv, (620, 80, 1010, 470), "TIME (S) VS COVERED PIXELS", "COVERED PIXELS", res)
+    # Bars: project total vs the others per scene, log scale.
+    if bars:
+        x0, y0, x1, y1 = 1110, 80, 1480, 470
+        vals = [(r["median"].get(k) or {}).get("total_s") or 0 for r in bars for k, _, _ in SERIES]
+        vals = [v for v in vals if v > 0]
+        if vals:
+            ya, yb = math.floor(math.log10(min(vals))), math.ceil(math.log10(max(vals)))
+            yb = max(yb, ya + 1)
+            for e in range(ya, yb + 1):
+                gy = y1 - (e - ya) / (yb - ya) * (y1 - y0)
+                cv.line(x0, gy, x1, gy, (225, 225, 225), 1)
+                cv.text(x0 - 6, gy - 5, f"{10.0**e:g}", anchor="right")
+            slot = (x1 - x0) / len(bars)
+            bw = max(2, int(slot / (len(SERIES) + 1)))
+            for i, r in enumerate(bars):
+                for j, (kind, _, color) in enumerate(SERIES):
+                    v = (r["median"].get(kind) or {}).get("total_s") or 0
+                    if v > 0:
+                        top = y1 - (math.log10(v) - ya) / (yb - ya) * (y1 - y0)
+                        bx = x0 + i * slot + j * bw + bw // 2
+                        cv.rect(bx, top, bx + bw - 2, y1, color)
+                label = r["case"]["id"].removeprefix("S3:")[: max(2, int(slot // 4))]
+                cv.text(x0 + i * slot + slot / 2, y1 + 8 + (i % 2) * 9, label, scale=1, anchor="center")
+            cv.rect(x0, y1, x1, y1, (0, 0, 0))
+            cv.rect(x0, y0, x0, y1, (0, 0, 0))
+            cv.text((x0 + x1) // 2, y0 - 26, "SCENES: TOTAL TIME (S)", anchor="center")
+    # Legend.
+    lx = 110
+    for kind, _, color in SERIES:
+        cv.rect(lx, 520, lx + 20, 532, color)
+        cv.text(lx + 28, 521, kind.upper())
+        lx += 60 + 10 * len(kind)
+    cv.text(lx + 20, 521, "PROJECT = RENDER_SCENE IN PLOTS 1-2, EXTRACTION + RENDER IN PLOT 3")
+    path.write_bytes(_png_bytes(cv.img))
+    return path
+
+
+# ---------------------------------------------------------------------------------------------
+# main
+# ---------------------------------------------------------------------------------------------
+
+
+def parse_args(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--quick", action="store_true", help="small sizes (a smoke run of a minute or so)")
+    ap.add_argument("--scenes", default="S1,S2,S3,S4,scaling",
+                    help="comma-separated subset of S1,S2,S3,S4,scaling (default: all)")
+    ap.add_argument("--backends", default=",".join(BACKENDS),
+                    help=f"comma-separated subset of {','.join(BACKENDS)} (default: all)")
+    ap.add_argument("--repeats", type=int, default=3, help="timed runs per backend and scene (default 3)")
+    ap.add_argument("--json", metavar="OUT.json", help="write every run's figures as JSON")
+    ap.add_argument("--plot", metavar="OUT.png", help="write the plot image (e.g. docs/benchmark.png)")
+    ap.add_argument("--markdown", action="store_true", help="also print the table as Markdown")
+    ap.add_argument("--blend-dir", default=str(REPO / "blend_files"), help="the S3 scenes (default blend_files/)")
+    ap.add_argument("--workers", type=int, default=0, help="render_scene(workers=...) (default: its own)")
+    ap.add_argument("--chunk-candidates", type=int, default=0, help="render_scene(chunk_candidates=...)")
+    ap.add_argument("--log", default=None, help="worker log file (default: a temporary file, path printed)")
+    ap.add_argument("--worker", choices=BACKENDS, help=argparse.SUPPRESS)
+    return ap.parse_args(argv)
+
+
+def main(argv=None) -> int:
+    args = parse_args(argv)
+    if args.worker:
+        return worker_main(args.worker)
+    kinds = [k.strip().lower() for k in args.backends.split(",") if k.strip()]
+    bad = [k for k in kinds if k not in BACKENDS]
+    if bad or "project" not in kinds:
+        print(f"error: --backends must include project and be a subset of {','.join(BACKENDS)}", file=sys.stderr)
+        return 2
+    cases = plan_cases(args)
+    if not cases:
+        print("error: no scenes selected", file=sys.stderr)
+        return 2
+    log_path = Path(args.log) if args.log else Path(tempfile.mkstemp(prefix="benchmark-", suffix=".log")[1])
+    started = time.perf_counter()
+
+    def say(msg):
+        print(msg, file=sys.stderr, flush=True)
+
+    say(f"worker log: {log_path}")
+    with open(log_path, "a") as log:
+        workers: dict[str, Worker] = {}
+        try:
+            for k in kinds:
+                w = Worker(k, log)
+                if w.ok:
+                    workers[k] = w
+                else:
+                    say(f"backend {k} unavailable: {w.error}")
+                    w.close()
+            if "project" not in workers:
+                say("error: the project worker did not start")
+                return 1
+            opts = {"workers": args.workers or None, "chunk_candidates": args.chunk_candidates or None}
+            workers["project"].call("options", options=opts)
+            results = []
+            for case in cases:
+                say(f"{case['id']}: {case['label']}, {case['width']}x{case['height']}")
+                results.append(run_case(case, workers, args.repeats, say))
+        finally:
+            addon = workers.get("project").addon if "project" in workers else False
+            for w in workers.values():
+                w.close()
+
+    elapsed = time.perf_counter() - started
+    import numpy as np
+
+    env = {
+        "python": platform.python_version(), "numpy": np.__version__, "cpus": os.cpu_count(),
+        "machine": platform.machine(), "processor": _cpu_name(), "repeats": args.repeats,
+        "quick": bool(args.quick), "addon_registered": addon, "elapsed_s": elapsed,
+        "command": " ".join(["python", "scripts/benchmark.py", *(argv if argv is not None else sys.argv[1:])]),
+    }
+    print()
+    print(f"Unity Passes benchmark — {env['processor']}, {env['cpus']} CPUs, numpy {env['numpy']}, "
+          f"{args.repeats} runs each (median){', QUICK sizes' if args.quick else ''}")
+    print("times in seconds; 'project s' = extract + render; proj/GL = render / OpenGL (draw + readback); "
+          "proj/EEVEE = project / EEVEE;")
+    print("peak MB = peak RSS during render_scene over the RSS before it; CPU = process CPU time / wall "
+          "of render_scene (2.0 = both cores)")
+    print()
+    print(format_table(results))
+    setup_lines = []
+    for r in results:
+        s = r["setup"]
+        parts = []
+        if "opengl" in s:
+            gl = s["opengl"]
+            parts.append(f"OpenGL upload {_fmt_t(gl['upload_s'])} s, first draw {_fmt_t(gl['first_s'])} s")
+        for k in ("eevee", "workbench", "project"):
+            if k in s:
+                parts.append(f"{k} first run {_fmt_t(s[k]['first_s'])} s")
+        if r["errors"]:
+            parts.append("errors: " + "; ".join(f"{k}: {v}" for k, v in r["errors"].items()))
+        setup_lines.append(f"  {r['case']['id']}: " + ", ".join(parts))
+    print()
+    print("Not in the medians (first runs include shader compilation; OpenGL context creation "
+          f"{_fmt_t(next((r['setup']['opengl']['context_s'] for r in results if 'opengl' in r['setup']), None))} s):")
+    print("\n".join(setup_lines))
+    sc = scaling_summary(results)
+    if sc:
+        print()
+        print("Scaling (log-log slope of median time; 1.0 = linear): "
+              + ", ".join(f"{k} {v:.2f}" for k, v in sc.items()))
+    tg = targets(results, args.quick)
+    if tg:
+        print()
+        print("Targets of issue 5" + (" (QUICK sizes: not the real targets)" if args.quick else "") + ":")
+        for label, fig, ok in tg:
+            print(f"  [{'ok' if ok else 'MISS'}] {label}: {fig}")
+    if args.markdown:
+        print()
+        print(format_table(results, markdown=True))
+    if args.json:
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.json).write_text(json.dumps({"env": env, "results": results, "scaling": sc,
+                                               "targets": tg}, indent=1, default=str))
+        print(f"\nJSON: {args.json}")
+    if args.plot:
+        p = write_plot(results, Path(args.plot), f"UNITY PASSES BENCHMARK, {env['cpus']} CPUS"
+                       + (" (QUICK)" if args.quick else ""))
+        print(f"plot: {p}")
+    print(f"\n({elapsed:.0f} s in all; worker log {log_path})")
+    failed = any(r["errors"].get("project") for r in results)
+    return 1 if failed else 0
+
+
+def _cpu_name() -> str:
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown CPU"
+
+
+if __name__ == "__main__":
+    sys.exit(main())
