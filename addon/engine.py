@@ -59,7 +59,9 @@ class UnityPassesRenderEngine(bpy.types.RenderEngine):
             self.update_stats("", f"Unity Passes: {len(draw.renderers)} renderers")
             frame = bridge.pipeline.render_scene(draw, progress=self._progress, should_cancel=self.test_break)
         except RenderCancelled:
-            self.update_stats("", "Unity Passes: cancelled")
+            # An error report (not a bare return) also stops write_still / animation from saving
+            # an empty frame when the break did not come from Blender's own Esc handling.
+            self.report({"ERROR"}, "Unity Passes: render cancelled")
             return
         except SceneError as exc:
             self.report({"ERROR"}, f"Unity Passes: {exc}")
@@ -73,6 +75,7 @@ class UnityPassesRenderEngine(bpy.types.RenderEngine):
         for warning in frame.warnings:
             self.report({"WARNING"}, f"Unity Passes: {warning}")
         if self.test_break():
+            self.report({"ERROR"}, "Unity Passes: render cancelled")
             return
         arrays = result_arrays(frame, encoded=bridge.frame_is_encoded(bridge.scene_settings(scene)))
         view_layer = depsgraph.view_layer

@@ -462,13 +462,11 @@ def principled_inputs(mat: Any) -> tuple[tuple[float, float, float, float], Any]
     base = bsdf.inputs["Base Color"]
     r, g, b, _ = base.default_value
     alpha = float(bsdf.inputs["Alpha"].default_value)
-    image = None
     for link in base.links:
         node = link.from_node
         if node.type == "TEX_IMAGE" and node.image is not None:
-            image = node.image
-            r = g = b = 1.0
-    return (srgb_encode(r), srgb_encode(g), srgb_encode(b), alpha), image
+            return (1.0, 1.0, 1.0, alpha), node.image  # texture x white
+    return (srgb_encode(r), srgb_encode(g), srgb_encode(b), alpha), None
 
 
 def world_ambient(world: Any) -> tuple[float, float, float]:
