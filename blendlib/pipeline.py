@@ -58,7 +58,7 @@ def _shade_chunk(setup, rows, start, stop, width, p: Pass, material, texels, lig
         return None
     src = setup.src[frags.tri]
     use_uv = texels is not None and setup.uvs is not None
-    use_normal = material.lighting is not Lighting.Unlit
+    use_normal = setup.world_normals is not None
     constant = np.ones(frags.count, dtype=bool)
     if use_uv:
         constant &= setup.uvs_flat[src]
@@ -168,13 +168,16 @@ def render_scene(
             if mesh.triangle_count == 0:
                 done += len(renderer.material.draw_passes)
                 continue
-            setup = raster.setup_triangles(mesh, renderer.matrix_world, cam)
+            material = renderer.material
+            setup = raster.setup_triangles(
+                mesh, renderer.matrix_world, cam,
+                need_normals=material.lighting is not Lighting.Unlit, need_uvs=material.main_tex is not None,
+            )
             label = f"object {renderer.name!r} slot {renderer.slot}"
             if setup.skipped_nonfinite:
                 warnings.append(f"{label}: skipped {setup.skipped_nonfinite} triangles with non-finite vertices")
             if setup.degenerate:
                 warnings.append(f"{label}: {setup.degenerate} degenerate (zero-area) triangles draw nothing")
-            material = renderer.material
             texels = None
             if material.main_tex is not None:
                 key = id(material.main_tex)

@@ -70,7 +70,8 @@ class TriangleSetup:
     - ``weights`` (n, 3, 3) float64 or None: original-triangle weights of each
       vertex for clipped triangles (row k = vertex k); None when nothing was clipped.
     - ``clipped`` (n,) bool.
-    - ``front`` (n,) bool: the triangle shows its front side.
+    - ``front`` (n,) bool: the triangle shows its front side (False for zero area, which
+      no cull mode draws).
     - ``world_normals`` (T, 3, 3) float64 per source-triangle corner; ``uvs`` (T, 3, 2)
       float64 or None; ``normals_flat`` / ``uvs_flat`` (T,) bool: the corner values are
       equal (the attribute is constant over the triangle, §6).
@@ -85,7 +86,7 @@ class TriangleSetup:
     weights: np.ndarray | None
     clipped: np.ndarray
     front: np.ndarray
-    world_normals: np.ndarray
+    world_normals: np.ndarray | None
     uvs: np.ndarray | None
     skipped_nonfinite: int = 0
     degenerate: int = 0
@@ -178,8 +179,24 @@ def _to_window(clip: np.ndarray, camera: Camera) -> tuple[np.ndarray, ...]:
     return fx.astype(np.int64), fy.astype(np.int64), zw, iw, finite
 
 
-def setup_triangles(mesh: Mesh, matrix_world: np.ndarray, camera: Camera) -> TriangleSetup:
-    """Vertex stage, clipping, viewport and snapping for one renderer (docs/pipeline.md §1–§4)."""
+def _world_normals(normals: np.ndarray, nmat: np.ndarray) -> np.ndarray:
+    """Corner normals (T, 3, 3) → world space with the explicit sums of §1, float64 (T, 3, 3)."""
+    t = normals.shape[0]
+    cols = np.ascontiguousarray(np.asarray(normals, dtype=np.float64).reshape(t * 3, 3).T)  # (3, 3T)
+    out = np.empty((t * 3, 3), dtype=np.float64)
+    for i, row in enumerate(_affine_rows(nmat, cols[0], cols[1], cols[2], 3)):
+        out[:, i] = row
+    return out.reshape(t, 3, 3)
+
+
+def setup_triangles(
+    mesh: Mesh, matrix_world: np.ndarray, camera: Camera, need_normals: bool = True, need_uvs: bool = True
+) -> TriangleSetup:
+    """Vertex stage, clipping, viewport and snapping for one renderer (docs/pipeline.md §1–§4).
+
+    ``need_normals`` / ``need_uvs``: whether shading reads them (Lambert; a texture).
+    Attributes not needed are left out (``world_normals`` / ``uvs`` None).
+    """
     mv = matmul4(camera.view_matrix, matrix_world)
     mvp = matmul4(camera.projection, mv)
     nmat, det = normal_matrix(matrix_world)
@@ -190,12 +207,14 @@ def setup_triangles(mesh: Mesh, matrix_world: np.ndarray, camera: Camera) -> Tri
     px, py, pz = pos[:, 0], pos[:, 1], pos[:, 2]
     clip_v = np.stack(_affine_rows(mvp, px, py, pz, 4), axis=-1) if pos.shape[0] else np.zeros((0, 4))
 
-    normals = np.asarray(mesh.normals, dtype=np.float64).reshape(t_count, 3, 3)
-    wn = _affine_rows(nmat, normals[..., 0], normals[..., 1], normals[..., 2], 3)
-    world_normals = np.stack(wn, axis=-1) if t_count else np.zeros((0, 3, 3))
-    uvs = None if mesh.uvs is None else np.asarray(mesh.uvs, dtype=np.float64).reshape(t_count, 3, 2)
-    normals_flat = flat_corners(world_normals)
-    uvs_flat = np.ones(t_count, dtype=bool) if uvs is None else flat_corners(uvs)
+    world_normals = normals_flat = None
+    if need_normals:
+        world_normals = _world_normals(mesh.normals, nmat)
+        normals_flat = flat_corners(world_normals)
+    uvs = uvs_flat = None
+    if need_uvs and mesh.uvs is not None:
+        uvs = np.asarray(mesh.uvs, dtype=np.float64).reshape(t_count, 3, 2)
+        uvs_flat = flat_corners(uvs)
 
     # Per-vertex work first (V <= 3T), gathered per corner afterwards.
     finite_v = np.all(np.isfinite(clip_v), axis=1)
@@ -219,13 +238,14 @@ def setup_triangles(mesh: Mesh, matrix_world: np.ndarray, camera: Camera) -> Tri
                  ((e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]) == 0)
     degenerate = int(np.count_nonzero(finite & cross_zero))
 
-    whole = np.nonzero(keep_whole)[0]
     # Unclipped triangles: window coordinates per vertex, gathered per corner.
     Xv, Yv, zwv, iwv, okv = _to_window(clip_v, camera)
-    tw = tris[whole]
-    good = np.all(okv[tw], axis=1)
-    if not np.all(good):
-        whole, tw = whole[good], tw[good]
+    keep_whole &= okv[a] & okv[b] & okv[c]
+    if np.all(keep_whole):
+        whole, tw = np.arange(t_count, dtype=np.int64), tris
+    else:
+        whole = np.nonzero(keep_whole)[0]
+        tw = tris[whole]
     X, Y, zw, iw = Xv[tw], Yv[tw], zwv[tw], iwv[tw]
     parts = [(whole, X, Y, zw, iw, None)]
 
@@ -270,11 +290,7 @@ def setup_triangles(mesh: Mesh, matrix_world: np.ndarray, camera: Camera) -> Tri
         weights = np.ascontiguousarray(weights[order])
 
     area2 = (X[:, 1] - X[:, 0]) * (Y[:, 2] - Y[:, 0]) - (X[:, 2] - X[:, 0]) * (Y[:, 1] - Y[:, 0])
-    nonzero = area2 != 0
-    if not np.all(nonzero):
-        X, Y, zw, iw, src, clipped, area2 = (a[nonzero] for a in (X, Y, zw, iw, src, clipped, area2))
-        if weights is not None:
-            weights = weights[nonzero]
+    # Zero-area triangles stay in the arrays (no copies) but are neither front nor back.
     front = (area2 > 0) if det >= 0 else (area2 < 0)
     return TriangleSetup(
         X=X, Y=Y, zw=zw, iw=iw, area2=area2, src=src, weights=weights, clipped=clipped, front=front,
@@ -286,8 +302,11 @@ def setup_triangles(mesh: Mesh, matrix_world: np.ndarray, camera: Camera) -> Tri
 def cull_select(setup: TriangleSetup, cull: Cull) -> np.ndarray:
     """Indices (int64) of the setup's triangles that a pass with ``cull`` draws, in draw order."""
     if cull is Cull.Off:
-        return np.arange(setup.count, dtype=np.int64)
-    keep = setup.front if cull is Cull.Back else ~setup.front
+        keep = setup.area2 != 0
+    elif cull is Cull.Back:
+        keep = setup.front
+    else:
+        keep = ~setup.front & (setup.area2 != 0)
     return np.nonzero(keep)[0].astype(np.int64)
 
 
