@@ -190,6 +190,12 @@ def _stored_value(f: Field, raw: Any) -> Any:
     return raw
 
 
+def _as_float32(value: Any) -> Any:
+    if isinstance(value, tuple):
+        return tuple(float(np.float32(v)) for v in value)
+    return float(np.float32(value))
+
+
 def read_group(source: Any, fields: tuple[Field, ...]) -> dict[str, Any]:
     """Plain dict of a property group: ``source`` is an RNA PropertyGroup, a stored IDPropertyGroup,
     a dict, or None (all defaults). Passes come back as a list of dicts."""
@@ -208,8 +214,9 @@ def read_group(source: Any, fields: tuple[Field, ...]) -> dict[str, Any]:
             out[f.name] = [read_group(item, PASS_FIELDS) for item in (raw or ())]
         elif f.kind == "image":
             out[f.name] = raw
-        elif raw is None:
-            out[f.name] = f.default
+        elif raw is None:  # never set: the default, as Blender would store it (float32)
+            out[f.name] = _stored_value(f, _as_float32(f.default)) if f.kind in ("float", "color", "vector") \
+                else f.default
         else:
             out[f.name] = _stored_value(f, raw)
     return out
