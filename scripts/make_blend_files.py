@@ -1,0 +1,656 @@
+"""Build every example scene of ``blend_files/`` from scratch, deterministically.
+
+    .venv/bin/python scripts/make_blend_files.py            # all scenes
+    .venv/bin/python scripts/make_blend_files.py alpha_test # only some
+
+Each ``.blend`` is one experiment of the tutorials ("Unity Shader 入门精要" chapter 8
+and the Cg wikibook's blending chapter): open it in Blender, press F12 with the
+"Unity Passes" engine, and the phenomenon is in the picture. Everything is made here
+from numbers (meshes, packed textures, materials with ``material.unity`` settings),
+so running the script twice gives the same scenes. After changing a scene, run
+``scripts/make_goldens.py`` to regenerate the golden buffers on purpose.
+
+Scenes are 640x360 at 100 %. Cameras look along +Y from -Y; "up" is +Z; quads and
+labels face the camera (normal -Y).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+import bpy  # noqa: E402
+from mathutils import Euler, Vector  # noqa: E402
+
+from blendlib import bridge  # noqa: E402
+
+OUT = ROOT / "blend_files"
+RES = (640, 360)
+
+# ---------------------------------------------------------------------------
+# The add-on: register it so that Material.unity / Scene.unity exist. Until the
+# add-on is importable, the settings are written as the stored ID properties the
+# add-on reads back (bridge.MATERIAL_FIELDS order and integer enum items).
+# ---------------------------------------------------------------------------
+
+ADDON = False
+
+
+def register_addon() -> bool:
+    global ADDON
+    try:
+        import addon
+
+        addon.register()
+    except (ImportError, AttributeError) as exc:
+        print(f"make_blend_files: add-on not available ({exc}); writing stored properties", file=sys.stderr)
+        ADDON = False
+    else:
+        ADDON = hasattr(bpy.types.Material, "unity") and hasattr(bpy.types.Scene, "unity")
+    return ADDON
+
+
+def _stored(f: bridge.Field, value):
+    if f.kind == "enum":
+        return dict(f.items())[value]
+    if f.kind == "flags":
+        return sum(bridge.FLAG_BITS[c] for c in value)
+    if f.kind in ("color", "vector"):
+        return [float(v) for v in value]
+    return value
+
+
+def _set_group(id_block, fields, values: dict) -> None:
+    """Set the ``unity`` group of a material or scene from identifiers."""
+    by_name = {f.name: f for f in fields}
+    if ADDON:
+        group = id_block.unity
+        for key, value in values.items():
+            if key == "passes":
+                group.passes.clear()
+                for p in value:
+                    item = group.passes.add()
+                    for pk, pv in p.items():
+                        setattr(item, pk, set(pv) if pk == "color_mask" else pv)
+            else:
+                setattr(group, key, tuple(value) if isinstance(value, (list, tuple)) else value)
+        return
+    store = id_block.bl_system_properties_get(do_create=True)
+    data = {}
+    pass_fields = {f.name: f for f in bridge.PASS_FIELDS}
+    for key, value in values.items():
+        if key == "passes":
+            data[key] = [{pk: _stored(pass_fields[pk], pv) for pk, pv in p.items()} for p in value]
+        else:
+            data[key] = _stored(by_name[key], value)
+    store["unity"] = data
+
+
+# ---------------------------------------------------------------------------
+# Scene, camera, light, world
+# ---------------------------------------------------------------------------
+
+
+#: Unity's default camera background, as exact 8-bit codes (no rounding ties), opaque so PNGs are too.
+CLEAR = (49 / 255, 77 / 255, 121 / 255, 1.0)
+
+
+def new_file(name: str, *, distance: float = 10.0, clear=CLEAR, color_space="Gamma",
+             sun_dir=(-0.35, -0.75, 0.55), sun_energy=0.8, world=0.04):
+    """Empty file with one scene ``name``: camera at (0, -distance, 0) looking +Y, a Sun, a World."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.context.preferences.filepaths.save_version = 0  # no .blend1 backups
+    scene = bpy.context.scene
+    scene.name = name
+    scene.render.resolution_x, scene.render.resolution_y = RES
+    scene.render.resolution_percentage = 100
+    if ADDON:
+        scene.render.engine = "UNITY_PASSES"
+    scene.view_settings.view_transform = "Standard"
+    cam_data = bpy.data.cameras.new("Camera")
+    cam_data.lens = 50.0
+    cam_data.clip_start = 0.5
+    cam_data.clip_end = 50.0
+    cam = bpy.data.objects.new("Camera", cam_data)
+    cam.location = (0.0, -distance, 0.0)
+    cam.rotation_euler = (math.pi / 2, 0.0, 0.0)
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    sun_data = bpy.data.lights.new("Sun", "SUN")
+    sun_data.energy = sun_energy
+    sun = bpy.data.objects.new("Sun", sun_data)
+    sun.rotation_euler = Vector(sun_dir).normalized().to_track_quat("Z", "Y").to_euler()
+    sun.location = (0.0, -6.0, 5.0)
+    scene.collection.objects.link(sun)
+    w = bpy.data.worlds.new("World")
+    w.use_nodes = True
+    bg = w.node_tree.nodes["Background"]
+    bg.inputs["Color"].default_value = (world, world, world, 1.0)
+    bg.inputs["Strength"].default_value = 1.0
+    w.color = (world, world, world)
+    scene.world = w
+    set_scene(scene, color_space=color_space, clear_color=clear)
+    return scene
+
+
+def set_scene(scene, **values) -> None:
+    values = dict(values)
+    if "clear_color" in values:
+        values["clear_color"] = tuple(values["clear_color"])
+    _set_group(scene, bridge.SCENE_FIELDS, values)
+
+
+def save(name: str) -> Path:
+    OUT.mkdir(exist_ok=True)
+    path = OUT / f"{name}.blend"
+    for img in bpy.data.images:
+        if not img.packed_file:
+            img.pack()
+    bpy.ops.wm.save_as_mainfile(filepath=str(path), compress=True, relative_remap=False)
+    print(f"wrote {path.relative_to(ROOT)} ({path.stat().st_size} bytes)")
+    return path
+
+
+# ---------------------------------------------------------------------------
+# Textures (byte images, packed; row 0 = bottom = v 0)
+# ---------------------------------------------------------------------------
+
+
+def image(name: str, rgba: np.ndarray):
+    """A byte image from an (H, W, 4) array of 8-bit codes, row 0 = bottom."""
+    rgba = np.asarray(rgba)
+    h, w = rgba.shape[:2]
+    img = bpy.data.images.new(name, w, h, alpha=True)
+    img.alpha_mode = "STRAIGHT"
+    img.pixels.foreach_set((rgba.astype(np.float32) / 255.0).ravel())
+    img.pack()
+    return img
+
+
+#: The book's alpha-test texture: four quadrants with alpha 0.2 / 0.45 / 0.7 / 0.95.
+QUADRANT_ALPHA = (51, 115, 179, 242)  # codes of 0.2, 0.45, 0.7, 0.95 (u<.5 v<.5, u>=.5 v<.5, u<.5 v>=.5, u>=.5 v>=.5)
+QUADRANT_RGB = ((235, 90, 60), (250, 200, 50), (70, 170, 235), (120, 220, 110))
+
+
+def quadrant_texture():
+    """16x16: the four alpha quadrants, each a colour with a 4-texel checker of two shades."""
+    t = np.zeros((16, 16, 4), np.uint8)
+    for j in range(16):
+        for i in range(16):
+            q = (1 if i >= 8 else 0) + (2 if j >= 8 else 0)
+            shade = 1.0 if ((i // 4) + (j // 4)) % 2 == 0 else 0.78
+            t[j, i, :3] = [round(c * shade) for c in QUADRANT_RGB[q]]
+            t[j, i, 3] = QUADRANT_ALPHA[q]
+    return image("QuadrantAlpha", t)
+
+
+def stripe_texture():
+    """8x8 for the torus: four coloured stripes across v, opaque (alpha comes from _Color)."""
+    cols = ((240, 120, 40), (250, 230, 120), (60, 150, 230), (250, 230, 120))
+    t = np.zeros((8, 8, 4), np.uint8)
+    for j in range(8):
+        for i in range(8):
+            t[j, i, :3] = cols[(i // 2) % 4]
+            t[j, i, 3] = 255
+    return image("Stripes", t)
+
+
+# ---------------------------------------------------------------------------
+# Meshes (from numbers; face order = draw order)
+# ---------------------------------------------------------------------------
+
+
+def mesh(name: str, verts, faces, uvs=None, smooth=False):
+    me = bpy.data.meshes.new(name)
+    me.from_pydata([tuple(map(float, v)) for v in verts], [], [tuple(f) for f in faces])
+    if uvs is not None:
+        layer = me.uv_layers.new(name="UVMap")
+        flat = [c for face_uv in uvs for uv in face_uv for c in uv]
+        layer.uv.foreach_set("vector", [float(c) for c in flat])
+    if smooth:
+        me.shade_smooth()
+    me.validate()
+    me.update()
+    return me
+
+
+QUAD_UV = ((0, 0), (1, 0), (1, 1), (0, 1))
+
+
+def quad_mesh(name: str, w: float = 1.0, h: float = 1.0):
+    """A w x h quad in the XZ plane facing -Y (towards the camera), UV 0..1."""
+    x, z = w / 2, h / 2
+    return mesh(name, [(-x, 0, -z), (x, 0, -z), (x, 0, z), (-x, 0, z)], [(0, 1, 2, 3)], [QUAD_UV])
+
+
+#: Cube faces (outward winding), each mapped to the whole texture.
+CUBE_FACES = (
+    (0, 1, 5, 4),  # -Y front
+    (1, 3, 7, 5),  # +X
+    (4, 5, 7, 6),  # +Z top
+    (2, 0, 4, 6),  # -X
+    (3, 2, 6, 7),  # +Y back
+    (2, 3, 1, 0),  # -Z bottom
+)
+
+
+def cube_mesh(name: str, size: float = 1.0):
+    s = size / 2
+    verts = [(x, y, z) for z in (-s, s) for y in (-s, s) for x in (-s, s)]
+    return mesh(name, verts, CUBE_FACES, [QUAD_UV] * 6)
+
+
+def torus_mesh(name: str, major=1.0, minor=0.38, n_major=40, n_minor=16):
+    verts, faces, uvs = [], [], []
+    for i in range(n_major):
+        a = 2 * math.pi * i / n_major
+        for j in range(n_minor):
+            b = 2 * math.pi * j / n_minor
+            r = major + minor * math.cos(b)
+            verts.append((r * math.cos(a), r * math.sin(a), minor * math.sin(b)))
+    for i in range(n_major):
+        for j in range(n_minor):
+            i1, j1 = (i + 1) % n_major, (j + 1) % n_minor
+            faces.append((i * n_minor + j, i1 * n_minor + j, i1 * n_minor + j1, i * n_minor + j1))
+            u0, u1 = i / n_major, (i + 1) / n_major
+            v0, v1 = j / n_minor, (j + 1) / n_minor
+            uvs.append(((u0, v0), (u1, v0), (u1, v1), (u0, v1)))
+    return mesh(name, verts, faces, uvs, smooth=True)
+
+
+def knot_mesh(name: str, n_path=160, n_ring=12, radius=0.3, scale=0.42):
+    """A trefoil-knot tube: the strands cross in front of each other, so one mesh overlaps itself."""
+
+    def curve(t):
+        return np.array([math.sin(t) + 2 * math.sin(2 * t), math.cos(t) - 2 * math.cos(2 * t), -math.sin(3 * t)])
+
+    ts = [2 * math.pi * i / n_path for i in range(n_path)]
+    pts = [curve(t) * scale for t in ts]
+    verts, faces, uvs = [], [], []
+    up = np.array([0.0, 0.0, 1.0])
+    for i, p in enumerate(pts):
+        tangent = pts[(i + 1) % n_path] - pts[i - 1]
+        tangent /= np.linalg.norm(tangent)
+        side = np.cross(tangent, up)
+        if np.linalg.norm(side) < 1e-6:
+            side = np.cross(tangent, np.array([1.0, 0.0, 0.0]))
+        side /= np.linalg.norm(side)
+        other = np.cross(side, tangent)
+        for j in range(n_ring):
+            b = 2 * math.pi * j / n_ring
+            verts.append(tuple(p + radius * (math.cos(b) * side + math.sin(b) * other)))
+    for i in range(n_path):
+        for j in range(n_ring):
+            i1, j1 = (i + 1) % n_path, (j + 1) % n_ring
+            faces.append((i * n_ring + j, i * n_ring + j1, i1 * n_ring + j1, i1 * n_ring + j))
+            u0, u1 = 3 * i / n_path, 3 * (i + 1) / n_path
+            v0, v1 = j / n_ring, (j + 1) / n_ring
+            uvs.append(((u0, v0), (u0, v1), (u1, v1), (u1, v0)))
+    return mesh(name, verts, faces, uvs, smooth=True)
+
+
+def plank_mesh(name: str, a, b, width: float, rise: float):
+    """A flat plank from screen point a to b (XZ), its end b ``rise`` nearer the camera than a."""
+    a, b = np.array(a, float), np.array(b, float)
+    d = (b - a) / np.linalg.norm(b - a)
+    n = np.array([-d[1], d[0]]) * width / 2
+    corners = [a - n, b - n, b + n, a + n]
+    ys = [rise / 2, -rise / 2, -rise / 2, rise / 2]
+    verts = [(c[0], y, c[1]) for c, y in zip(corners, ys, strict=True)]
+    # winding so the normal points to -Y (towards the camera)
+    v = np.array(verts)
+    normal = np.cross(v[1] - v[0], v[2] - v[0])
+    face = (0, 1, 2, 3) if normal[1] < 0 else (0, 3, 2, 1)
+    return mesh(name, verts, [face], [QUAD_UV])
+
+
+# ---------------------------------------------------------------------------
+# Objects and materials
+# ---------------------------------------------------------------------------
+
+
+def obj(name: str, data, location=(0, 0, 0), rotation=(0, 0, 0), scale=(1, 1, 1), material=None, scene=None):
+    if material is not None and data.users > 0:  # a shared mesh: give this object its own copy
+        data = data.copy()
+        data.name = name
+    ob = bpy.data.objects.new(name, data)
+    ob.location = location
+    ob.rotation_euler = Euler(tuple(math.radians(r) for r in rotation))
+    ob.scale = scale
+    if material is not None:
+        ob.data.materials.clear()
+        ob.data.materials.append(material)
+    (scene or bpy.context.scene).collection.objects.link(ob)
+    return ob
+
+
+BLEND = dict(blend=True, zwrite=False, src_blend="SrcAlpha", dst_blend="OneMinusSrcAlpha")
+
+
+def material(name: str, *, queue="Geometry", offset=0, color=(1, 1, 1, 1), tex=None, lighting="Lambert",
+             alpha_scale=1.0, cutoff=0.5, passes=(dict(),), filter="Point", wrap="Repeat"):
+    """A material with ``material.unity`` enabled; ``passes``: dicts of SPEC §3 pass properties."""
+    m = bpy.data.materials.new(name)
+    m.diffuse_color = tuple(bridge.srgb_decode_array(np.array(color[:3])).tolist()) + (color[3],)
+    _set_group(m, bridge.MATERIAL_FIELDS, dict(
+        enabled=True, queue=queue, queue_offset=offset, color=tuple(color), lighting=lighting,
+        alpha_scale=alpha_scale, cutoff=cutoff, main_tex_filter=filter, main_tex_wrap=wrap,
+        passes=[dict(p) for p in passes],
+    ))
+    if tex is not None:
+        if ADDON:
+            m.unity.main_tex = tex
+        else:
+            m.bl_system_properties_get()["unity"]["main_tex"] = tex
+    return m
+
+
+def preset_passes(name: str) -> list[dict]:
+    """The passes of a shaderlab preset as dicts of identifiers (color_mask as a letter list)."""
+    from blendlib.shaderlab import PASS_PRESETS
+
+    out = []
+    for p in PASS_PRESETS[name]["passes"]:
+        d = {}
+        for k, v in p.items():
+            d[k] = sorted(v) if k == "color_mask" else (v.value if hasattr(v, "value") else v)
+        out.append(d)
+    return out
+
+
+_LABEL_MATS: dict[tuple, object] = {}
+
+
+def label(text: str, location, size=0.22, color=(1, 1, 1, 1), align="CENTER", name=None, scene=None):
+    """A text object facing the camera with an opaque Unlit material (it renders as a mesh)."""
+    key = tuple(color)
+    if key not in _LABEL_MATS or _LABEL_MATS[key].name not in bpy.data.materials:
+        _LABEL_MATS[key] = material("Label {:.2f} {:.2f} {:.2f}".format(*color[:3]), color=color, lighting="Unlit")
+    curve = bpy.data.curves.new(name or f"Label {text}", "FONT")
+    curve.body = text
+    curve.size = size
+    curve.align_x = align
+    curve.align_y = "CENTER"
+    return obj(name or f"Label {text}", curve, location, rotation=(90, 0, 0), material=_LABEL_MATS[key],
+               scene=scene)
+
+
+# ---------------------------------------------------------------------------
+# The scenes
+# ---------------------------------------------------------------------------
+
+CUTOFFS = (0.1, 0.4, 0.6, 0.9)
+CUBE_ROT = (25, 0, 35)
+
+
+def build_alpha_test():
+    """1. Alpha test: the textured cube at four cutoffs; top row Cull Back, bottom row Cull Off."""
+    new_file("AlphaTest", distance=11.5)
+    tex = quadrant_texture()
+    cube = cube_mesh("Cube", 1.0)
+    xs = (-2.7, -0.9, 0.9, 2.7)
+    for row, (cull, z) in enumerate((("Back", 0.55), ("Off", -1.45))):
+        for x, c in zip(xs, CUTOFFS, strict=True):
+            m = material(f"AlphaTest {cull} {c}", queue="AlphaTest", tex=tex, cutoff=c,
+                         passes=[dict(alpha_test=True, cull=cull)])
+            obj(f"Cube {cull} {c}", cube, (x, 0, z), CUBE_ROT, material=m)
+            if row == 0:
+                label(f"_Cutoff {c}", (x, 0, 1.5), size=0.2)
+    label("Alpha Test, Cull Back", (0, 0, 1.95), size=0.2, name="Label row 1")
+    label("Alpha Test Both Sided, Cull Off", (0, 0, -0.45), size=0.2, name="Label row 2")
+    save("alpha_test")
+
+
+def build_alpha_blend():
+    """2. Alpha blend (ZWrite Off, _AlphaScale 0.5) in front of an opaque cube, in both queue orders."""
+    new_file("AlphaBlend", distance=10.0)
+    tex = quadrant_texture()
+    cube = cube_mesh("Cube", 1.2)
+    opaque_ok = material("Opaque B (Geometry)", color=(0.85, 0.85, 0.85, 1))
+    opaque_late = material("Opaque B (Transparent+1)", color=(0.85, 0.85, 0.85, 1), queue="Transparent", offset=1)
+    glass = material("Alpha Blend A", queue="Transparent", tex=tex, alpha_scale=0.5, passes=[BLEND])
+    for side, x, mb, text in ((0, -1.8, opaque_ok, "B then A: correct"),
+                              (1, 1.8, opaque_late, "A then B (Transparent+1): B covers A")):
+        tag = "Left" if side == 0 else "Right"
+        obj(f"B {tag}", cube, (x + 0.35, 1.2, 0.3), (20, 0, 30), material=mb)
+        obj(f"A {tag}", cube, (x - 0.35, -0.6, -0.35), (20, 0, -25), material=glass)
+        label(text, (x, 0, -1.6), size=0.18)
+    save("alpha_blend")
+
+
+def build_two_transparent():
+    """3. Two transparent quads drawn in both orders."""
+    new_file("TwoTransparent", distance=10.0)
+    q = quad_mesh("Quad", 1.6, 1.6)
+    red = (0.95, 0.2, 0.15, 0.5)
+    blue = (0.15, 0.35, 0.95, 0.5)
+    near_ok = material("Near Red", queue="Transparent", color=red, passes=[BLEND])
+    far_ok = material("Far Blue", queue="Transparent", color=blue, passes=[BLEND])
+    far_late = material("Far Blue (Transparent+1)", queue="Transparent", offset=1, color=blue, passes=[BLEND])
+    for tag, x, far_mat, text in (("Left", -1.8, far_ok, "sorted: far blue, then near red"),
+                                  ("Right", 1.8, far_late, "far blue is Transparent+1: inverted")):
+        obj(f"Far {tag}", q, (x + 0.45, 1.0, 0.35), (0, 0, 15), material=far_mat)
+        obj(f"Near {tag}", q, (x - 0.35, -0.5, -0.25), (0, 0, -10), material=near_ok)
+        label(text, (x, 0, -1.6), size=0.17)
+    save("two_transparent")
+
+
+def build_cyclic():
+    """4. Three transparent planks overlapping in a cycle: no object order is right."""
+    new_file("CyclicOverlap", distance=10.0)
+    colors = ((0.95, 0.2, 0.15, 0.6), (0.2, 0.85, 0.25, 0.6), (0.2, 0.4, 0.95, 0.6))
+    r = 1.25
+    pts = [(r * math.cos(math.radians(90 + 120 * k)), r * math.sin(math.radians(90 + 120 * k)) - 0.15)
+           for k in range(3)]
+    for k in range(3):
+        a, b = np.array(pts[k]), np.array(pts[(k + 1) % 3])
+        d = (b - a) / np.linalg.norm(b - a)
+        me = plank_mesh(f"Plank {k}", a - 0.55 * d, b + 0.55 * d, 0.55, 1.2)
+        m = material(f"Plank {'RGB'[k]}", queue="Transparent", color=colors[k], passes=[BLEND])
+        obj(f"Plank {'RGB'[k]}", me, material=m)
+    label("each plank is in front of the next one: no order of the three is right", (0, 0, -1.75), size=0.16)
+    save("cyclic_overlap")
+
+
+def build_self_overlap():
+    """5. A trefoil knot, ZWrite Off (left) vs with a ZWrite On / ColorMask 0 prepass (right)."""
+    new_file("SelfOverlap", distance=10.0)
+    tex = stripe_texture()
+    knot = knot_mesh("Knot")
+    col = (1, 1, 1, 0.55)
+    plain = material("Knot ZWrite Off", queue="Transparent", tex=tex, color=col, passes=preset_passes("Alpha Blend"))
+    prepass = material("Knot Prepass", queue="Transparent", tex=tex, color=col,
+                       passes=preset_passes("Alpha Blend ZWrite"))
+    obj("Knot Left", knot, (-1.75, 0, 0.15), (100, 0, 10), material=plain)
+    obj("Knot Right", knot, (1.75, 0, 0.15), (100, 0, 10), material=prepass)
+    label("ZWrite Off: sorting errors inside the mesh", (-1.75, 0, -1.65), size=0.16)
+    label("+ ZWrite On, ColorMask 0 prepass", (1.75, 0, -1.65), size=0.16)
+    save("self_overlap")
+
+
+def build_two_sided():
+    """6. Two-sided blending: Cull Front + Cull Back passes | one Cull Off pass | one default pass."""
+    new_file("TwoSided", distance=10.0)
+    tex = quadrant_texture()
+    cube = cube_mesh("Cube", 1.4)
+    both = material("Both Sided (2 passes)", queue="Transparent", tex=tex,
+                    passes=preset_passes("Alpha Blend Both Sided"))
+    off = material("Cull Off (1 pass)", queue="Transparent", tex=tex, passes=[dict(BLEND, cull="Off")])
+    back = material("Cull Back (1 pass)", queue="Transparent", tex=tex, passes=[BLEND])
+    for x, m, text in ((-2.4, both, "Cull Front, then Cull Back"), (0.0, off, "one pass, Cull Off"),
+                       (2.4, back, "one pass, Cull Back")):
+        obj(f"Cube {text}", cube, (x, 0, 0.15), (30, 0, 40), material=m)
+        label(text, (x, 0, -1.55), size=0.17)
+    save("two_sided")
+
+
+BLEND_MODES = ("Normal", "Premultiplied", "Additive", "Soft Additive", "Multiply",
+               "2x Multiply", "Darken", "Lighten", "Screen", "Linear Dodge")
+
+
+def swatch_texture():
+    """8x8: eight colours across u, alpha (row+1)/8 up v."""
+    cols = ((230, 60, 50), (240, 150, 40), (240, 230, 60), (90, 210, 80),
+            (60, 200, 210), (60, 100, 230), (170, 80, 220), (250, 250, 250))
+    t = np.zeros((8, 8, 4), np.uint8)
+    for j in range(8):
+        for i in range(8):
+            t[j, i, :3] = cols[i]
+            t[j, i, 3] = 32 * (j + 1) - 1
+    return image("Swatches", t)
+
+
+def background_texture():
+    """32x18: a diagonal two-tone checker over a warm-to-cool gradient (opaque)."""
+    t = np.zeros((18, 32, 4), np.uint8)
+    for j in range(18):
+        for i in range(32):
+            f = i / 31
+            base = np.array([200 - 90 * f, 150 + 40 * math.sin(j / 3), 90 + 140 * f])
+            if (i // 2 + j // 2) % 2:
+                base = base * 0.55
+            t[j, i, :3] = np.clip(np.round(base), 0, 255)
+            t[j, i, 3] = 255
+    return image("Backdrop", t)
+
+
+def blend_pass(mode: str) -> dict:
+    from blendlib.shaderlab import PASS_PRESETS
+
+    name = "Alpha Blend" if mode == "Normal" else mode
+    (p,) = PASS_PRESETS[name]["passes"]
+    return {k: (v.value if hasattr(v, "value") else v) for k, v in p.items()}
+
+
+def build_blend_modes():
+    """7. The blend-mode catalogue over a textured background, labelled."""
+    new_file("BlendModes", distance=10.0)
+    back = material("Backdrop", tex=background_texture(), lighting="Unlit")
+    obj("Backdrop", quad_mesh("Backdrop", 7.4, 4.2), (0, 1.0, 0), material=back)
+    sw = swatch_texture()
+    q = quad_mesh("Swatch", 1.15, 1.15)
+    for k, mode in enumerate(BLEND_MODES):
+        col, row = k % 5, k // 5
+        x, z = -2.8 + 1.4 * col, 0.55 - 1.85 * row
+        m = material(f"Mode {mode}", queue="Transparent", tex=sw, lighting="Unlit", passes=[blend_pass(mode)])
+        obj(f"Mode {k} {mode}", q, (x, 0, z), material=m)
+        label(mode, (x, -0.1, z + 0.78), size=0.17, color=(0.02, 0.02, 0.02, 1))
+    save("blend_modes")
+
+
+def build_render_queues():
+    """8. Render queues Background..Overlay, an Overlay with ZTest Always, and Transparent+1."""
+    new_file("RenderQueues", distance=10.0)
+    tex = quadrant_texture()
+    sky = material("Background queue (ZWrite Off)", queue="Background", color=(0.33, 0.36, 0.42, 1),
+                   lighting="Unlit", passes=[dict(zwrite=False)])
+    obj("Backdrop", quad_mesh("Backdrop", 7.6, 3.2), (0, 3.0, 0.15), material=sky)
+    solid = material("Geometry queue", color=(0.8, 0.8, 0.8, 1))
+    obj("Geometry Cube", cube_mesh("Cube", 1.2), (-2.3, 0.6, 0.2), (25, 0, 35), material=solid)
+    cut = material("AlphaTest queue", queue="AlphaTest", tex=tex, cutoff=0.5, passes=[dict(alpha_test=True)])
+    obj("AlphaTest Cube", cube_mesh("Cube", 1.2), (-0.55, 0.6, 0.2), (25, 0, 35), material=cut)
+    glass = material("Transparent queue", queue="Transparent", color=(0.3, 0.85, 1.0, 0.45), passes=[BLEND])
+    obj("Transparent Quad", quad_mesh("Glass", 2.6, 1.0), (-1.45, -1.0, -0.25), material=glass)
+    near = material("Transparent (near)", queue="Transparent", color=(0.25, 0.9, 0.3, 0.55), passes=[BLEND])
+    far = material("Transparent+1 (far)", queue="Transparent", offset=1, color=(0.95, 0.25, 0.75, 0.55),
+                   passes=[BLEND])
+    obj("Near Quad", quad_mesh("Small", 1.1, 1.1), (1.35, -0.5, 0.0), (0, 0, 0), material=near)
+    obj("Far Quad +1", quad_mesh("Small", 1.1, 1.1), (1.9, 0.5, 0.45), (0, 0, 0), material=far)
+    over = material("Overlay queue (ZTest Always)", queue="Overlay", color=(1.0, 0.85, 0.1, 1), lighting="Unlit",
+                    passes=[dict(ztest="Always")])
+    obj("Overlay Marker", quad_mesh("Marker", 0.5, 0.5), (-1.9, 2.0, 0.25), (0, 0, 0), material=over)
+    label("Background (ZWrite Off)", (2.55, 0, 1.45), size=0.15)
+    label("Geometry", (-2.3, 0, 1.25), size=0.16)
+    label("AlphaTest", (-0.55, 0, 1.25), size=0.16)
+    label("Transparent", (-1.45, 0, -1.05), size=0.16)
+    label("Overlay, ZTest Always (behind the cubes)", (-1.4, 0, 1.6), size=0.15)
+    label("far quad Transparent+1: drawn last", (1.6, 0, -1.05), size=0.15)
+    save("render_queues")
+
+
+def build_gamma_linear():
+    """9. The same semi-transparent stack in Gamma and in Linear colour space (two scenes)."""
+    gamma = new_file("Gamma", distance=10.0)
+    stack = bpy.data.collections.new("Stack")
+    gamma.collection.children.link(stack)
+    for ob in list(gamma.collection.objects):  # camera and Sun go into the shared collection
+        gamma.collection.objects.unlink(ob)
+        stack.objects.link(ob)
+    white = material("White", color=(1, 1, 1, 1), lighting="Unlit")
+    black = material("Black", color=(0, 0, 0, 1), lighting="Unlit")
+    gray = material("Gray 50%", color=(0.5, 0.5, 0.5, 1), lighting="Unlit")
+
+    def put(name, data, loc, mat):
+        if data.users > 0:
+            data = data.copy()
+            data.name = name
+        ob = bpy.data.objects.new(name, data)
+        ob.location = loc
+        ob.data.materials.clear()
+        ob.data.materials.append(mat)
+        stack.objects.link(ob)
+        return ob
+
+    put("Backdrop White", quad_mesh("Half", 3.4, 3.6), (-1.7, 1.0, 0.0), white)
+    put("Backdrop Black", quad_mesh("Half B", 3.4, 3.6), (1.7, 1.0, 0.0), black)
+    put("Backdrop Gray", quad_mesh("Strip", 6.8, 0.35), (0, 0.9, -1.6), gray)
+    disc = quad_mesh("Disc", 1.5, 1.5)
+    cols = ((1, 0, 0, 0.5), (0, 1, 0, 0.5), (0, 0, 1, 0.5))
+    offsets = ((-0.45, 0.3), (0.45, 0.3), (0.0, -0.45))
+    for k in range(3):
+        m = material(f"Stack {'RGB'[k]}", queue="Transparent", color=cols[k], lighting="Unlit", passes=[BLEND])
+        for side, cx in (("L", -1.7), ("R", 1.7)):
+            put(f"Stack {side}{k} {'RGB'[k]}", disc, (cx + offsets[k][0], -0.2 * (k + 1), offsets[k][1]), m)
+    # A black-to-white ramp quad at 50 % over the gray strip: the midtones differ most.
+    ramp = image("Ramp", np.array([[[round(255 * i / 15)] * 3 + [255] for i in range(16)]], np.uint8))
+    rm = material("Ramp 50%", queue="Transparent", tex=ramp, color=(1, 1, 1, 0.5), lighting="Unlit",
+                  passes=[BLEND])
+    put("Ramp", quad_mesh("Ramp", 6.8, 0.35), (0, -0.1, -1.6), rm)
+    label("Gamma", (0, -0.5, 1.65), size=0.22, name="Label Gamma", scene=gamma)
+    linear = bpy.data.scenes.new("Linear")
+    linear.render.resolution_x, linear.render.resolution_y = RES
+    linear.render.resolution_percentage = 100
+    linear.render.engine = gamma.render.engine
+    linear.view_settings.view_transform = "Standard"
+    linear.world = gamma.world
+    linear.camera = gamma.camera
+    linear.collection.children.link(stack)
+    set_scene(linear, color_space="Linear", clear_color=CLEAR)
+    label("Linear", (0, -0.5, 1.65), size=0.22, name="Label Linear", scene=linear)
+    save("gamma_linear")
+
+
+SCENES = {
+    "alpha_test": build_alpha_test,
+    "alpha_blend": build_alpha_blend,
+    "two_transparent": build_two_transparent,
+    "cyclic_overlap": build_cyclic,
+    "self_overlap": build_self_overlap,
+    "two_sided": build_two_sided,
+    "blend_modes": build_blend_modes,
+    "render_queues": build_render_queues,
+    "gamma_linear": build_gamma_linear,
+}
+
+
+def main(argv: list[str]) -> int:
+    register_addon()
+    names = argv or list(SCENES)
+    for name in names:
+        if name not in SCENES:
+            print(f"unknown scene {name!r}; choose from {', '.join(SCENES)}", file=sys.stderr)
+            return 2
+        _LABEL_MATS.clear()
+        SCENES[name]()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
