@@ -1481,6 +1481,15 @@ class _UsageError(Exception):
 
 USAGE = ("usage: python -m blendlib shaderlab FILE.shader | "
          "python -m blendlib shaderlab --export FILE.blend --material NAME -o OUT.shader [--name SHADER_NAME]")
+HELP = USAGE + """
+
+Import: parse FILE.shader (or - for standard input) and print the Unity settings as JSON:
+  {"name", "material": {SPEC §3 material fields}, "passes": [{SPEC §3 pass fields}], "warnings", "extra"}
+Export: write material NAME of FILE.blend as a ShaderLab shader (Properties, Tags, one Pass per pass
+  with its render state, a CG program with the same shading); --name sets the Shader "..." name
+  (default "Unity Passes/NAME").
+Errors: one line on standard error (FILE:LINE:COL: message for parse errors), exit status 2,
+  nothing written."""
 
 
 def _parse_args(argv: list[str]) -> dict[str, Any]:
@@ -1519,7 +1528,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         opts = _parse_args(argv)
         if opts.get("help"):
-            print(USAGE)
+            print(HELP)
             return 0
         if opts["export"] is not None:
             if opts["file"] is not None:

@@ -1060,6 +1060,38 @@ def test_cli_export_from_a_blend_file(blender, tmp_path):
     assert len(r.stderr.strip().splitlines()) == 1 or "no material named" in r.stderr.strip().splitlines()[-1]
 
 
+def test_reading_a_blender_material_agrees_with_the_bridge(blender):
+    """The exporter's reader gives what the bridge's schema reads, registered or from stored ID properties."""
+    from blendlib import bridge
+    from blendlib.shaderlab_io import read_unity_settings
+
+    mat = _new_material("Read")
+    u = mat.unity
+    u.enabled = True
+    u.lighting = "Unlit"
+    u.passes[1].ztest = "Always"
+    u.passes[1].color_mask = {"R", "A"}
+    u.passes[2].stencil_comp = "Never"
+    u.passes[2].blend_op_alpha = "RevSub"
+    u.passes[2].dst_blend = "SrcAlphaSaturate"
+    want = bridge.read_group(bridge.unity_props(mat), bridge.MATERIAL_FIELDS)
+
+    class Stored:  # what a reader sees when the add-on is not registered
+        name = mat.name
+        bl_system_properties_get = mat.bl_system_properties_get
+
+    for source in (mat, Stored()):
+        got = read_unity_settings(source)
+        assert got.queue.value == want["queue"] and got.queue_offset == want["queue_offset"] == 7
+        assert got.color == pytest.approx(want["color"]) and got.lighting is Lighting.Unlit
+        assert got.cutoff == pytest.approx(want["cutoff"]) and got.main_tex_filter.value == want["main_tex_filter"]
+        assert got.passes == tuple(bridge.pass_from_values(p) for p in want["passes"])
+        assert got.passes[1].ztest is CompareFunction.Always and got.passes[1].color_mask == {"R", "A"}
+        assert got.passes[2].stencil_comp is CompareFunction.Never
+    u.enabled = False
+    assert read_unity_settings(mat).passes == (Pass(),) and read_unity_settings(mat).queue is Queue.Geometry
+
+
 def test_register_unregister_are_idempotent(blender):
     blender.register()
     blender.register()
