@@ -354,6 +354,35 @@ class ProjectWorker:
         del frame, draw
         return out
 
+    def profile(self, top: int) -> dict:
+        """cProfile of one extraction + render with ``workers=1`` (cProfile sees one thread only):
+        the ``top`` functions by own time, and the share of the numpy-free Python overhead."""
+        import cProfile
+        import io
+        import pstats
+
+        from blendlib import bridge
+        from blendlib.pipeline import render_scene
+
+        kwargs = {"workers": 1}
+        if self.opts.get("chunk_candidates"):
+            kwargs["chunk_candidates"] = self.opts["chunk_candidates"]
+        prof = cProfile.Profile()
+        prof.enable()
+        draw = bridge.build_draw_scene(self.scene)
+        render_scene(draw, **kwargs)
+        prof.disable()
+        stats = pstats.Stats(prof)
+        total = stats.total_tt
+        rows = []
+        for (file, line, func), (_cc, nc, tt, ct, _callers) in stats.stats.items():
+            rows.append({"function": f"{Path(file).name}:{line}({func})" if line else func,
+                         "calls": nc, "tottime": tt, "cumtime": ct})
+        rows.sort(key=lambda r: -r["tottime"])
+        buf = io.StringIO()
+        pstats.Stats(prof, stream=buf).sort_stats("cumulative").print_stats(r"blendlib", top)
+        return {"total_s": total, "top": rows[:top], "cumulative": buf.getvalue()}
+
     def end(self) -> dict:
         self.scene = None
         return {}
@@ -470,6 +499,8 @@ def worker_main(kind: str) -> int:
                 res = w.setup(msg["case"])
             elif cmd == "run":
                 res = w.run()
+            elif cmd == "profile":
+                res = w.profile(int(msg.get("top", 25)))
             elif cmd == "end":
                 res = w.end()
             else:
@@ -531,7 +562,7 @@ def median(values):
     return statistics.median(values) if values else None
 
 
-def run_case(case: dict, workers: dict[str, Worker], repeats: int, say) -> dict:
+def run_case(case: dict, workers: dict[str, Worker], repeats: int, say, profile: int = 0) -> dict:
     res = {"case": case, "setup": {}, "runs": {k: [] for k in workers}, "errors": {}}
     active = []
     for kind, w in workers.items():
@@ -551,6 +582,10 @@ def run_case(case: dict, workers: dict[str, Worker], repeats: int, say) -> dict:
                 res["runs"][kind].append(r)
             else:
                 res["errors"][kind] = r.get("error", "?")
+    if profile and "project" in active:
+        r = workers["project"].call("profile", top=profile)
+        if r.pop("ok"):
+            res["profile"] = r
     for kind in active:
         workers[kind].call("end")
     res["median"] = {}
@@ -582,7 +617,9 @@ def _fmt_t(v) -> str:
 
 
 def _fmt_x(v) -> str:
-    return "-" if v is None else (f"{v:.1f}x" if v < 100 else f"{v:.0f}x")
+    if v is None:
+        return "-"
+    return f"{v:.3f}x" if v < 0.1 else f"{v:.2f}x" if v < 1 else f"{v:.1f}x" if v < 100 else f"{v:.0f}x"
 
 
 def _fmt_n(v) -> str:
@@ -901,6 +938,9 @@ def parse_args(argv=None):
     ap.add_argument("--blend-dir", default=str(REPO / "blend_files"), help="the S3 scenes (default blend_files/)")
     ap.add_argument("--workers", type=int, default=0, help="render_scene(workers=...) (default: its own)")
     ap.add_argument("--chunk-candidates", type=int, default=0, help="render_scene(chunk_candidates=...)")
+    ap.add_argument("--profile", type=int, default=0, metavar="N",
+                    help="after the timed runs, cProfile one project render of S1, S2, S4 (workers=1) "
+                         "and print the top N functions by own time")
     ap.add_argument("--log", default=None, help="worker log file (default: a temporary file, path printed)")
     ap.add_argument("--worker", choices=BACKENDS, help=argparse.SUPPRESS)
     return ap.parse_args(argv)
@@ -944,7 +984,8 @@ def main(argv=None) -> int:
             results = []
             for case in cases:
                 say(f"{case['id']}: {case['label']}, {case['width']}x{case['height']}")
-                results.append(run_case(case, workers, args.repeats, say))
+                profile = args.profile if case["group"] in ("S1", "S2", "S4") else 0
+                results.append(run_case(case, workers, args.repeats, say, profile))
         finally:
             addon = workers.get("project").addon if "project" in workers else False
             for w in workers.values():
@@ -996,6 +1037,17 @@ def main(argv=None) -> int:
         print("Targets of issue 5" + (" (QUICK sizes: not the real targets)" if args.quick else "") + ":")
         for label, fig, ok in tg:
             print(f"  [{'ok' if ok else 'MISS'}] {label}: {fig}")
+    for r in results:
+        prof = r.get("profile")
+        if not prof:
+            continue
+        print()
+        print(f"Profile of {r['case']['id']} (one extraction + render, workers=1, cProfile "
+              f"{prof['total_s']:.2f} s): top functions by own time")
+        print(f"  {'own s':>7} {'share':>6} {'cum s':>7} {'calls':>7}  function")
+        for row in prof["top"]:
+            print(f"  {row['tottime']:7.3f} {row['tottime'] / prof['total_s']:6.1%} {row['cumtime']:7.3f} "
+                  f"{row['calls']:7d}  {row['function']}")
     if args.markdown:
         print()
         print(format_table(results, markdown=True))

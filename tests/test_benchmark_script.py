@@ -1,0 +1,73 @@
+"""Smoke test of scripts/benchmark.py (issue 5): it runs in --quick mode on tiny sizes and prints
+the table with the expected columns. Not a timed test: no figure is checked against a target."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parent.parent
+SCRIPT = REPO / "scripts" / "benchmark.py"
+
+pytest.importorskip("bpy")
+
+
+def _load_module():
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("benchmark_script", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_quick_run_prints_the_table(tmp_path):
+    out_json = tmp_path / "bench.json"
+    out_png = tmp_path / "bench.png"
+    backends = "project,workbench"
+    try:
+        import moderngl  # noqa: F401
+
+        backends = "project,opengl,workbench"
+    except ImportError:
+        pass
+    cmd = [sys.executable, str(SCRIPT), "--quick", "--scenes", "S1,S2,S4", "--backends", backends,
+           "--repeats", "1", "--json", str(out_json), "--plot", str(out_png), "--log", str(tmp_path / "w.log")]
+    proc = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout + proc.stderr + (tmp_path / "w.log").read_text()
+    out = proc.stdout
+    header = next(line for line in out.splitlines() if line.startswith("scene "))
+    for column in ("scene", "tris", "size", "extract s", "render s", "project s", "OpenGL s", "EEVEE s",
+                   "Workbench s", "proj/GL", "proj/EEVEE", "peak MB", "CPU"):
+        assert column in header
+    rows = {line.split()[0]: line for line in out.splitlines() if line.split()[:1] in (["S1"], ["S2"], ["S4"])}
+    assert set(rows) == {"S1", "S2", "S4"}
+    assert "Targets of issue 5" in out
+    data = json.loads(out_json.read_text())
+    by_id = {r["case"]["id"]: r for r in data["results"]}
+    assert by_id["S1"]["setup"]["project"]["triangles"] == 4 * 71 * 71  # the quick sphere, 2k segments k+1 rings
+    assert by_id["S4"]["setup"]["project"]["triangles"] == 62976  # Suzanne, subdivision level 3
+    for r in by_id.values():
+        med = r["median"]["project"]
+        assert med["render_s"] > 0 and med["extract_s"] > 0 and med["peak_mb"] >= 0
+        assert not r["errors"], r["errors"]
+    # S1 fills about a third of the frame.
+    s1 = by_id["S1"]
+    assert abs(s1["setup"]["project"]["covered_px"] / (480 * 270) - 1 / 3) < 0.02
+    assert out_png.read_bytes().startswith(b"\x89PNG")
+
+
+def test_table_and_slope_helpers():
+    bench = _load_module()
+    assert bench.sphere_k(200_000) == 224
+    assert abs(bench.loglog_slope([1, 10, 100], [2, 20, 200]) - 1.0) < 1e-12
+    case = dict(id="S1", group="S1", width=4, height=2)
+    res = {"case": case, "setup": {"project": {"triangles": 10, "covered_px": 3}},
+           "median": {"project": {"extract_s": 0.1, "render_s": 1.0, "total_s": 1.1, "peak_mb": 5.0, "cpu_ratio": 1.9},
+                      "opengl": {"total_s": 0.25}},
+           "ratio_gl": 4.0, "ratio_eevee": None, "errors": {}}
+    text = bench.format_table([res])
+    assert "4.0x" in text and "S1" in text
+    assert bench.targets([res], quick=True)[0][2] is True  # 4x <= 8x
