@@ -320,3 +320,33 @@ def test_plane_renders_with_disabled_material_lambert():
     frame = render()
     assert np.allclose(frame.color, frame.color[0, 0])  # the plane fills the frame
     assert not np.allclose(frame.color[0, 0], bridge.scene_settings(bpy.context.scene)["clear_color"], atol=1e-3)
+
+
+INSTALL = r"""
+import sys, bpy, addon_utils
+bpy.ops.extensions.package_install_files(filepath=sys.argv[1], repo="user_default", enable_on_install=True)
+import blendlib
+assert "site-packages" in blendlib.__file__, blendlib.__file__
+assert hasattr(bpy.types.Material, "unity")
+assert bpy.types.RenderEngine.bl_rna_get_subclass_py("UNITY_PASSES") is not None
+print("OK", [m.__name__ for m in addon_utils.modules() if "unity_passes" in m.__name__])
+"""
+
+
+def test_extension_zip_installs_without_the_repository(tmp_path):
+    import subprocess
+    import sys
+    import zipfile
+
+    from tests.blender_fixtures import REPO
+
+    proc = subprocess.run([sys.executable, str(REPO / "scripts" / "build_extension.py"), "--dist", str(tmp_path)],
+                          capture_output=True, text=True, check=True)
+    zip_path = proc.stdout.strip()
+    names = zipfile.ZipFile(zip_path).namelist()
+    assert {"__init__.py", "blender_manifest.toml", "engine.py"} <= set(names)
+    assert any(n.startswith("wheels/unity_passes_blendlib-") and n.endswith(".whl") for n in names)
+    env = dict(os.environ, HOME=str(tmp_path / "home"), XDG_CONFIG_HOME=str(tmp_path / "config"))
+    run = subprocess.run([sys.executable, "-c", INSTALL, zip_path], cwd=tmp_path, env=env,
+                         capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0 and "OK ['bl_ext.user_default.unity_passes']" in run.stdout, run.stderr[-2000:]

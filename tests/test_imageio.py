@@ -1,0 +1,92 @@
+"""blendlib.imageio: PNG/EXR/NPY round trips, files written by Blender, compare, atomic writes."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from blendlib import imageio
+
+
+def test_png_round_trip_and_quantisation(tmp_path):
+    rng = np.random.default_rng(3)
+    q = rng.integers(0, 256, (9, 13, 4))
+    imageio.save(tmp_path / "a.png", (q / 255).astype(np.float32))
+    np.testing.assert_array_equal(imageio.load(tmp_path / "a.png"), (q / 255).astype(np.float32))
+    imageio.save(tmp_path / "b.png", np.array([[[0.5, -1.0, 2.0, np.nan]]], np.float32))
+    assert (imageio.load(tmp_path / "b.png") * 255).round().tolist() == [[[128, 0, 255, 0]]]
+    imageio.save(tmp_path / "rgb.png", np.full((2, 3, 3), 0.2, np.float32))
+    got = imageio.load(tmp_path / "rgb.png")
+    assert got.shape == (2, 3, 4) and (got[..., 3] == 1).all()
+
+
+def test_png_written_by_blender_with_all_filters(tmp_path):
+    bpy = pytest.importorskip("bpy")
+    from tests.blender_fixtures import empty_scene
+
+    scene = empty_scene()
+    img = bpy.data.images.new("W", 64, 48, alpha=True)
+    yy, xx = np.mgrid[0:48, 0:64]
+    v = np.stack([xx / 63, yy / 47, (xx * yy % 256) / 255, (xx + yy) % 7 / 6], -1).astype(np.float32)
+    img.pixels.foreach_set(v.ravel())
+    scene.render.image_settings.file_format = "PNG"
+    scene.render.image_settings.color_mode = "RGBA"
+    img.save_render(str(tmp_path / "b.png"), scene=scene)
+    got = imageio.load(tmp_path / "b.png")[::-1]  # Blender's row 0 is the bottom
+    np.testing.assert_array_equal(got, (np.floor(v * 255 + 0.5) / 255).astype(np.float32))
+
+
+def test_exr_round_trip_is_exact_and_blender_reads_it(tmp_path):
+    rng = np.random.default_rng(4)
+    a = rng.normal(scale=3, size=(5, 7, 4)).astype(np.float32)
+    a[0, 0, 0] = np.inf
+    imageio.save(tmp_path / "a.exr", a)
+    np.testing.assert_array_equal(imageio.load(tmp_path / "a.exr"), a)
+    bpy = pytest.importorskip("bpy")
+    img = bpy.data.images.load(str(tmp_path / "a.exr"))
+    px = np.empty(5 * 7 * 4, np.float32)
+    img.pixels.foreach_get(px)
+    np.testing.assert_array_equal(px.reshape(5, 7, 4)[::-1][1:], a[1:])
+
+
+def test_npy_and_errors(tmp_path):
+    a = np.arange(24, dtype=np.float32).reshape(2, 3, 4)
+    imageio.save(tmp_path / "a.npy", a)
+    np.testing.assert_array_equal(imageio.load(tmp_path / "a.npy"), a)
+    with pytest.raises(imageio.ImageIOError, match="unsupported image type"):
+        imageio.save(tmp_path / "a.tif", a)
+    with pytest.raises(imageio.ImageIOError, match="does not exist"):
+        imageio.save(tmp_path / "no" / "a.png", a)
+    (tmp_path / "bad.png").write_bytes(b"not a png")
+    with pytest.raises(imageio.ImageIOError, match="not a PNG"):
+        imageio.load(tmp_path / "bad.png")
+
+
+def test_failed_write_leaves_previous_file_and_no_temp(tmp_path):
+    target = tmp_path / "keep.png"
+    imageio.save(target, np.zeros((2, 2, 4), np.float32))
+    before = target.read_bytes()
+    with pytest.raises(imageio.ImageIOError):
+        imageio.save(target, np.zeros((2, 2, 7), np.float32))
+    assert target.read_bytes() == before and sorted(p.name for p in tmp_path.iterdir()) == ["keep.png"]
+
+
+def test_compare_numbers_and_heat_map(tmp_path):
+    a = np.zeros((10, 10, 4), np.float32)
+    b = a.copy()
+    b[2, 3, 1] = 0.25
+    b[7, 7, 0] = 1.0
+    r = imageio.compare(a, b, diff_path=tmp_path / "h.png")
+    assert r.max_abs == 1.0 and r.differing == pytest.approx(0.02)
+    assert r.mean_abs == pytest.approx(1.25 / 400)
+    assert r.psnr == pytest.approx(10 * math.log10(400 / (1 + 0.0625)))
+    heat = imageio.load(tmp_path / "h.png")
+    assert heat[7, 7, :3].tolist() == [1, 1, 1] and heat[0, 0, :3].tolist() == [0, 0, 0]
+    assert 0 < heat[2, 3, 0] < 1  # smaller difference: red, not white
+    same = imageio.compare(a, a)
+    assert same.max_abs == 0 and math.isinf(same.psnr) and same.differing == 0
+    assert imageio.compare(a, b, tolerance=0.5).differing == pytest.approx(0.01)
+    with pytest.raises(imageio.ImageIOError, match="sizes differ"):
+        imageio.compare(a, a[:5])
