@@ -1,0 +1,1 @@
+"""Independent reference implementations the vectorised core is checked against (SPEC §7)."""
