@@ -12,8 +12,6 @@ in the extension zip otherwise (``scripts/build_extension.py``).
 
 from __future__ import annotations
 
-import importlib
-
 bl_info = {
     "name": "Unity Passes",
     "author": "Unity Passes for Blender contributors",
@@ -25,50 +23,33 @@ bl_info = {
 }
 
 _registered = False
-_optional_modules: list = []
-
-
-def _load_optional():
-    """Sibling modules written separately (ShaderLab import/export); absent ones are skipped."""
-    found = []
-    for name in ("shaderlab_ops",):
-        try:
-            found.append(importlib.import_module(f".{name}", __name__))
-        except ModuleNotFoundError as exc:
-            if exc.name != f"{__name__}.{name}":
-                raise
-    return found
 
 
 def register() -> None:
-    global _registered, _optional_modules
+    global _registered
     if _registered:
         unregister()
     import bpy
 
-    from . import engine, operators, properties, ui
+    from . import engine, operators, properties, shaderlab_ops, ui
 
     properties.register()  # first: panels and operators use the properties
     for cls in operators.CLASSES + ui.CLASSES:
         bpy.utils.register_class(cls)
     engine.register()
-    _optional_modules = _load_optional()
-    for module in _optional_modules:
-        module.register()
+    shaderlab_ops.register()
     _registered = True
 
 
 def unregister() -> None:
-    global _registered, _optional_modules
+    global _registered
     if not _registered:
         return
     import bpy
 
-    from . import engine, operators, properties, ui
+    from . import engine, operators, properties, shaderlab_ops, ui
 
-    for module in reversed(_optional_modules):
-        module.unregister()
-    _optional_modules = []
+    shaderlab_ops.unregister()
     engine.unregister()
     for cls in reversed(operators.CLASSES + ui.CLASSES):
         if getattr(cls, "is_registered", False):

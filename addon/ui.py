@@ -6,6 +6,7 @@ import bpy
 
 from blendlib.shaderlab import Queue, queue_text
 
+from . import shaderlab_ops
 from .operators import (
     UNITY_MT_presets,
     UNITY_OT_fill_from_principled,
@@ -75,6 +76,7 @@ class UNITY_PT_material(_MaterialPanel, bpy.types.Panel):
         row = layout.row(align=True)
         row.menu(UNITY_MT_presets.bl_idname, icon="PRESET")
         row.operator(UNITY_OT_fill_from_principled.bl_idname, icon="NODE_MATERIAL")
+        shaderlab_ops.draw_import_export(layout)
         if not unity.enabled:
             box = layout.box()
             box.label(text="Off: renders opaque (queue Geometry, one default pass, Lambert)", icon="INFO")

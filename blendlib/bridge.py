@@ -659,7 +659,6 @@ def render(scene: Any = None, depsgraph: Any = None, progress: Callable[[float],
     frame = pipeline.render_scene(draw, progress=progress, should_cancel=should_cancel)
     extra = [w for w in draw.warnings if w not in frame.warnings]
     frame.warnings[:0] = extra
-    frame.encoded = draw.hdr is False or draw.color_space is not ColorSpace.Linear
     return frame
 
 
@@ -667,7 +666,7 @@ def linear_rgba(frame: pipeline.Frame, encoded: bool | None = None, opaque: bool
     """The frame as linear RGBA float32 (row 0 top): encoded frame values are decoded to linear.
     ``opaque``: alpha 1 (what a screen shows, the Combined pass)."""
     if encoded is None:
-        encoded = getattr(frame, "encoded", True)
+        encoded = frame.encoded
     color = np.array(frame.color, dtype=np.float32, copy=True)
     if encoded:
         color[..., :3] = srgb_decode_array(color[..., :3]).astype(np.float32)

@@ -20,7 +20,7 @@ from . import raster, shade
 from .drawlist import sorted_renderers
 from .merger import FrameBuffers, merge
 from .scene import DrawScene, SceneError, validate_scene
-from .shaderlab import Lighting, Pass
+from .shaderlab import ColorSpace, Lighting, Pass
 
 #: Candidate pixels per chunk: bounds the memory of one chunk's arrays to a few hundred MB.
 CHUNK_CANDIDATES = 1 << 20
@@ -39,12 +39,15 @@ class Frame:
     - ``depth`` (H, W) float32: window depth ``d / (2**24 - 1)``.
     - ``stencil`` (H, W) uint8.
     - ``warnings``: one line each (skipped triangles, empty meshes, missing images).
+    - ``encoded``: whether ``color``'s rgb is sRGB-encoded (Gamma mode, and Linear LDR);
+      False only for Linear HDR, whose buffer holds linear values.
     """
 
     color: np.ndarray
     depth: np.ndarray
     stencil: np.ndarray
     warnings: list[str] = field(default_factory=list)
+    encoded: bool = True
 
 
 def _shade_chunk(setup, rows, start, stop, width, p: Pass, material, texels, lights, color_space):
@@ -208,4 +211,5 @@ def render_scene(
     textures = (r.material.main_tex for r in order)
     missing = {t.name for t in textures if t is not None and t.missing}
     warnings.extend(f"image {name!r}: file missing, drawn magenta" for name in sorted(missing))
-    return Frame(color=color, depth=depth, stencil=stencil, warnings=warnings)
+    encoded = not (scene.hdr and cs is ColorSpace.Linear)
+    return Frame(color=color, depth=depth, stencil=stencil, warnings=warnings, encoded=encoded)

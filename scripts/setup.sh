@@ -33,4 +33,7 @@ fi
 .venv/bin/python -m pip install --upgrade pip >/dev/null
 .venv/bin/python -m pip install -r requirements.txt
 
+# The example scenes as F12 renders them (out/<file>.png), then every scene of every file and the
+# gallery contact sheet (out/gallery.png; docs/gallery.png is the committed copy).
 .venv/bin/python scripts/render_examples.py
+.venv/bin/python scripts/make_gallery.py --sheet out/gallery.png
