@@ -211,9 +211,41 @@ def _add_sun(scene) -> None:
     obj.rotation_euler = (0.6, 0.2, 0.8)
 
 
+def uv_sphere_mesh(name: str, k: int):
+    """A unit UV sphere with ``2k`` segments and ``k + 1`` rings (``4k²`` triangles), normals outwards.
+    Built with ``foreach_set`` (``bmesh.ops.create_uvsphere`` takes ~15 s for 200k triangles)."""
+    import bpy
+    import numpy as np
+
+    nlon, nlat = 2 * k, k + 1
+    lat = np.pi * np.arange(1, nlat) / nlat  # polar angles of the nlat - 1 vertex rings
+    lon = 2 * np.pi * np.arange(nlon) / nlon
+    st, ct = np.sin(lat)[:, None], np.cos(lat)[:, None]
+    ring = np.stack([st * np.cos(lon), st * np.sin(lon), np.broadcast_to(ct, (nlat - 1, nlon))], -1)
+    co = np.concatenate([[[0.0, 0.0, 1.0]], ring.reshape(-1, 3), [[0.0, 0.0, -1.0]]]).astype(np.float32)
+    top, bottom = 0, len(co) - 1
+    idx = 1 + np.arange((nlat - 1) * nlon).reshape(nlat - 1, nlon)
+    nxt = np.roll(idx, -1, axis=1)
+    caps_top = np.stack([np.full(nlon, top), idx[0], nxt[0]], -1)
+    caps_bottom = np.stack([np.full(nlon, bottom), nxt[-1], idx[-1]], -1)
+    quads = np.stack([idx[:-1], idx[1:], nxt[1:], nxt[:-1]], -1).reshape(-1, 4)
+    loops = np.concatenate([caps_top.ravel(), quads.ravel(), caps_bottom.ravel()]).astype(np.int32)
+    sizes = np.concatenate([np.full(nlon, 3), np.full(len(quads), 4), np.full(nlon, 3)]).astype(np.int32)
+    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int32)
+    me = bpy.data.meshes.new(name)
+    me.vertices.add(len(co))
+    me.vertices.foreach_set("co", co.ravel())
+    me.loops.add(len(loops))
+    me.loops.foreach_set("vertex_index", loops)
+    me.polygons.add(len(sizes))
+    me.polygons.foreach_set("loop_start", starts)
+    me.update()
+    me.validate(verbose=False)
+    return me
+
+
 def build_case(case: dict):
     """Build the case's Blender scene in this process; returns the scene."""
-    import bmesh
     import bpy
 
     if case["kind"] == "blend":
@@ -231,12 +263,7 @@ def build_case(case: dict):
     w, h = case["width"], case["height"]
 
     if case["kind"] == "sphere":
-        k = int(case["k"])
-        me = bpy.data.meshes.new("Sphere")
-        bm = bmesh.new()
-        bmesh.ops.create_uvsphere(bm, u_segments=2 * k, v_segments=k + 1, radius=1.0)
-        bm.to_mesh(me)
-        bm.free()
+        me = uv_sphere_mesh("Sphere", int(case["k"]))
         me.shade_smooth()
         obj = bpy.data.objects.new("Sphere", me)
         scene.collection.objects.link(obj)
