@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from . import pipeline
+from . import colorspace, pipeline
 from .scene import Camera, DrawScene, Light, Mesh, Renderer, SceneError
 from .shaderlab import (
     CHANNELS,
@@ -247,16 +247,6 @@ def pass_from_values(values: dict[str, Any]) -> Pass:
 # ---------------------------------------------------------------------------
 
 
-def srgb_encode(x: float) -> float:
-    x = float(x)
-    return x * 12.92 if x <= 0.0031308 else 1.055 * x ** (1.0 / 2.4) - 0.055
-
-
-def srgb_decode_array(x: np.ndarray) -> np.ndarray:
-    x = np.asarray(x, np.float64)
-    return np.where(x <= 0.04045, x / 12.92, ((np.maximum(x, 0.04045) + 0.055) / 1.055) ** 2.4)
-
-
 def frame_is_encoded(scene_settings: dict[str, Any]) -> bool:
     """Whether the stored frame values are sRGB-encoded (Gamma mode, and Linear LDR)."""
     return not (scene_settings["color_space"] == "Linear" and scene_settings["hdr"])
@@ -465,7 +455,7 @@ def principled_inputs(mat: Any) -> tuple[tuple[float, float, float, float], Any]
                     break
     if bsdf is None:
         r, g, b, a = mat.diffuse_color
-        return (srgb_encode(r), srgb_encode(g), srgb_encode(b), float(a)), None
+        return (colorspace.encode(r), colorspace.encode(g), colorspace.encode(b), float(a)), None
     base = bsdf.inputs["Base Color"]
     r, g, b, _ = base.default_value
     alpha = float(bsdf.inputs["Alpha"].default_value)
@@ -473,7 +463,7 @@ def principled_inputs(mat: Any) -> tuple[tuple[float, float, float, float], Any]
         node = link.from_node
         if node.type == "TEX_IMAGE" and node.image is not None:
             return (1.0, 1.0, 1.0, alpha), node.image  # texture x white
-    return (srgb_encode(r), srgb_encode(g), srgb_encode(b), alpha), None
+    return (colorspace.encode(r), colorspace.encode(g), colorspace.encode(b), alpha), None
 
 
 def world_ambient(world: Any) -> tuple[float, float, float]:
@@ -669,7 +659,7 @@ def linear_rgba(frame: pipeline.Frame, encoded: bool | None = None, opaque: bool
         encoded = frame.encoded
     color = np.array(frame.color, dtype=np.float32, copy=True)
     if encoded:
-        color[..., :3] = srgb_decode_array(color[..., :3]).astype(np.float32)
+        color[..., :3] = colorspace.decode_fast(color[..., :3]).astype(np.float32)
     if opaque:
         color[..., 3] = 1.0
     return color

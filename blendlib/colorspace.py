@@ -87,6 +87,12 @@ def quantize_encoded(linear: np.ndarray) -> np.ndarray:
     return np.searchsorted(ENCODE_THRESHOLDS, v, side="right").astype(np.uint8)
 
 
+def decode_fast(values: np.ndarray) -> np.ndarray:
+    """:func:`decode` vectorised with ``np.power``: within an ulp, not bit-exact (for display output)."""
+    x = np.asarray(values, dtype=np.float64)
+    return np.where(x <= 0.04045, x / 12.92, ((np.maximum(x, 0.04045) + 0.055) / 1.055) ** 2.4)
+
+
 def quantize_unorm(values: np.ndarray) -> np.ndarray:
     """Clamp to [0, 1] and quantise to 8-bit codes: ``floor(v*255 + 0.5)`` (uint8)."""
     v = np.minimum(np.maximum(np.asarray(values, dtype=np.float64), 0.0), 1.0)

@@ -29,7 +29,7 @@ if str(ROOT) not in sys.path:
 import bpy  # noqa: E402
 from mathutils import Euler, Vector  # noqa: E402
 
-from blendlib import bridge  # noqa: E402
+from blendlib import bridge, colorspace  # noqa: E402
 
 OUT = ROOT / "blend_files"
 RES = (640, 360)
@@ -338,7 +338,7 @@ def material(name: str, *, queue="Geometry", offset=0, color=(1, 1, 1, 1), tex=N
              alpha_scale=1.0, cutoff=0.5, passes=(dict(),), filter="Point", wrap="Repeat"):
     """A material with ``material.unity`` enabled; ``passes``: dicts of SPEC §3 pass properties."""
     m = bpy.data.materials.new(name)
-    m.diffuse_color = tuple(bridge.srgb_decode_array(np.array(color[:3])).tolist()) + (color[3],)
+    m.diffuse_color = tuple(colorspace.decode_fast(np.array(color[:3])).tolist()) + (color[3],)
     _set_group(m, bridge.MATERIAL_FIELDS, dict(
         enabled=True, queue=queue, queue_offset=offset, color=tuple(color), lighting=lighting,
         alpha_scale=alpha_scale, cutoff=cutoff, main_tex_filter=filter, main_tex_wrap=wrap,

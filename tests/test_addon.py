@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import addon
-from blendlib import bridge, imageio, render
+from blendlib import bridge, colorspace, imageio, render
 from blendlib.shaderlab import PASS_PRESETS, Pass, preset
 from tests.blender_fixtures import add_cube, add_plane, empty_scene, unlit_material
 
@@ -270,7 +270,7 @@ def test_engine_result_passes():
     assert frame.depth.min() < 1.0 and frame.color[..., 3].min() == 0.0  # clear alpha 0 around the cubes
     combined = arrays["Combined"].reshape(h, w, 4)[::-1]
     assert (combined[..., 3] == 1).all()
-    np.testing.assert_allclose(combined[..., :3], bridge.srgb_decode_array(frame.color[..., :3]), atol=1e-6)
+    np.testing.assert_allclose(combined[..., :3], colorspace.decode_fast(frame.color[..., :3]), atol=1e-6)
 
 
 def test_engine_errors_are_reports_and_write_nothing(tmp_path):

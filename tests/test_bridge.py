@@ -11,7 +11,7 @@ import pytest
 from bpy_extras.object_utils import world_to_camera_view
 from mathutils import Vector
 
-from blendlib import bridge, render, write_image
+from blendlib import bridge, colorspace, render, write_image
 from blendlib.scene import SceneError
 from blendlib.shaderlab import Queue
 from tests.blender_fixtures import add_cube, add_mesh, add_plane, coverage, empty_scene, snapshot
@@ -175,7 +175,7 @@ def test_disabled_material_uses_principled_inputs_encoded():
     bsdf.inputs["Alpha"].default_value = 0.25
     add_plane("Plane", material=mat)
     m = bridge.build_draw_scene().renderers[0].material
-    np.testing.assert_allclose(m.color, (bridge.srgb_encode(0.5), bridge.srgb_encode(0.2), 0.0, 0.25), atol=1e-6)
+    np.testing.assert_allclose(m.color, (colorspace.encode(0.5), colorspace.encode(0.2), 0.0, 0.25), atol=1e-6)
     assert m.queue is Queue.Geometry and len(m.draw_passes) == 1 and m.main_tex is None
     img = bpy.data.images.new("Tex", 2, 2)
     img.pixels.foreach_set(np.linspace(0, 1, 16, dtype=np.float32))
