@@ -962,6 +962,9 @@ def parse_args(argv=None):
     ap.add_argument("--json", metavar="OUT.json", help="write every run's figures as JSON")
     ap.add_argument("--plot", metavar="OUT.png", help="write the plot image (e.g. docs/benchmark.png)")
     ap.add_argument("--markdown", action="store_true", help="also print the table as Markdown")
+    ap.add_argument("--write-doc", metavar="DOC.md",
+                    help="replace the results section of DOC.md (between the <!-- results:start --> and "
+                         "<!-- results:end --> markers) with this run's tables, e.g. docs/benchmark.md")
     ap.add_argument("--blend-dir", default=str(REPO / "blend_files"), help="the S3 scenes (default blend_files/)")
     ap.add_argument("--workers", type=int, default=0, help="render_scene(workers=...) (default: its own)")
     ap.add_argument("--chunk-candidates", type=int, default=0, help="render_scene(chunk_candidates=...)")
@@ -1083,6 +1086,9 @@ def main(argv=None) -> int:
         Path(args.json).write_text(json.dumps({"env": env, "results": results, "scaling": sc,
                                                "targets": tg}, indent=1, default=str))
         print(f"\nJSON: {args.json}")
+    if args.write_doc:
+        write_doc(Path(args.write_doc), results, env, sc, tg, args.plot)
+        print(f"results written into {args.write_doc}")
     if args.plot:
         p = write_plot(results, Path(args.plot), f"UNITY PASSES BENCHMARK, {env['cpus']} CPUS"
                        + (" (QUICK)" if args.quick else ""))
@@ -1090,6 +1096,42 @@ def main(argv=None) -> int:
     print(f"\n({elapsed:.0f} s in all; worker log {log_path})")
     failed = any(r["errors"].get("project") for r in results)
     return 1 if failed else 0
+
+
+RESULTS_START, RESULTS_END = "<!-- results:start -->", "<!-- results:end -->"
+
+
+def results_markdown(results, env, sc, tg, plot) -> str:
+    lines = [
+        f"Command: `{env['command']}`  ",
+        f"Machine: {env['processor']}, {env['cpus']} CPUs; Python {env['python']}, numpy {env['numpy']}; "
+        f"{env['repeats']} timed runs per backend, medians; {time.strftime('%Y-%m-%d')}; "
+        f"{env['elapsed_s'] / 60:.0f} min in all.",
+        "",
+        format_table(results, markdown=True),
+        "",
+    ]
+    if tg:
+        lines += ["| target (issue 5) | figure | met |", "|---|---|---|"]
+        lines += [f"| {label} | {fig} | {'yes' if ok else '**no**'} |" for label, fig, ok in tg]
+        lines.append("")
+    if sc:
+        lines.append("Log-log slope of the median time (1.0 = linear): "
+                     + ", ".join(f"{k} {v:.2f}" for k, v in sc.items()) + ".")
+        lines.append("")
+    if plot:
+        lines += [f"![benchmark plot]({os.path.relpath(Path(plot).resolve(), REPO / 'docs')})", ""]
+    return "\n".join(lines)
+
+
+def write_doc(doc: Path, results, env, sc, tg, plot) -> None:
+    text = doc.read_text() if doc.exists() else f"# Benchmark\n\n{RESULTS_START}\n{RESULTS_END}\n"
+    if RESULTS_START not in text or RESULTS_END not in text:
+        text = text.rstrip("\n") + f"\n\n{RESULTS_START}\n{RESULTS_END}\n"
+    head, rest = text.split(RESULTS_START, 1)
+    _, tail = rest.split(RESULTS_END, 1)
+    body = results_markdown(results, env, sc, tg, plot)
+    doc.write_text(f"{head}{RESULTS_START}\n{body}\n{RESULTS_END}{tail}")
 
 
 def _cpu_name() -> str:
