@@ -71,3 +71,20 @@ def test_table_and_slope_helpers():
     text = bench.format_table([res])
     assert "4.0x" in text and "S1" in text
     assert bench.targets([res], quick=True)[0][2] is True  # 4x <= 8x
+
+
+def test_write_doc_replaces_only_the_results_section(tmp_path):
+    bench = _load_module()
+    doc = tmp_path / "benchmark.md"
+    doc.write_text(f"# B\n\nmethod\n\n{bench.RESULTS_START}\nold\n{bench.RESULTS_END}\n\nafter\n")
+    case = dict(id="S4", group="S4", width=4, height=2)
+    res = {"case": case, "setup": {"project": {"triangles": 1_000_000, "covered_px": 3}},
+           "median": {"project": {"extract_s": 0.1, "render_s": 1.0, "total_s": 1.1, "peak_mb": 5.0, "cpu_ratio": 1.9}},
+           "ratio_gl": None, "ratio_eevee": None, "errors": {}}
+    env = {"command": "python scripts/benchmark.py", "processor": "CPU", "cpus": 2, "python": "3", "numpy": "1",
+           "repeats": 3, "elapsed_s": 60.0}
+    tg = bench.targets([res], quick=False)
+    bench.write_doc(doc, [res], env, {}, tg, None)
+    text = doc.read_text()
+    assert text.startswith("# B\n\nmethod\n") and text.rstrip().endswith("after")
+    assert "old" not in text and "| S4 | 1.00M |" in text and "under 0.3 s | 0.100 s | yes" in text
