@@ -143,9 +143,9 @@ def _clip_polygons(tri: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         b_in = db >= 0
         emit_a = valid & a_in
         emit_i = valid & (a_in != b_in)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t = d / (d - db)
-        inter = poly + t[:, :, None] * (b - poly)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            t = d / (d - db)  # only used where the edge crosses the plane; nan elsewhere is masked out
+            inter = poly + t[:, :, None] * (b - poly)
         cand = np.empty((m, 2 * _MAX_POLY, 7), dtype=np.float64)
         cand[:, 0::2] = poly
         cand[:, 1::2] = inter
@@ -230,12 +230,12 @@ def setup_triangles(
     to_clip = finite & (out_or != 0) & (out_and == 0)
 
     # Object-space degenerate triangles (zero area) are reported; they draw nothing.
-    p32 = np.asarray(mesh.positions, dtype=np.float32)
-    e1 = p32[b] - p32[a]
-    e2 = p32[c] - p32[a]
-    cross_zero = ((e1[:, 1] * e2[:, 2] - e1[:, 2] * e2[:, 1]) == 0) & \
-                 ((e1[:, 2] * e2[:, 0] - e1[:, 0] * e2[:, 2]) == 0) & \
-                 ((e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]) == 0)
+    e1 = pos[b] - pos[a]
+    e2 = pos[c] - pos[a]
+    with np.errstate(over="ignore", invalid="ignore"):
+        cross_zero = ((e1[:, 1] * e2[:, 2] - e1[:, 2] * e2[:, 1]) == 0) & \
+            ((e1[:, 2] * e2[:, 0] - e1[:, 0] * e2[:, 2]) == 0) & \
+            ((e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]) == 0)
     degenerate = int(np.count_nonzero(finite & cross_zero))
 
     # Unclipped triangles: window coordinates per vertex, gathered per corner.

@@ -157,6 +157,9 @@ def validate_scene(scene: DrawScene) -> list[str]:
         m = np.asarray(r.matrix_world, dtype=np.float64)
         if m.shape != (4, 4) or not np.all(np.isfinite(m)):
             raise SceneError(f"{label}: matrix_world must be a finite 4x4 matrix")
+        center = np.asarray(r.bounds_center, dtype=np.float64)
+        if center.shape != (3,) or not np.all(np.isfinite(center)):
+            raise SceneError(f"{label}: bounds_center must be a finite 3-vector (it is the sort point)")
         pos, tri = np.asarray(mesh.positions), np.asarray(mesh.triangles)
         if pos.ndim != 2 or pos.shape[1] != 3:
             raise SceneError(f"{label}: positions must be (V, 3), got {pos.shape}")
