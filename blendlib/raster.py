@@ -431,8 +431,8 @@ class Fragments:
     """Covered pixels of a chunk, in draw order (fragments of one triangle hit distinct pixels).
 
     ``pix`` (N,) int64 window pixel index ``y*W + x`` (y from the bottom);
-    ``tri`` (N,) int64 setup triangle index; ``bary`` (N, 3) float64 screen-space
-    barycentrics in the triangle's own vertex order.
+    ``tri`` (N,) int64 setup triangle index; ``bary`` (3, N) float64 screen-space
+    barycentrics in the triangle's own vertex order (channels first: each row contiguous).
     """
 
     pix: np.ndarray
@@ -448,22 +448,27 @@ def rasterize_rows(rows: Rows, start: int, stop: int, width: int) -> Fragments:
     """The covered pixels of rows ``[start, stop)`` with their barycentrics (docs/pipeline.md §4)."""
     length = rows.length[start:stop]
     n = int(length.sum())
-    r = np.repeat(np.arange(start, stop, dtype=np.int64), length)
+    sl = slice(start, stop)
+    # Per-row values are expanded with repeat (sequential) rather than gathered per fragment.
     offsets = np.arange(n, dtype=np.int64) - np.repeat(np.cumsum(length) - length, length)
-    x = rows.x0[r] + offsets
+    x = np.repeat(rows.x0[sl], length) + offsets
     px = x * SUBPIXEL + HALF
-    area = rows.area[r]
-    ea = rows.c[r, 0] - rows.dy[r, 0] * px
-    eb = rows.c[r, 1] - rows.dy[r, 1] * px
+    area = np.repeat(rows.area[sl], length)
+    ea = np.repeat(rows.c[sl, 0], length) - np.repeat(rows.dy[sl, 0], length) * px
+    eb = np.repeat(rows.c[sl, 1], length) - np.repeat(rows.dy[sl, 1], length) * px
     ec = area - ea - eb  # the three edge functions sum to the doubled area
     farea = area.astype(np.float64)
-    ba, bb, bc = ea / farea, eb / farea, ec / farea
-    swap = rows.swap[r]
-    bary = np.empty((n, 3), dtype=np.float64)
-    bary[:, 0] = ba
-    bary[:, 1] = np.where(swap, bc, bb)
-    bary[:, 2] = np.where(swap, bb, bc)
-    return Fragments(pix=rows.y[r] * width + x, tri=rows.tri[r], bary=bary)
+    bary = np.empty((3, n), dtype=np.float64)
+    np.divide(ea, farea, out=bary[0])
+    swap = np.repeat(rows.swap[sl], length)
+    if np.any(swap):
+        bary[1] = np.where(swap, ec, eb) / farea
+        bary[2] = np.where(swap, eb, ec) / farea
+    else:
+        np.divide(eb, farea, out=bary[1])
+        np.divide(ec, farea, out=bary[2])
+    pix = np.repeat(rows.y[sl] * width, length) + x
+    return Fragments(pix=pix, tri=np.repeat(rows.tri[sl], length), bary=bary)
 
 
 def interpolate(
@@ -477,7 +482,7 @@ def interpolate(
     ``weights`` is False (no attribute needs them).
     """
     t = frags.tri
-    b0, b1, b2 = frags.bary[:, 0], frags.bary[:, 1], frags.bary[:, 2]
+    b0, b1, b2 = frags.bary
     zw = setup.zw[t]
     z = (b0 * zw[:, 0] + b1 * zw[:, 1]) + b2 * zw[:, 2]
     if offset_factor != 0.0 or offset_units != 0.0:
