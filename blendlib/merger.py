@@ -168,8 +168,43 @@ def blend(p: Pass, src: np.ndarray, dst: np.ndarray) -> np.ndarray:
     return out
 
 
-def apply_layer(buf: FrameBuffers, p: Pass, pix: np.ndarray, depth: np.ndarray, rgba: np.ndarray) -> None:
-    """Apply fragments on *distinct* pixels: stencil → depth → stencil op → depth write → blend → mask."""
+#: Colour factors that read another channel of the destination (its alpha): a per-channel
+#: lookup table cannot express them.
+_CROSS_CHANNEL = frozenset({BlendFactor.DstAlpha, BlendFactor.OneMinusDstAlpha, BlendFactor.SrcAlphaSaturate})
+
+
+def lut_eligible(p: Pass, hdr: bool) -> bool:
+    """Whether each written channel of this pass depends only on the source and the same
+    destination channel's 8-bit code, so :func:`blend_lut` can tabulate it exactly."""
+    if hdr:
+        return False
+    return not p.blend or (p.src_blend not in _CROSS_CHANNEL and p.dst_blend not in _CROSS_CHANNEL)
+
+
+def blend_lut(buf: FrameBuffers, p: Pass, palette: np.ndarray) -> np.ndarray:
+    """Stored codes for every (source colour, destination code): (K, 256, 4) uint8.
+
+    Row (k, d) is the ordinary blend of ``palette[k]`` over a destination whose four
+    channels all hold code ``d``, computed by the same functions as per-fragment blending,
+    so a lookup equals the per-fragment result bit for bit (for :func:`lut_eligible` passes).
+    """
+    k = palette.shape[0]
+    src = np.repeat(np.minimum(np.maximum(palette, 0.0), 1.0), 256, axis=0)
+    codes = np.repeat(np.tile(np.arange(256, dtype=np.uint8), k)[:, None], 4, axis=1)
+    result = blend(p, src, buf.decode(codes)) if p.blend else src
+    return buf.encode(result).reshape(k, 256, 4)
+
+
+def apply_layer(
+    buf: FrameBuffers, p: Pass, pix: np.ndarray, depth: np.ndarray, rgba: np.ndarray,
+    ids: np.ndarray | None = None, lut: np.ndarray | None = None,
+) -> None:
+    """Apply fragments on *distinct* pixels: stencil → depth → stencil op → depth write → blend → mask.
+
+    ``pix`` (N,) int64, ``depth`` (N,) int64, ``rgba`` (N, 4) float64 shading-space colours.
+    With ``ids`` (N,) int32 and ``lut`` from :func:`blend_lut`, fragments with ``ids >= 0``
+    take their stored codes from the table (their ``rgba`` rows are not read).
+    """
     d_old = buf.depth[pix]
     passed = compare(p.ztest, depth, d_old)
     if p.stencil:
@@ -187,21 +222,47 @@ def apply_layer(buf: FrameBuffers, p: Pass, pix: np.ndarray, depth: np.ndarray, 
         return
     if not passed.all():
         pix, depth, rgba = pix[passed], depth[passed], rgba[passed]
+        if ids is not None:
+            ids = ids[passed]
     if p.zwrite:
         buf.depth[pix] = depth
     mask = [_CHANNEL_INDEX[c] for c in ("R", "G", "B", "A") if c in p.color_mask]
     if not mask:
         return
-    src = rgba if buf.hdr else np.minimum(np.maximum(rgba, 0.0), 1.0)
-    if p.blend:
-        stored = buf.color[pix]
-        result = buf.encode(blend(p, src, buf.decode(stored)))
+    if ids is not None:
+        tabled = ids >= 0
+        if tabled.all():
+            result = _lookup(buf, lut, pix, ids)
+        else:
+            result = np.empty((pix.shape[0], 4), dtype=buf.color.dtype)
+            result[tabled] = _lookup(buf, lut, pix[tabled], ids[tabled])
+            plain = ~tabled
+            result[plain] = _blend_fragments(buf, p, pix[plain], rgba[plain])
     else:
-        result = buf.encode(src)
+        result = _blend_fragments(buf, p, pix, rgba)
     if len(mask) == 4:
         buf.color[pix] = result
     else:
         buf.color[pix[:, None], np.array(mask)[None, :]] = result[:, mask]
+
+
+def _blend_fragments(buf: FrameBuffers, p: Pass, pix: np.ndarray, rgba: np.ndarray) -> np.ndarray:
+    """Stored values (N, 4) of blending ``rgba`` over the buffer at ``pix``."""
+    src = rgba if buf.hdr else np.minimum(np.maximum(rgba, 0.0), 1.0)
+    if p.blend:
+        return buf.encode(blend(p, src, buf.decode(buf.color[pix])))
+    return buf.encode(src)
+
+
+def _lookup(buf: FrameBuffers, lut: np.ndarray, pix: np.ndarray, ids: np.ndarray) -> np.ndarray:
+    """Stored codes (N, 4) uint8 from the table: channel c of ``lut[ids, stored_c, c]``."""
+    stored = buf.color[pix]
+    base = ids.astype(np.int64) * 1024
+    flat = lut.reshape(-1)
+    out = np.empty_like(stored)
+    for c in range(4):
+        out[:, c] = flat[base + stored[:, c].astype(np.int64) * 4 + c]
+    return out
 
 
 #: Up to this many fragments per pixel, layers are peeled (one ``minimum.at`` per layer);
@@ -209,17 +270,33 @@ def apply_layer(buf: FrameBuffers, p: Pass, pix: np.ndarray, depth: np.ndarray, 
 PEEL_LAYERS = 8
 
 
-def merge(buf: FrameBuffers, p: Pass, pix: np.ndarray, depth: np.ndarray, rgba: np.ndarray) -> int:
-    """Apply a chunk of fragments (in draw order) exactly as one-by-one; returns the layer count."""
+def merge(
+    buf: FrameBuffers, p: Pass, pix: np.ndarray, depth: np.ndarray, rgba: np.ndarray,
+    ids: np.ndarray | None = None, palette: np.ndarray | None = None,
+) -> int:
+    """Apply a chunk of fragments (in draw order) exactly as one-by-one; returns the layer count.
+
+    Optional ``ids`` (N,) int32 / ``palette`` (K, 4) float64: fragments with ``ids >= 0``
+    have the colour ``palette[ids]`` (constant over their triangle) and blend through a
+    lookup table (:func:`blend_lut`); only valid when :func:`lut_eligible`.
+    """
     n = pix.shape[0]
     if n == 0:
         return 0
+    lut = blend_lut(buf, p, palette) if ids is not None else None
+
+    def layer(sel) -> None:
+        if sel is None:
+            apply_layer(buf, p, pix, depth, rgba, ids, lut)
+        else:
+            apply_layer(buf, p, pix[sel], depth[sel], rgba[sel], None if ids is None else ids[sel], lut)
+
     lo = int(pix.min())
     local = pix - lo
     counts = np.bincount(local, minlength=int(pix.max()) - lo + 1)
     layers = int(counts.max())
     if layers == 1:
-        apply_layer(buf, p, pix, depth, rgba)
+        layer(None)
         return 1
     if layers <= PEEL_LAYERS:
         # Layer k = the first remaining fragment of each pixel, found with an unbuffered minimum.
@@ -229,8 +306,7 @@ def merge(buf: FrameBuffers, p: Pass, pix: np.ndarray, depth: np.ndarray, rgba: 
             where = local[remaining]
             np.minimum.at(first, where, remaining)
             is_first = first[where] == remaining
-            sel = remaining[is_first]
-            apply_layer(buf, p, pix[sel], depth[sel], rgba[sel])
+            layer(remaining[is_first])
             first[where] = n
             remaining = remaining[~is_first]
         return layers
@@ -242,6 +318,5 @@ def merge(buf: FrameBuffers, p: Pass, pix: np.ndarray, depth: np.ndarray, rgba: 
     by_rank = order[np.argsort(rank.astype(np.int32), kind="stable")]
     bounds = np.concatenate([[0], np.cumsum(np.bincount(rank, minlength=layers))])
     for k in range(layers):
-        sel = by_rank[bounds[k]:bounds[k + 1]]
-        apply_layer(buf, p, pix[sel], depth[sel], rgba[sel])
+        layer(by_rank[bounds[k]:bounds[k + 1]])
     return layers

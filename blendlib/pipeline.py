@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import raster, shade
+from . import merger, raster, shade
 from .drawlist import sorted_renderers
 from .merger import FrameBuffers, merge
 from .scene import DrawScene, SceneError, validate_scene
@@ -50,8 +50,10 @@ class Frame:
     encoded: bool = True
 
 
-def _shade_chunk(setup, rows, start, stop, width, p: Pass, material, texels, lights, color_space):
-    """Raster + interpolate + shade + alpha test of rows [start, stop): (pix, depth, rgba) in draw order.
+def _shade_chunk(setup, rows, start, stop, width, p: Pass, material, texels, lights, color_space, hdr):
+    """Raster + interpolate + shade + alpha test of rows [start, stop), in draw order.
+
+    Returns the arguments of :func:`merger.merge`: (pix, depth, rgba, ids, palette).
 
     Triangles whose inputs to shading are constant (no texture or flat UVs, Unlit or flat
     normals: §6) are shaded once per triangle; the others once per fragment.
@@ -71,6 +73,7 @@ def _shade_chunk(setup, rows, start, stop, width, p: Pass, material, texels, lig
     any_varying = bool(np.any(varying))
     depth, weights = raster.interpolate(setup, frags, p.offset_factor, p.offset_units, weights=any_varying)
     rgba = np.empty((frags.count, 4), dtype=np.float64)
+    ids = palette = None
 
     def shade_rows(sel_src: np.ndarray, w: np.ndarray | None) -> np.ndarray:
         n = sel_src.size
@@ -94,14 +97,25 @@ def _shade_chunk(setup, rows, start, stop, width, p: Pass, material, texels, lig
         starts = np.ones(const_src.size, dtype=bool)
         starts[1:] = const_src[1:] != const_src[:-1]
         run = np.cumsum(starts) - 1
-        rgba[constant] = shade_rows(const_src[starts], None)[run]
+        palette = shade_rows(const_src[starts], None)
+        # 8-bit blending of a constant colour is a function of the destination code: tabulate
+        # it (256 rows per colour) when that is cheaper than blending every fragment.
+        if merger.lut_eligible(p, hdr) and palette.shape[0] * 256 <= const_src.size:
+            ids = np.full(frags.count, -1, dtype=np.int32)
+            ids[constant] = run
+        else:
+            rgba[constant] = palette[run]
+            palette = None
     if any_varying:
         rgba[varying] = shade_rows(src[varying], weights[varying])
     pix = frags.pix
     if p.alpha_test:
-        keep = ~(rgba[:, 3] - float(material.cutoff) < 0)
+        alpha = rgba[:, 3] if ids is None else np.where(ids >= 0, palette[np.maximum(ids, 0), 3], rgba[:, 3])
+        keep = ~(alpha - float(material.cutoff) < 0)
         pix, depth, rgba = pix[keep], depth[keep], rgba[keep]
-    return pix, depth, rgba
+        if ids is not None:
+            ids = ids[keep]
+    return pix, depth, rgba, ids, palette
 
 
 def _draw_band(buf, setup, rows, chunk_candidates, tail, stop_flag) -> None:
@@ -191,7 +205,7 @@ def render_scene(
                 cancelled()
                 selected = raster.cull_select(setup, p.cull)
                 rows = raster.coverage_rows(setup, selected, width, height)
-                tail = (width, p, material, texels, lights, cs)
+                tail = (width, p, material, texels, lights, cs, scene.hdr)
                 bands = rows.split_bands(workers, height) if pool is not None else [rows]
                 if len(bands) == 1:
                     _draw_band(buf, setup, bands[0], chunk_candidates, tail, stop_flag)
