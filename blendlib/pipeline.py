@@ -61,53 +61,52 @@ def _shade_chunk(setup, rows, start, stop, width, p: Pass, material, texels, lig
     frags = raster.rasterize_rows(rows, start, stop, width)
     if frags.count == 0:
         return None
+    # Fragments come in triangle order: each source triangle's fragments form one run.
     src = setup.src[frags.tri]
-    use_uv = texels is not None and setup.uvs is not None
-    use_normal = setup.world_normals is not None
-    constant = np.ones(frags.count, dtype=bool)
-    if use_uv:
-        constant &= setup.uvs_flat[src]
-    if use_normal:
-        constant &= setup.normals_flat[src]
+    first = np.ones(src.size, dtype=bool)
+    first[1:] = src[1:] != src[:-1]
+    run = np.cumsum(first) - 1
+    tris = src[first]  # (K,) the source triangles of this chunk
+    uvs = setup.uvs_of(tris) if texels is not None and setup.object_uvs is not None else None
+    normals = setup.world_normals_of(tris) if setup.object_normals is not None else None
+    flat = np.ones(tris.size, dtype=bool)  # shading inputs constant over the triangle (§6)
+    uv_flat = normal_flat = None
+    if uvs is not None:
+        uv_flat = raster.flat_corners(uvs)
+        flat &= uv_flat
+    if normals is not None:
+        normal_flat = raster.flat_corners(normals)
+        flat &= normal_flat
+    constant = flat[run]
     varying = ~constant
     any_varying = bool(np.any(varying))
     depth, weights = raster.interpolate(setup, frags, p.offset_factor, p.offset_units, weights=any_varying)
     rgba = np.empty((frags.count, 4), dtype=np.float64)
     ids = palette = None
 
-    def shade_rows(sel_src: np.ndarray, w: np.ndarray | None) -> np.ndarray:
-        n = sel_src.size
-        if not use_uv:
-            uv = np.zeros((n, 2), dtype=np.float64)
-        elif w is None:
-            uv = setup.uvs[sel_src, 0]
-        else:
-            uv = raster.interpolate_attribute(w, setup.uvs[sel_src], setup.uvs_flat[sel_src])
-        if not use_normal:
-            normal = np.zeros((n, 3), dtype=np.float64)
-        elif w is None:
-            normal = setup.world_normals[sel_src, 0]
-        else:
-            normal = raster.interpolate_attribute(w, setup.world_normals[sel_src], setup.normals_flat[sel_src])
+    def shade_at(uv: np.ndarray | None, normal: np.ndarray | None, n: int) -> np.ndarray:
+        uv = np.zeros((n, 2), dtype=np.float64) if uv is None else uv
+        normal = np.zeros((n, 3), dtype=np.float64) if normal is None else normal
         return shade.shade(material, texels, lights, color_space, uv, normal)
 
     if np.any(constant):
-        # Fragments come in triangle order, so each triangle's fragments are one run.
-        const_src = src[constant]
-        starts = np.ones(const_src.size, dtype=bool)
-        starts[1:] = const_src[1:] != const_src[:-1]
-        run = np.cumsum(starts) - 1
-        palette = shade_rows(const_src[starts], None)
+        const_tris = np.nonzero(flat)[0]
+        palette = shade_at(None if uvs is None else uvs[const_tris, 0],
+                           None if normals is None else normals[const_tris, 0], const_tris.size)
+        slot = np.full(tris.size, -1, dtype=np.int32)
+        slot[const_tris] = np.arange(const_tris.size, dtype=np.int32)
+        ids = slot[run]
         # 8-bit blending of a constant colour is a function of the destination code: tabulate
         # it (256 rows per colour) when that is cheaper than blending every fragment.
-        if merger.lut_eligible(p, hdr) and palette.shape[0] * 256 <= const_src.size:
-            ids = np.full(frags.count, -1, dtype=np.int32)
-            ids[constant] = run
-        else:
-            rgba[constant] = palette[run]
-            palette = None
+        if not (merger.lut_eligible(p, hdr) and palette.shape[0] * 256 <= np.count_nonzero(constant)):
+            rgba[constant] = palette[ids[constant]]
+            ids = palette = None
     if any_varying:
-        rgba[varying] = shade_rows(src[varying], weights[varying])
+        r = run[varying]
+        w = weights[varying]
+        uv = None if uvs is None else raster.interpolate_attribute(w, uvs[r], uv_flat[r])
+        normal = None if normals is None else raster.interpolate_attribute(w, normals[r], normal_flat[r])
+        rgba[varying] = shade_at(uv, normal, r.size)
     pix = frags.pix
     if p.alpha_test:
         alpha = rgba[:, 3] if ids is None else np.where(ids >= 0, palette[np.maximum(ids, 0), 3], rgba[:, 3])

@@ -72,9 +72,10 @@ class TriangleSetup:
     - ``clipped`` (n,) bool.
     - ``front`` (n,) bool: the triangle shows its front side (False for zero area, which
       no cull mode draws).
-    - ``world_normals`` (T, 3, 3) float64 per source-triangle corner; ``uvs`` (T, 3, 2)
-      float64 or None; ``normals_flat`` / ``uvs_flat`` (T,) bool: the corner values are
-      equal (the attribute is constant over the triangle, §6).
+    - ``object_normals`` (T, 3, 3) corner normals and ``normal_matrix`` (3, 3) (§1), or
+      None when shading does not read normals; ``object_uvs`` (T, 3, 2) or None. World
+      normals and float64 UVs are made on demand for the triangles that produce fragments
+      (:meth:`world_normals_of`, :meth:`uvs_of`).
     """
 
     X: np.ndarray
@@ -86,13 +87,20 @@ class TriangleSetup:
     weights: np.ndarray | None
     clipped: np.ndarray
     front: np.ndarray
-    world_normals: np.ndarray | None
-    uvs: np.ndarray | None
+    object_normals: np.ndarray | None
+    normal_matrix: np.ndarray | None
+    object_uvs: np.ndarray | None
     skipped_nonfinite: int = 0
     degenerate: int = 0
-    normals_flat: np.ndarray | None = None
-    uvs_flat: np.ndarray | None = None
     _slope: np.ndarray | None = None
+
+    def world_normals_of(self, src: np.ndarray) -> np.ndarray:
+        """World-space corner normals (K, 3, 3) float64 of source triangles ``src`` (K,)."""
+        return _world_normals(self.object_normals[src], self.normal_matrix)
+
+    def uvs_of(self, src: np.ndarray) -> np.ndarray:
+        """Corner UVs (K, 3, 2) float64 of source triangles ``src`` (K,)."""
+        return np.asarray(self.object_uvs[src], dtype=np.float64)
 
     @property
     def count(self) -> int:
@@ -195,7 +203,7 @@ def setup_triangles(
     """Vertex stage, clipping, viewport and snapping for one renderer (docs/pipeline.md §1–§4).
 
     ``need_normals`` / ``need_uvs``: whether shading reads them (Lambert; a texture).
-    Attributes not needed are left out (``world_normals`` / ``uvs`` None).
+    Attributes not needed are left out (``object_normals`` / ``object_uvs`` None).
     """
     mv = matmul4(camera.view_matrix, matrix_world)
     mvp = matmul4(camera.projection, mv)
@@ -207,14 +215,8 @@ def setup_triangles(
     px, py, pz = pos[:, 0], pos[:, 1], pos[:, 2]
     clip_v = np.stack(_affine_rows(mvp, px, py, pz, 4), axis=-1) if pos.shape[0] else np.zeros((0, 4))
 
-    world_normals = normals_flat = None
-    if need_normals:
-        world_normals = _world_normals(mesh.normals, nmat)
-        normals_flat = flat_corners(world_normals)
-    uvs = uvs_flat = None
-    if need_uvs and mesh.uvs is not None:
-        uvs = np.asarray(mesh.uvs, dtype=np.float64).reshape(t_count, 3, 2)
-        uvs_flat = flat_corners(uvs)
+    object_normals = np.asarray(mesh.normals).reshape(t_count, 3, 3) if need_normals else None
+    object_uvs = np.asarray(mesh.uvs).reshape(t_count, 3, 2) if need_uvs and mesh.uvs is not None else None
 
     # Per-vertex work first (V <= 3T), gathered per corner afterwards.
     finite_v = np.all(np.isfinite(clip_v), axis=1)
@@ -294,8 +296,8 @@ def setup_triangles(
     front = (area2 > 0) if det >= 0 else (area2 < 0)
     return TriangleSetup(
         X=X, Y=Y, zw=zw, iw=iw, area2=area2, src=src, weights=weights, clipped=clipped, front=front,
-        world_normals=world_normals, uvs=uvs, skipped_nonfinite=skipped, degenerate=degenerate,
-        normals_flat=normals_flat, uvs_flat=uvs_flat,
+        object_normals=object_normals, normal_matrix=nmat, object_uvs=object_uvs,
+        skipped_nonfinite=skipped, degenerate=degenerate,
     )
 
 
@@ -312,23 +314,25 @@ def cull_select(setup: TriangleSetup, cull: Cull) -> np.ndarray:
 
 @dataclass(eq=False)
 class Rows:
-    """Candidate spans of a pass: one entry per (triangle, pixel row), in draw order.
+    """Spans of a pass: one entry per (triangle, pixel row) with covered pixels, in draw order.
 
     ``tri`` (R,) int64 setup index; ``y`` (R,) int64 pixel row (from the bottom);
-    ``x0`` (R,) int64 first candidate column; ``length`` (R,) int64 candidates;
-    ``c`` (R, 3) int64 and ``dy`` (R, 3) int64: edge function ``E_k = c_k - dy_k*Px``
-    for counter-clockwise edges (b→c, c→a, a→b); the span ``[x0, x0 + length)`` is
-    exactly the covered pixels of the row (top-left rule applied in integers);
-    ``swap`` (R,) bool: the triangle was clockwise and its coverage order is
-    (v0, v2, v1); ``area`` (R,) int64 |area2|.
+    ``x0`` (R,) int64 first covered column and ``length`` (R,) int64 covered pixels: the
+    span ``[x0, x0 + length)`` is exactly the row's covered pixels (top-left rule applied
+    in integers). ``c0``, ``c1``, ``dy0``, ``dy1`` (R,) int64: the row's edge functions
+    ``E_k = c_k - dy_k*Px`` for the counter-clockwise edges b→c and c→a (the third is
+    ``area - E_0 - E_1``); ``swap`` (R,) bool: the triangle was clockwise and its coverage
+    order is (v0, v2, v1); ``area`` (R,) int64 |area2|.
     """
 
     tri: np.ndarray
     y: np.ndarray
     x0: np.ndarray
     length: np.ndarray
-    c: np.ndarray
-    dy: np.ndarray
+    c0: np.ndarray
+    c1: np.ndarray
+    dy0: np.ndarray
+    dy1: np.ndarray
     swap: np.ndarray
     area: np.ndarray
 
@@ -338,8 +342,7 @@ class Rows:
 
     def take(self, mask: np.ndarray) -> Rows:
         """The rows where ``mask`` is True, order kept."""
-        return Rows(tri=self.tri[mask], y=self.y[mask], x0=self.x0[mask], length=self.length[mask],
-                    c=self.c[mask], dy=self.dy[mask], swap=self.swap[mask], area=self.area[mask])
+        return Rows(**{name: getattr(self, name)[mask] for name in self.__dataclass_fields__})
 
     def split_bands(self, bands: int, height: int) -> list[Rows]:
         """Split into up to ``bands`` horizontal screen bands of about equal fragment counts.
@@ -362,7 +365,14 @@ def _ceil_div(a: np.ndarray, b: int) -> np.ndarray:
 
 
 def coverage_rows(setup: TriangleSetup, selected: np.ndarray, width: int, height: int) -> Rows:
-    """Per-row spans of exactly the covered pixels of the selected triangles (docs/pipeline.md §4)."""
+    """Per-row spans of exactly the covered pixels of the selected triangles (docs/pipeline.md §4).
+
+    A pixel centre ``Px = x*S + S/2`` of row ``y`` is covered when every edge has
+    ``E_k = c_k - dy_k*Px >= bias_k`` (bias 0 on top-left edges, else 1), i.e.
+    ``dy_k*Px <= rhs_k`` with ``rhs_k = c_k - bias_k``. With ``q = (rhs_k - (S/2)*dy_k) //
+    (S*|dy_k|)``, that is ``x <= q`` when ``dy_k > 0`` and ``x >= -q`` when ``dy_k < 0``
+    (one exact integer division per edge); a horizontal edge keeps or empties the row.
+    """
     X, Y = setup.X[selected], setup.Y[selected]
     swap = setup.area2[selected] < 0
     # Counter-clockwise vertex order (a, b, c) = (v0, v1, v2), or (v0, v2, v1) when clockwise.
@@ -375,38 +385,38 @@ def coverage_rows(setup: TriangleSetup, selected: np.ndarray, width: int, height
     x_hi = np.minimum((np.maximum(np.maximum(ax, bx), cx) - HALF) // SUBPIXEL, width - 1)
     y_lo = np.maximum(_ceil_div(np.minimum(np.minimum(ay, by), cy) - HALF, SUBPIXEL), 0)
     y_hi = np.minimum((np.maximum(np.maximum(ay, by), cy) - HALF) // SUBPIXEL, height - 1)
-    nrows = np.where((x_lo <= x_hi) & (y_lo <= y_hi), y_hi - y_lo + 1, 0)
-
-    local = np.repeat(np.arange(selected.size, dtype=np.int64), nrows)
+    has = (x_lo <= x_hi) & (y_lo <= y_hi)  # most tiny triangles hold no pixel centre at all
+    if not np.all(has):
+        selected, swap, ax, ay, bx, by, cx, cy, x_lo, x_hi, y_lo, y_hi = (
+            v[has] for v in (selected, swap, ax, ay, bx, by, cx, cy, x_lo, x_hi, y_lo, y_hi))
+    nrows = y_hi - y_lo + 1
+    total = int(nrows.sum())
     starts = np.cumsum(nrows) - nrows
-    y = y_lo[local] + (np.arange(local.size, dtype=np.int64) - starts[local])
+    y = np.repeat(y_lo, nrows) + (np.arange(total, dtype=np.int64) - np.repeat(starts, nrows))
     py = y * SUBPIXEL + HALF
-
+    x0 = np.repeat(x_lo, nrows)
+    x1 = np.repeat(x_hi, nrows)
     # Edges p -> q: b->c (opposite a), c->a (opposite b), a->b (opposite c).
-    edges = ((bx, by, cx, cy), (cx, cy, ax, ay), (ax, ay, bx, by))
-    c = np.empty((local.size, 3), dtype=np.int64)
-    dys = np.empty((local.size, 3), dtype=np.int64)
-    # Exact integer span per row: the pixel centres Px = x*S + S/2 with E_k(Px) >= bias_k for
-    # every edge, where E_k = c_k - dy_k*Px and bias_k = 0 on top-left edges, else 1. So
-    # dy_k*Px <= c_k - bias_k: an upper bound on Px when dy_k > 0, a lower bound when dy_k < 0,
-    # and all-or-nothing for horizontal edges.
-    x0 = x_lo[local].copy()
-    x1 = x_hi[local].copy()
-    for k, (xp, yp, xq, yq) in enumerate(edges):
-        dx = (xq - xp)[local]
-        dy = (yq - yp)[local]
-        ck = dx * (py - yp[local]) + dy * xp[local]
-        c[:, k], dys[:, k] = ck, dy
-        rhs = ck - np.where((dy < 0) | ((dy == 0) & (dx < 0)), 0, 1)
-        divisor = np.where(dy == 0, 1, dy)
-        p_min = -((-rhs) // divisor)  # ceil(rhs / dy): the smallest Px allowed when dy < 0
-        p_max = rhs // divisor  # floor(rhs / dy): the largest Px allowed when dy > 0
-        x0 = np.where(dy < 0, np.maximum(x0, _ceil_div(p_min - HALF, SUBPIXEL)), x0)
-        x1 = np.where(dy > 0, np.minimum(x1, (p_max - HALF) // SUBPIXEL), x1)
+    c_rows, dy_rows = [], []
+    for xp, yp, xq, yq in ((bx, by, cx, cy), (cx, cy, ax, ay), (ax, ay, bx, by)):
+        dx_t, dy_t = xq - xp, yq - yp
+        top_left = (dy_t < 0) | ((dy_t == 0) & (dx_t < 0))
+        k_t = dy_t * xp - dx_t * yp  # E = dx*(Py - yp) - dy*(Px - xp) = (dx*Py + k) - dy*Px
+        dy = np.repeat(dy_t, nrows)
+        c = np.repeat(dx_t, nrows) * py + np.repeat(k_t, nrows)
+        rhs = c - np.repeat(np.where(top_left, 0, 1), nrows)
+        q = (rhs - HALF * dy) // (SUBPIXEL * np.maximum(np.abs(dy), 1))
+        x1 = np.where(dy > 0, np.minimum(x1, q), x1)
+        x0 = np.where(dy < 0, np.maximum(x0, -q), x0)
         x1 = np.where((dy == 0) & (rhs < 0), x0 - 1, x1)
+        c_rows.append(c)
+        dy_rows.append(dy)
     length = np.maximum(x1 - x0 + 1, 0)
-    area = np.abs(setup.area2[selected])[local]
-    return Rows(tri=selected[local], y=y, x0=x0, length=length, c=c, dy=dys, swap=swap[local], area=area)
+    keep = length > 0
+    area = np.repeat(np.abs(setup.area2[selected]), nrows)
+    rows = Rows(tri=np.repeat(selected, nrows), y=y, x0=x0, length=length, c0=c_rows[0], c1=c_rows[1],
+                dy0=dy_rows[0], dy1=dy_rows[1], swap=np.repeat(swap, nrows), area=area)
+    return rows if np.all(keep) else rows.take(keep)
 
 
 def row_chunks(rows: Rows, max_candidates: int) -> list[tuple[int, int]]:
@@ -454,8 +464,8 @@ def rasterize_rows(rows: Rows, start: int, stop: int, width: int) -> Fragments:
     x = np.repeat(rows.x0[sl], length) + offsets
     px = x * SUBPIXEL + HALF
     area = np.repeat(rows.area[sl], length)
-    ea = np.repeat(rows.c[sl, 0], length) - np.repeat(rows.dy[sl, 0], length) * px
-    eb = np.repeat(rows.c[sl, 1], length) - np.repeat(rows.dy[sl, 1], length) * px
+    ea = np.repeat(rows.c0[sl], length) - np.repeat(rows.dy0[sl], length) * px
+    eb = np.repeat(rows.c1[sl], length) - np.repeat(rows.dy1[sl], length) * px
     ec = area - ea - eb  # the three edge functions sum to the doubled area
     farea = area.astype(np.float64)
     bary = np.empty((3, n), dtype=np.float64)
