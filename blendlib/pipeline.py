@@ -188,6 +188,7 @@ def render_scene(
             setup = raster.setup_triangles(
                 mesh, renderer.matrix_world, cam,
                 need_normals=material.lighting is not Lighting.Unlit, need_uvs=material.main_tex is not None,
+                pool=pool, parts=workers,
             )
             label = f"object {renderer.name!r} slot {renderer.slot}"
             if setup.skipped_nonfinite:
@@ -203,7 +204,7 @@ def render_scene(
             for p in material.draw_passes:
                 cancelled()
                 selected = raster.cull_select(setup, p.cull)
-                rows = raster.coverage_rows(setup, selected, width, height)
+                rows = raster.coverage_rows(setup, selected, width, height, pool=pool, parts=workers)
                 tail = (width, p, material, texels, lights, cs, scene.hdr)
                 bands = rows.split_bands(workers, height) if pool is not None else [rows]
                 if len(bands) == 1:

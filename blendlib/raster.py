@@ -197,13 +197,30 @@ def _world_normals(normals: np.ndarray, nmat: np.ndarray) -> np.ndarray:
     return out.reshape(t, 3, 3)
 
 
+def run_parts(pool, parts: int, n: int, fn, min_part: int = 1 << 15) -> None:
+    """Call ``fn(lo, hi)`` over ``[0, n)`` in up to ``parts`` contiguous ranges on ``pool``.
+
+    ``fn`` must only write its own slice of preallocated outputs. Small ``n`` (or no pool)
+    runs in the calling thread in one piece.
+    """
+    if pool is None or parts <= 1 or n < 2 * min_part:
+        fn(0, n)
+        return
+    bounds = np.linspace(0, n, parts + 1).astype(np.int64)
+    futures = [pool.submit(fn, int(lo), int(hi)) for lo, hi in zip(bounds[:-1], bounds[1:], strict=True) if hi > lo]
+    for f in futures:
+        f.result()
+
+
 def setup_triangles(
-    mesh: Mesh, matrix_world: np.ndarray, camera: Camera, need_normals: bool = True, need_uvs: bool = True
+    mesh: Mesh, matrix_world: np.ndarray, camera: Camera, need_normals: bool = True, need_uvs: bool = True,
+    pool=None, parts: int = 1,
 ) -> TriangleSetup:
     """Vertex stage, clipping, viewport and snapping for one renderer (docs/pipeline.md §1–§4).
 
     ``need_normals`` / ``need_uvs``: whether shading reads them (Lambert; a texture).
     Attributes not needed are left out (``object_normals`` / ``object_uvs`` None).
+    ``pool`` / ``parts``: a thread pool to split per-vertex and per-triangle work over.
     """
     mv = matmul4(camera.view_matrix, matrix_world)
     mvp = matmul4(camera.projection, mv)
@@ -212,44 +229,80 @@ def setup_triangles(
     pos = np.asarray(mesh.positions, dtype=np.float64)
     tris = np.asarray(mesh.triangles, dtype=np.int64)
     t_count = tris.shape[0]
-    px, py, pz = pos[:, 0], pos[:, 1], pos[:, 2]
-    clip_v = np.stack(_affine_rows(mvp, px, py, pz, 4), axis=-1) if pos.shape[0] else np.zeros((0, 4))
-
+    v_count = pos.shape[0]
     object_normals = np.asarray(mesh.normals).reshape(t_count, 3, 3) if need_normals else None
     object_uvs = np.asarray(mesh.uvs).reshape(t_count, 3, 2) if need_uvs and mesh.uvs is not None else None
 
     # Per-vertex work first (V <= 3T), gathered per corner afterwards.
-    finite_v = np.all(np.isfinite(clip_v), axis=1)
-    outcode_v = np.zeros(clip_v.shape[0], dtype=np.uint8)
-    for k in range(6):
-        outcode_v |= (_plane_distance(clip_v, k) < 0).astype(np.uint8) << np.uint8(k)
-    a, b, c = tris[:, 0], tris[:, 1], tris[:, 2]
-    finite = finite_v[a] & finite_v[b] & finite_v[c]
-    skipped = int(t_count - np.count_nonzero(finite))
-    out_or = outcode_v[a] | outcode_v[b] | outcode_v[c]
-    out_and = outcode_v[a] & outcode_v[b] & outcode_v[c]
-    keep_whole = finite & (out_or == 0)
-    to_clip = finite & (out_or != 0) & (out_and == 0)
+    clip_v = np.empty((v_count, 4), dtype=np.float64)
+    finite_v = np.empty(v_count, dtype=bool)
+    outcode_v = np.empty(v_count, dtype=np.uint8)
+    Xv = np.empty(v_count, dtype=np.int64)
+    Yv = np.empty(v_count, dtype=np.int64)
+    zwv = np.empty(v_count, dtype=np.float64)
+    iwv = np.empty(v_count, dtype=np.float64)
+    okv = np.empty(v_count, dtype=bool)
 
-    # Object-space degenerate triangles (zero area) are reported; they draw nothing.
-    e1 = pos[b] - pos[a]
-    e2 = pos[c] - pos[a]
-    with np.errstate(over="ignore", invalid="ignore"):
-        cross_zero = ((e1[:, 1] * e2[:, 2] - e1[:, 2] * e2[:, 1]) == 0) & \
-            ((e1[:, 2] * e2[:, 0] - e1[:, 0] * e2[:, 2]) == 0) & \
-            ((e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]) == 0)
-    degenerate = int(np.count_nonzero(finite & cross_zero))
+    def vertex_part(lo: int, hi: int) -> None:
+        p = pos[lo:hi]
+        for i, row in enumerate(_affine_rows(mvp, p[:, 0], p[:, 1], p[:, 2], 4)):
+            clip_v[lo:hi, i] = row
+        cv = clip_v[lo:hi]
+        finite_v[lo:hi] = np.all(np.isfinite(cv), axis=1)
+        code = np.zeros(hi - lo, dtype=np.uint8)
+        for k in range(6):
+            code |= (_plane_distance(cv, k) < 0).astype(np.uint8) << np.uint8(k)
+        outcode_v[lo:hi] = code
+        Xv[lo:hi], Yv[lo:hi], zwv[lo:hi], iwv[lo:hi], okv[lo:hi] = _to_window(cv, camera)
+
+    run_parts(pool, parts, v_count, vertex_part)
+
+    keep_whole = np.empty(t_count, dtype=bool)
+    to_clip = np.empty(t_count, dtype=bool)
+    finite = np.empty(t_count, dtype=bool)
+    degenerate_t = np.empty(t_count, dtype=bool)
+
+    def triangle_part(lo: int, hi: int) -> None:
+        t = tris[lo:hi]
+        a, b, c = t[:, 0], t[:, 1], t[:, 2]
+        ok = finite_v[a] & finite_v[b] & finite_v[c]
+        out_or = outcode_v[a] | outcode_v[b] | outcode_v[c]
+        out_and = outcode_v[a] & outcode_v[b] & outcode_v[c]
+        finite[lo:hi] = ok
+        keep_whole[lo:hi] = ok & (out_or == 0) & okv[a] & okv[b] & okv[c]
+        to_clip[lo:hi] = ok & (out_or != 0) & (out_and == 0)
+        # Object-space degenerate triangles (zero area) are reported; they draw nothing.
+        e1 = pos[b] - pos[a]
+        e2 = pos[c] - pos[a]
+        with np.errstate(over="ignore", invalid="ignore"):
+            degenerate_t[lo:hi] = ok & ((e1[:, 1] * e2[:, 2] - e1[:, 2] * e2[:, 1]) == 0) & \
+                ((e1[:, 2] * e2[:, 0] - e1[:, 0] * e2[:, 2]) == 0) & \
+                ((e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]) == 0)
+
+    run_parts(pool, parts, t_count, triangle_part)
+    skipped = int(t_count - np.count_nonzero(finite))
+    degenerate = int(np.count_nonzero(degenerate_t))
 
     # Unclipped triangles: window coordinates per vertex, gathered per corner.
-    Xv, Yv, zwv, iwv, okv = _to_window(clip_v, camera)
-    keep_whole &= okv[a] & okv[b] & okv[c]
     if np.all(keep_whole):
         whole, tw = np.arange(t_count, dtype=np.int64), tris
     else:
         whole = np.nonzero(keep_whole)[0]
         tw = tris[whole]
-    X, Y, zw, iw = Xv[tw], Yv[tw], zwv[tw], iwv[tw]
-    parts = [(whole, X, Y, zw, iw, None)]
+    X = np.empty(tw.shape, dtype=np.int64)
+    Y = np.empty(tw.shape, dtype=np.int64)
+    zw = np.empty(tw.shape, dtype=np.float64)
+    iw = np.empty(tw.shape, dtype=np.float64)
+
+    def gather_part(lo: int, hi: int) -> None:
+        t = tw[lo:hi]
+        np.take(Xv, t, out=X[lo:hi])
+        np.take(Yv, t, out=Y[lo:hi])
+        np.take(zwv, t, out=zw[lo:hi])
+        np.take(iwv, t, out=iw[lo:hi])
+
+    run_parts(pool, parts, tw.shape[0], gather_part)
+    parts_list = [(whole, X, Y, zw, iw, None)]
 
     clip_idx = np.nonzero(to_clip)[0]
     if clip_idx.size:
@@ -272,28 +325,38 @@ def setup_triangles(
             fs, fv = fs[order], fv[order]
             cX, cY, czw, ciw, cok = _to_window(fv[:, :, :4], camera)
             cgood = np.all(cok, axis=1)
-            parts.append((clip_idx[fs[cgood, 0]], cX[cgood], cY[cgood], czw[cgood], ciw[cgood], fv[cgood, :, 4:]))
+            parts_list.append(
+                (clip_idx[fs[cgood, 0]], cX[cgood], cY[cgood], czw[cgood], ciw[cgood], fv[cgood, :, 4:]))
 
     weights = None
-    if len(parts) == 1:  # nothing clipped: already in draw order
+    if len(parts_list) == 1:  # nothing clipped: already in draw order
         src = whole.astype(np.int64)
         clipped = np.zeros(src.size, dtype=bool)
     else:
-        src = np.concatenate([q[0] for q in parts]).astype(np.int64)
+        src = np.concatenate([q[0] for q in parts_list]).astype(np.int64)
         order = np.argsort(src, kind="stable")
         src = src[order]
-        X = np.concatenate([q[1] for q in parts])[order]
-        Y = np.concatenate([q[2] for q in parts])[order]
-        zw = np.concatenate([q[3] for q in parts])[order]
-        iw = np.concatenate([q[4] for q in parts])[order]
-        clipped = np.concatenate([np.zeros(whole.size, bool)] + [np.ones(q[0].size, bool) for q in parts[1:]])
+        X = np.concatenate([q[1] for q in parts_list])[order]
+        Y = np.concatenate([q[2] for q in parts_list])[order]
+        zw = np.concatenate([q[3] for q in parts_list])[order]
+        iw = np.concatenate([q[4] for q in parts_list])[order]
+        clipped = np.concatenate([np.zeros(whole.size, bool)] + [np.ones(q[0].size, bool) for q in parts_list[1:]])
         clipped = clipped[order]
-        weights = np.concatenate([np.broadcast_to(np.eye(3), (whole.size, 3, 3))] + [q[5] for q in parts[1:]])
+        weights = np.concatenate(
+            [np.broadcast_to(np.eye(3), (whole.size, 3, 3))] + [q[5] for q in parts_list[1:]])
         weights = np.ascontiguousarray(weights[order])
 
-    area2 = (X[:, 1] - X[:, 0]) * (Y[:, 2] - Y[:, 0]) - (X[:, 2] - X[:, 0]) * (Y[:, 1] - Y[:, 0])
-    # Zero-area triangles stay in the arrays (no copies) but are neither front nor back.
-    front = (area2 > 0) if det >= 0 else (area2 < 0)
+    area2 = np.empty(src.size, dtype=np.int64)
+    front = np.empty(src.size, dtype=bool)
+
+    def area_part(lo: int, hi: int) -> None:
+        x, y = X[lo:hi], Y[lo:hi]
+        a2 = (x[:, 1] - x[:, 0]) * (y[:, 2] - y[:, 0]) - (x[:, 2] - x[:, 0]) * (y[:, 1] - y[:, 0])
+        area2[lo:hi] = a2
+        # Zero-area triangles stay in the arrays (no copies) but are neither front nor back.
+        front[lo:hi] = (a2 > 0) if det >= 0 else (a2 < 0)
+
+    run_parts(pool, parts, src.size, area_part)
     return TriangleSetup(
         X=X, Y=Y, zw=zw, iw=iw, area2=area2, src=src, weights=weights, clipped=clipped, front=front,
         object_normals=object_normals, normal_matrix=nmat, object_uvs=object_uvs,
@@ -364,8 +427,28 @@ def _ceil_div(a: np.ndarray, b: int) -> np.ndarray:
     return -((-a) // b)
 
 
-def coverage_rows(setup: TriangleSetup, selected: np.ndarray, width: int, height: int) -> Rows:
+def coverage_rows(
+    setup: TriangleSetup, selected: np.ndarray, width: int, height: int, pool=None, parts: int = 1
+) -> Rows:
     """Per-row spans of exactly the covered pixels of the selected triangles (docs/pipeline.md §4).
+
+    With a thread ``pool``, contiguous parts of ``selected`` are done in parallel and joined
+    in order (rows stay in draw order).
+    """
+    results: dict[int, Rows] = {}
+
+    def part(lo: int, hi: int) -> None:
+        results[lo] = _coverage_rows(setup, selected[lo:hi], width, height)
+
+    run_parts(pool, parts, selected.size, part)
+    if len(results) == 1:
+        return next(iter(results.values()))
+    pieces = [results[k] for k in sorted(results)]
+    return Rows(**{name: np.concatenate([getattr(r, name) for r in pieces]) for name in Rows.__dataclass_fields__})
+
+
+def _coverage_rows(setup: TriangleSetup, selected: np.ndarray, width: int, height: int) -> Rows:
+    """:func:`coverage_rows` for one contiguous part.
 
     A pixel centre ``Px = x*S + S/2`` of row ``y`` is covered when every edge has
     ``E_k = c_k - dy_k*Px >= bias_k`` (bias 0 on top-left edges, else 1), i.e.

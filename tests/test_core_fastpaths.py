@@ -134,3 +134,21 @@ def test_worker_bands_and_chunks_do_not_change_the_frame():
         np.testing.assert_array_equal(frames[0].depth, other.depth)
     color, _, _ = render_reference(scene)
     np.testing.assert_array_equal(frames[0].color, color)
+
+
+def test_parallel_setup_and_spans_equal_serial():
+    """A 160k-triangle sphere crossing the near plane: setup and span building split over two
+    threads (and clipping in both halves) give the same buffers as one thread."""
+    mesh = sc.uv_sphere(radius=1.0, segments=400, rings=200)
+    split = 2 * (1 << 15)  # raster.run_parts splits from this many items on
+    assert mesh.triangle_count > split and mesh.positions.shape[0] > split
+    p = Pass(cull=Cull.Off, zwrite=False, blend=True, src_blend=BlendFactor.SrcAlpha,
+             dst_blend=BlendFactor.OneMinusSrcAlpha)
+    mat = Material(color=(0.9, 0.5, 0.2, 0.3), passes=(p,))
+    for eye in ((0.0, 0.0, 3.0), (0.3, 0.2, 1.02)):  # outside, then touching the surface: near-plane clipping
+        scene = DrawScene(camera=sc.camera(120, 90, eye=eye), renderers=(sc.renderer(mesh, mat),),
+                          light=sc.Light(direction=(0.2, 0.5, 0.8)))
+        one, two = render_scene(scene, workers=1), render_scene(scene, workers=2)
+        np.testing.assert_array_equal(one.color, two.color)
+        np.testing.assert_array_equal(one.depth, two.depth)
+        assert np.count_nonzero(one.color[..., 3] != 0.0) > 1000  # the clear alpha is 0
