@@ -13,7 +13,7 @@ from __future__ import annotations
 import bpy
 import numpy as np
 
-from blendlib import bridge
+from blendlib import bridge, pipeline
 from blendlib.pipeline import RenderCancelled
 from blendlib.scene import SceneError
 
@@ -21,9 +21,9 @@ ALPHA_PASS = "UnityAlpha"
 DEPTH_PASS = "Depth"
 
 
-def result_arrays(frame, encoded: bool) -> dict[str, np.ndarray]:
+def result_arrays(frame) -> dict[str, np.ndarray]:
     """Pass name → (H*W, channels) float32, bottom row first (Blender's order)."""
-    combined = bridge.linear_rgba(frame, encoded=encoded, opaque=True)
+    combined = bridge.linear_rgba(frame, opaque=True)
     h, w = combined.shape[:2]
     return {
         "Combined": np.ascontiguousarray(combined[::-1]).reshape(h * w, 4),
@@ -57,7 +57,7 @@ class UnityPassesRenderEngine(bpy.types.RenderEngine):
                 raise SceneError(f"render size {width}x{height} differs from the camera's "
                                  f"{draw.camera.width}x{draw.camera.height} (border/crop rendering is not supported)")
             self.update_stats("", f"Unity Passes: {len(draw.renderers)} renderers")
-            frame = bridge.pipeline.render_scene(draw, progress=self._progress, should_cancel=self.test_break)
+            frame = pipeline.render_scene(draw, progress=self._progress, should_cancel=self.test_break)
         except RenderCancelled:
             # An error report (not a bare return) also stops write_still / animation from saving
             # an empty frame when the break did not come from Blender's own Esc handling.
@@ -77,7 +77,7 @@ class UnityPassesRenderEngine(bpy.types.RenderEngine):
         if self.test_break():
             self.report({"ERROR"}, "Unity Passes: render cancelled")
             return
-        arrays = result_arrays(frame, encoded=bridge.frame_is_encoded(bridge.scene_settings(scene)))
+        arrays = result_arrays(frame)
         view_layer = depsgraph.view_layer
         self.add_pass(ALPHA_PASS, 1, "A")
         if not view_layer.use_pass_z:

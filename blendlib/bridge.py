@@ -247,11 +247,6 @@ def pass_from_values(values: dict[str, Any]) -> Pass:
 # ---------------------------------------------------------------------------
 
 
-def frame_is_encoded(scene_settings: dict[str, Any]) -> bool:
-    """Whether the stored frame values are sRGB-encoded (Gamma mode, and Linear LDR)."""
-    return not (scene_settings["color_space"] == "Linear" and scene_settings["hdr"])
-
-
 # ---------------------------------------------------------------------------
 # Scene extraction
 # ---------------------------------------------------------------------------
@@ -649,6 +644,72 @@ def render(scene: Any = None, depsgraph: Any = None, progress: Callable[[float],
     frame = pipeline.render_scene(draw, progress=progress, should_cancel=should_cancel)
     extra = [w for w in draw.warnings if w not in frame.warnings]
     frame.warnings[:0] = extra
+    return frame
+
+
+_CAPTURE_ENGINE_ID = "UNITY_PASSES_CAPTURE"
+_capture: dict[str, Any] = {}
+_capture_engine: list = []
+
+
+def _capture_engine_class() -> Any:
+    """A minimal render engine that renders with the Unity pipeline and keeps the Frame in memory.
+
+    Registered on first use (not listed for users: the add-on's engine is ``UNITY_PASSES``).
+    """
+    import bpy
+
+    if _capture_engine:
+        return _capture_engine[0]
+
+    class UnityPassesCaptureEngine(bpy.types.RenderEngine):
+        bl_idname = _CAPTURE_ENGINE_ID
+        bl_label = "Unity Passes (capture)"
+        bl_use_preview = False
+
+        def render(self, depsgraph):
+            try:
+                _capture["frame"] = render(depsgraph.scene, depsgraph, progress=_capture.get("progress"),
+                                           should_cancel=_capture.get("should_cancel"))
+            except Exception as exc:  # noqa: BLE001 - handed back to render_final's caller
+                _capture["error"] = exc
+
+    bpy.utils.register_class(UnityPassesCaptureEngine)
+    _capture_engine.append(UnityPassesCaptureEngine)
+    return UnityPassesCaptureEngine
+
+
+def render_final(scene: Any = None, progress: Callable[[float], None] | None = None,
+                 should_cancel: Callable[[], bool] | None = None) -> pipeline.Frame:
+    """Render as F12 does: through Blender's render-mode depsgraph.
+
+    :func:`render` uses the viewport depsgraph (Python cannot make a render-mode one), so
+    modifiers evaluate with their viewport settings there. This runs ``bpy.ops.render.render``
+    with a capture engine instead, so modifier render levels and render visibility apply
+    exactly as for F12 and ``blender -b -E UNITY_PASSES``. The scene's render engine is set
+    for the call and restored; no image is written. Raises like :func:`render`.
+    """
+    import bpy
+
+    scene = scene or bpy.context.scene
+    if scene.camera is None:  # checked here: the operator would fail with its own wording
+        raise SceneError(f"scene {scene.name!r} has no camera")
+    engine = _capture_engine_class()
+    previous = scene.render.engine
+    _capture.clear()
+    _capture.update(progress=progress, should_cancel=should_cancel)
+    scene.render.engine = engine.bl_idname
+    try:
+        with bpy.context.temp_override(scene=scene):
+            bpy.ops.render.render(scene=scene.name)
+    finally:
+        scene.render.engine = previous
+    if "error" in _capture:
+        raise _capture.pop("error")
+    if "frame" not in _capture:
+        raise SceneError(f"scene {scene.name!r}: Blender did not render it (no view layer enabled for rendering?)")
+    frame = _capture.pop("frame")
+    _capture.clear()
     return frame
 
 

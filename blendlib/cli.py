@@ -132,7 +132,7 @@ def cmd_render(args: argparse.Namespace) -> int:
         with _redirect_fds(2), bpy.context.temp_override(scene=scene):
             if args.frame is not None:
                 scene.frame_set(args.frame)
-            frame = bridge.render(scene)
+            frame = bridge.render_final(scene)  # F12's render-mode depsgraph (modifier render levels)
     except SceneError as exc:
         raise CliError(str(exc)) from None
     except RenderCancelled:

@@ -258,12 +258,33 @@ def test_engine_write_still_equals_blendlib_render(tmp_path, color_space, hdr):
     np.testing.assert_array_equal(imageio.load(tmp_path / "still.exr"), expected)
 
 
+def test_render_final_uses_modifier_render_levels_like_f12(tmp_path):
+    """A Subdivision modifier at viewport level 0 and render level 3: render_final (and so the
+    CLI) sees the render-level mesh exactly as F12 does; render() sees the viewport one."""
+    scene = glass_scene()
+    glass = bpy.data.objects["Glass"]
+    mod = glass.modifiers.new("Subdivision", "SUBSURF")
+    mod.levels, mod.render_levels = 0, 3
+    scene.render.image_settings.file_format = "PNG"
+    scene.render.image_settings.color_mode = "RGBA"
+    scene.render.filepath = str(tmp_path / "f12.png")
+    assert bpy.ops.render.render(write_still=True) == {"FINISHED"}
+    f12 = imageio.to_uint8(imageio.load(tmp_path / "f12.png")[..., :3])
+    final = bridge.render_final(scene)
+    viewport = render(scene)
+    assert scene.render.engine == "UNITY_PASSES"  # restored after render_final
+    np.testing.assert_array_equal(imageio.to_uint8(final.color[..., :3]), f12)
+    changed = np.any(final.color != viewport.color, axis=2).sum()
+    assert changed > 20, "the rounded (render-level) cube must differ from the level-0 cube"
+
+
 def test_engine_result_passes():
     from addon.engine import result_arrays
 
     glass_scene("Linear")
     frame = render()
-    arrays = result_arrays(frame, encoded=True)
+    assert frame.encoded  # Linear LDR stores sRGB-encoded codes
+    arrays = result_arrays(frame)
     h, w = frame.depth.shape
     np.testing.assert_array_equal(arrays["Depth"].reshape(h, w)[::-1], frame.depth)
     np.testing.assert_array_equal(arrays["UnityAlpha"].reshape(h, w)[::-1], frame.color[..., 3])
