@@ -175,6 +175,7 @@ def render_scene(
             raise RenderCancelled("render cancelled")
 
     done = 0
+    degenerate: list[tuple[str, int]] = []  # (object, zero-area triangles): one summary warning
     stop_flag = threading.Event()
     pool = ThreadPoolExecutor(max_workers=workers) if workers > 1 else None
     try:
@@ -194,7 +195,7 @@ def render_scene(
             if setup.skipped_nonfinite:
                 warnings.append(f"{label}: skipped {setup.skipped_nonfinite} triangles with non-finite vertices")
             if setup.degenerate:
-                warnings.append(f"{label}: {setup.degenerate} degenerate (zero-area) triangles draw nothing")
+                degenerate.append((renderer.name, setup.degenerate))
             texels = None
             if material.main_tex is not None:
                 key = id(material.main_tex)
@@ -221,6 +222,11 @@ def render_scene(
     finally:
         if pool is not None:
             pool.shutdown(wait=True, cancel_futures=True)
+    if degenerate:
+        total = sum(n for _, n in degenerate)
+        names = sorted({name for name, _ in degenerate})
+        shown = ", ".join(repr(n) for n in names[:3]) + (f" and {len(names) - 3} more" if len(names) > 3 else "")
+        warnings.append(f"{total} degenerate (zero-area) triangles draw nothing, in {shown}")
     color, depth, stencil = buf.output()
     textures = (r.material.main_tex for r in order)
     missing = {t.name for t in textures if t is not None and t.missing}

@@ -113,8 +113,11 @@ def shade(
     """
     n = uv.shape[0]
     color = gamma_color_to_shading(material.color[:3], color_space) + (float(material.color[3]),)
+    out = np.empty((n, 4), dtype=np.float64)
     if texels is None:
-        tex = np.ones((n, 4), dtype=np.float64)
+        # tex = (1, 1, 1, 1): 1.0 * c == c exactly, so albedo and alpha are the material's.
+        albedo = np.array(color[:3], dtype=np.float64)[None, :]
+        out[:, 3] = color[3] * float(material.alpha_scale)
     else:
         tu, tv = (float(v) for v in material.main_tex_tiling)
         ou, ov = (float(v) for v in material.main_tex_offset)
@@ -122,20 +125,22 @@ def shade(
         uvp[:, 0] = uv[:, 0] * tu + ou
         uvp[:, 1] = uv[:, 1] * tv + ov
         tex = sample(texels, uvp, material.main_tex_filter, material.main_tex_wrap)
-    out = np.empty((n, 4), dtype=np.float64)
-    albedo = tex[:, :3] * np.array(color[:3], dtype=np.float64)
-    out[:, 3] = (tex[:, 3] * color[3]) * float(material.alpha_scale)
+        albedo = tex[:, :3] * np.array(color[:3], dtype=np.float64)
+        out[:, 3] = (tex[:, 3] * color[3]) * float(material.alpha_scale)
     if material.lighting is Lighting.Unlit:
         out[:, :3] = albedo
         return out
     nx, ny, nz = normal[:, 0], normal[:, 1], normal[:, 2]
     length = np.sqrt((nx * nx + ny * ny) + nz * nz)
     lx, ly, lz = lights.direction
-    safe = length > 0
-    divisor = np.where(safe, length, 1.0)
-    nxn = np.where(safe, nx / divisor, 0.0)
-    nyn = np.where(safe, ny / divisor, 0.0)
-    nzn = np.where(safe, nz / divisor, 0.0)
+    if np.all(length > 0):
+        nxn, nyn, nzn = nx / length, ny / length, nz / length
+    else:  # a zero normal shades as n = 0
+        safe = length > 0
+        divisor = np.where(safe, length, 1.0)
+        nxn = np.where(safe, nx / divisor, 0.0)
+        nyn = np.where(safe, ny / divisor, 0.0)
+        nzn = np.where(safe, nz / divisor, 0.0)
     ndl = np.maximum(0.0, (nxn * lx + nyn * ly) + nzn * lz)
     ambient = np.array(lights.ambient, dtype=np.float64)
     light = np.array(lights.light, dtype=np.float64)

@@ -79,6 +79,19 @@ def test_zero_area_triangles_draw_nothing():
     _same_as_reference(frame, scene)
 
 
+def test_degenerate_triangles_summarised_in_one_warning():
+    """Zero-area triangles in two objects: one warning line with the total and the names."""
+    pos = [(1, 1, 0), (5, 5, 0), (3, 3, 0), (1, 5, 0), (4, 5, 0), (1, 8, 0)]
+    tri = [(0, 1, 2), (0, 0, 1), (3, 4, 5)]  # collinear, repeated vertex, and one good triangle
+    scene = sc.scene(sc.screen_camera(8, 8), sc.renderer(sc.make_mesh(pos, tri), RED, name="Flat A"),
+                     sc.renderer(sc.make_mesh(pos, tri[:1]), RED, name="Flat B"))
+    frame = _render(scene)
+    lines = [w for w in frame.warnings if "degenerate" in w]
+    assert lines == ["3 degenerate (zero-area) triangles draw nothing, in 'Flat A', 'Flat B'"], frame.warnings
+    assert np.count_nonzero(frame.depth < 1) > 0  # the good triangle still renders
+    _same_as_reference(frame, scene)
+
+
 def test_empty_mesh_warns_and_renders_clear():
     empty = Mesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros((0, 3, 3), np.float32))
     scene = sc.scene(sc.screen_camera(6, 4), sc.renderer(empty, RED, name="Empty"),
