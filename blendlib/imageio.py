@@ -151,27 +151,37 @@ def encode_png(color: np.ndarray) -> bytes:
         _chunk(b"IEND", b"")
 
 
-def _paeth_row(f: np.ndarray, prior: np.ndarray, bpp: int) -> np.ndarray:
-    out = [0] * len(f)
-    fl, pl = f.tolist(), prior.tolist()
-    for i in range(len(fl)):
-        a = out[i - bpp] if i >= bpp else 0
-        b = pl[i]
-        c = pl[i - bpp] if i >= bpp else 0
+def _unfilter(rows: np.ndarray, w: int, bpp: int) -> np.ndarray:
+    """Undo PNG row filters: ``rows`` (H, 1 + W*bpp) uint8 with the filter type first → (H, W*bpp).
+
+    Every filter predicts a byte from its left (a), upper (b) and upper-left (c) neighbours
+    of the *decoded* image, so pixel (x, y) depends only on pixels with a smaller x + y.
+    Decoding walks the anti-diagonals x + y = k (W + H - 1 steps), each step vectorised over
+    all rows and channels, whatever filter each row uses.
+    """
+    h = rows.shape[0]
+    kinds = rows[:, 0].astype(np.int64)
+    if np.any(kinds > 4):
+        raise ImageIOError(f"bad PNG filter type {int(kinds.max())}")
+    filt = rows[:, 1:].reshape(h, w, bpp).astype(np.int64)
+    if np.all(kinds == 0):
+        return filt.astype(np.uint8).reshape(h, w * bpp)
+    # One zero row above and one zero column to the left stand for "outside the image".
+    out = np.zeros((h + 1, w + 1, bpp), dtype=np.int64)
+    ys_all = np.arange(h)
+    for k in range(w + h - 1):
+        ys = ys_all[max(0, k - w + 1):min(h, k + 1)]
+        xs = k - ys
+        a = out[ys + 1, xs]  # left
+        b = out[ys, xs + 1]  # up
+        c = out[ys, xs]  # up-left
+        kind = kinds[ys][:, None]
         p = a + b - c
-        pa, pb, pc = abs(p - a), abs(p - b), abs(p - c)
-        pred = a if (pa <= pb and pa <= pc) else (b if pb <= pc else c)
-        out[i] = (fl[i] + pred) & 0xFF
-    return np.array(out, np.uint8)
-
-
-def _average_row(f: np.ndarray, prior: np.ndarray, bpp: int) -> np.ndarray:
-    out = [0] * len(f)
-    fl, pl = f.tolist(), prior.tolist()
-    for i in range(len(fl)):
-        a = out[i - bpp] if i >= bpp else 0
-        out[i] = (fl[i] + ((a + pl[i]) >> 1)) & 0xFF
-    return np.array(out, np.uint8)
+        pa, pb, pc = np.abs(p - a), np.abs(p - b), np.abs(p - c)
+        paeth = np.where((pa <= pb) & (pa <= pc), a, np.where(pb <= pc, b, c))
+        pred = np.select([kind == 1, kind == 2, kind == 3, kind == 4], [a, b, (a + b) >> 1, paeth], 0)
+        out[ys + 1, xs + 1] = (filt[ys, xs] + pred) & 0xFF
+    return out[1:, 1:].astype(np.uint8).reshape(h, w * bpp)
 
 
 def decode_png(data: bytes) -> np.ndarray:
@@ -208,24 +218,7 @@ def decode_png(data: bytes) -> np.ndarray:
     if raw.size < h * (stride + 1):
         raise ImageIOError("truncated PNG image data")
     rows = raw[: h * (stride + 1)].reshape(h, stride + 1)
-    out = np.empty((h, stride), np.uint8)
-    prior = np.zeros(stride, np.uint8)
-    for y in range(h):
-        kind, f = rows[y, 0], rows[y, 1:]
-        if kind == 0:
-            cur = f.copy()
-        elif kind == 1:
-            cur = (np.cumsum(f.reshape(w, bpp).astype(np.int64), axis=0) & 0xFF).astype(np.uint8).ravel()
-        elif kind == 2:
-            cur = f + prior
-        elif kind == 3:
-            cur = _average_row(f, prior, bpp)
-        elif kind == 4:
-            cur = _paeth_row(f, prior, bpp)
-        else:
-            raise ImageIOError(f"bad PNG filter type {kind}")
-        out[y] = cur
-        prior = cur
+    out = _unfilter(rows, stride // bpp, bpp)
     if depth == 16:
         values = out.reshape(h, w * channels, 2).astype(np.uint32)
         pix = ((values[..., 0] << 8) | values[..., 1]).reshape(h, w, channels).astype(np.float32) / 65535.0
