@@ -319,18 +319,19 @@ class _Extractor:
             self.materials[key] = self._convert_material(mat)
         return self.materials[key]
 
-    def _convert_material(self, mat: Any) -> Material:
+    def _convert_material(self, mat: Any, with_texture: bool = True) -> Material:
         values = read_group(unity_props(mat), MATERIAL_FIELDS)
+        texture = self.texture if with_texture else (lambda image: None)
         if not values["enabled"]:
             color, image = principled_inputs(mat)
-            return Material(name=mat.name, color=color, main_tex=self.texture(image))
+            return Material(name=mat.name, color=color, main_tex=texture(image))
         passes = tuple(pass_from_values(p) for p in values["passes"])
         return Material(
             name=mat.name,
             queue=Queue.parse(values["queue"]),
             queue_offset=values["queue_offset"],
             color=tuple(values["color"]),
-            main_tex=self.texture(values["main_tex"]),
+            main_tex=texture(values["main_tex"]),
             main_tex_tiling=tuple(values["main_tex_tiling"]),
             main_tex_offset=tuple(values["main_tex_offset"]),
             main_tex_filter=TextureFilter.parse(values["main_tex_filter"]),
@@ -391,6 +392,15 @@ class _Extractor:
             out.append(Renderer(name=name, slot=int(slot), mesh=sub, matrix_world=matrix_world,
                                 material=self.material(mat), bounds_center=center))
         return out
+
+
+def material_from_blender(mat: Any, with_texture: bool = False) -> Material:
+    """The Unity material of a ``bpy.types.Material`` as it renders (SPEC §3), with or without its image.
+
+    Reads ``mat.unity`` when the add-on is registered, else the stored properties; a
+    disabled material gives the default opaque material from its Principled BSDF.
+    """
+    return _Extractor(None, [])._convert_material(mat, with_texture=with_texture)
 
 
 def mesh_arrays(mesh: Any) -> dict[str, np.ndarray | None]:

@@ -64,7 +64,6 @@ from .shaderlab import (
     TextureFilter,
     TextureWrap,
     color_mask_text,
-    pass_from_dict,
     pass_to_dict,
     queue_text,
 )
@@ -1349,127 +1348,10 @@ def export_shaderlab(material: Material, shader_name: str | None = None) -> str:
 
 
 def read_blender_material(bpy_material) -> Material:
-    """The Unity material of a Blender material: the bridge's reader, or a local one until it lands."""
-    try:
-        from . import bridge
-    except ImportError:
-        bridge = None
-    reader = getattr(bridge, "material_from_blender", None) if bridge is not None else None
-    if reader is not None:
-        return reader(bpy_material)
-    return read_unity_settings(bpy_material)
+    """The Unity material of a Blender material, without its image (an export needs no pixels)."""
+    from .bridge import material_from_blender
 
-
-_PASS_ENUM_ITEMS: dict[str, tuple[str, ...]] = {
-    "cull": tuple(m.value for m in Cull),
-    "ztest": tuple(m.value for m in CompareFunction),  # stored as the index in CompareFunction
-    "src_blend": tuple(m.value for m in BlendFactor),
-    "dst_blend": tuple(m.value for m in BlendFactor),
-    "blend_op": tuple(m.value for m in BlendOp),
-    "src_blend_alpha": tuple(m.value for m in BlendFactor),
-    "dst_blend_alpha": tuple(m.value for m in BlendFactor),
-    "blend_op_alpha": tuple(m.value for m in BlendOp),
-    "stencil_comp": tuple(m.value for m in CompareFunction),
-    "stencil_pass": tuple(m.value for m in StencilOp),
-    "stencil_fail": tuple(m.value for m in StencilOp),
-    "stencil_zfail": tuple(m.value for m in StencilOp),
-}
-_MATERIAL_ENUM_ITEMS: dict[str, tuple[str, ...]] = {
-    "queue": tuple(m.value for m in Queue),
-    "main_tex_filter": tuple(m.value for m in TextureFilter),
-    "main_tex_wrap": tuple(m.value for m in TextureWrap),
-    "lighting": tuple(m.value for m in Lighting),
-}
-
-
-def read_unity_settings(bpy_material) -> Material:
-    """Read ``material.unity`` (SPEC §3) into a Material without the image (``main_tex`` None).
-
-    A disabled material (``enabled`` False) gives the default opaque material with the
-    Principled BSDF colour as ``_Color``, as it renders (SPEC §3).
-
-    Uses the registered property group when the add-on is registered; otherwise the
-    stored ID properties (``bl_system_properties_get()``), where enums are item
-    indices in SPEC §3 order and ``color_mask`` is a bit set R=1, G=2, B=4, A=8.
-    """
-    unity = getattr(bpy_material, "unity", None)
-    if unity is not None and not hasattr(unity, "bl_rna"):
-        unity = None
-    if unity is not None:
-        def get(owner, key, default):
-            return getattr(owner, key, default)
-        raw = False
-    else:
-        getter = getattr(bpy_material, "bl_system_properties_get", None)
-        store = getter() if getter is not None else None
-        unity = store.get("unity") if store is not None else None
-        if unity is None:
-            return Material(name=bpy_material.name)
-
-        def get(owner, key, default):
-            return owner.get(key, default)
-        raw = True
-    d = Material()
-    if not bool(get(unity, "enabled", False)):
-        # SPEC §3: a disabled material renders as a default opaque material with the Principled colour.
-        color = d.color
-        try:
-            from .bridge import principled_inputs
-
-            color = tuple(float(x) for x in principled_inputs(bpy_material)[0])
-        except (ImportError, AttributeError, KeyError, TypeError):
-            pass
-        return Material(name=bpy_material.name, color=color)
-
-    def enum(owner, key, items, default):
-        value = get(owner, key, default)
-        if raw and isinstance(value, int):
-            return items[value] if 0 <= value < len(items) else default
-        return value
-
-    passes = []
-    dp = Pass()
-    for item in get(unity, "passes", []) or []:
-        kwargs: dict[str, Any] = {}
-        for f in fields(Pass):
-            default = getattr(dp, f.name)
-            if f.name in _PASS_ENUM_ITEMS:
-                kwargs[f.name] = enum(item, f.name, _PASS_ENUM_ITEMS[f.name], default.value)
-            elif f.name == "color_mask":
-                value = get(item, "color_mask", None)
-                if value is None:
-                    kwargs[f.name] = ALL_CHANNELS
-                elif raw and isinstance(value, int):
-                    kwargs[f.name] = frozenset(c for i, c in enumerate(CHANNELS) if value & (1 << i))
-                else:
-                    kwargs[f.name] = frozenset(value)
-            else:
-                value = get(item, f.name, default)
-                kwargs[f.name] = type(default)(value) if not isinstance(default, str) else str(value)
-        passes.append(_pass_from_values(kwargs))
-    return Material(
-        name=bpy_material.name,
-        queue=Queue.parse(enum(unity, "queue", _MATERIAL_ENUM_ITEMS["queue"], d.queue.value)),
-        queue_offset=int(get(unity, "queue_offset", 0)),
-        color=tuple(float(x) for x in get(unity, "color", d.color)),
-        main_tex=None,
-        main_tex_tiling=tuple(float(x) for x in get(unity, "main_tex_tiling", d.main_tex_tiling)),
-        main_tex_offset=tuple(float(x) for x in get(unity, "main_tex_offset", d.main_tex_offset)),
-        main_tex_filter=TextureFilter.parse(enum(unity, "main_tex_filter", _MATERIAL_ENUM_ITEMS["main_tex_filter"],
-                                                 d.main_tex_filter.value)),
-        main_tex_wrap=TextureWrap.parse(enum(unity, "main_tex_wrap", _MATERIAL_ENUM_ITEMS["main_tex_wrap"],
-                                             d.main_tex_wrap.value)),
-        alpha_scale=float(get(unity, "alpha_scale", d.alpha_scale)),
-        cutoff=float(get(unity, "cutoff", d.cutoff)),
-        lighting=Lighting.parse(enum(unity, "lighting", _MATERIAL_ENUM_ITEMS["lighting"], d.lighting.value)),
-        passes=tuple(passes),
-    )
-
-
-def _pass_from_values(kwargs: dict[str, Any]) -> Pass:
-    data = dict(kwargs)
-    data["color_mask"] = sorted(data["color_mask"])
-    return pass_from_dict(data)
+    return material_from_blender(bpy_material)
 
 
 # --------------------------------------------------------------------------- CLI

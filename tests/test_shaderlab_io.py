@@ -1061,9 +1061,10 @@ def test_cli_export_from_a_blend_file(blender, tmp_path):
 
 
 def test_reading_a_blender_material_agrees_with_the_bridge(blender):
-    """The exporter's reader gives what the bridge's schema reads, registered or from stored ID properties."""
+    """The exporter reads a material through the bridge: what its schema reads, registered or from
+    stored ID properties (the add-on unregistered)."""
     from blendlib import bridge
-    from blendlib.shaderlab_io import read_unity_settings
+    from blendlib.shaderlab_io import read_blender_material
 
     mat = _new_material("Read")
     u = mat.unity
@@ -1081,7 +1082,7 @@ def test_reading_a_blender_material_agrees_with_the_bridge(blender):
         bl_system_properties_get = mat.bl_system_properties_get
 
     for source in (mat, Stored()):
-        got = read_unity_settings(source)
+        got = read_blender_material(source)
         assert got.queue.value == want["queue"] and got.queue_offset == want["queue_offset"] == 7
         assert got.color == pytest.approx(want["color"]) and got.lighting is Lighting.Unlit
         assert got.cutoff == pytest.approx(want["cutoff"]) and got.main_tex_filter.value == want["main_tex_filter"]
@@ -1089,7 +1090,7 @@ def test_reading_a_blender_material_agrees_with_the_bridge(blender):
         assert got.passes[1].ztest is CompareFunction.Always and got.passes[1].color_mask == {"R", "A"}
         assert got.passes[2].stencil_comp is CompareFunction.Never
     u.enabled = False
-    assert read_unity_settings(mat).passes == (Pass(),) and read_unity_settings(mat).queue is Queue.Geometry
+    assert read_blender_material(mat).passes == (Pass(),) and read_blender_material(mat).queue is Queue.Geometry
 
 
 def test_register_unregister_are_idempotent(blender):
