@@ -102,11 +102,18 @@ def _shade_chunk(setup, rows, start, stop, width, p: Pass, material, texels, lig
             rgba[constant] = palette[ids[constant]]
             ids = palette = None
     if any_varying:
-        r = run[varying]
-        w = weights[varying]
-        uv = None if uvs is None else raster.interpolate_attribute(w, uvs[r], uv_flat[r])
-        normal = None if normals is None else raster.interpolate_attribute(w, normals[r], normal_flat[r])
-        rgba[varying] = shade_at(uv, normal, r.size)
+        # Varying fragments are exactly those of the non-flat triangles: whole runs.
+        counts = np.diff(np.append(np.flatnonzero(first), src.size))
+        every = not np.any(constant)  # e.g. a smooth mesh: no masked copies needed
+        keep = slice(None) if every else ~flat
+        w = weights if every else weights[:, varying]
+        uv = None if uvs is None else raster.interpolate_runs(w, uvs[keep], counts[keep], uv_flat[keep])
+        normal = None if normals is None else \
+            raster.interpolate_runs(w, normals[keep], counts[keep], normal_flat[keep])
+        if every:
+            rgba = shade_at(uv, normal, w.shape[1])
+        else:
+            rgba[varying] = shade_at(uv, normal, w.shape[1])
     pix = frags.pix
     if p.alpha_test:
         alpha = rgba[:, 3] if ids is None else np.where(ids >= 0, palette[np.maximum(ids, 0), 3], rgba[:, 3])

@@ -570,9 +570,9 @@ def interpolate(
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """Depth and perspective-correct source-triangle weights of fragments (§5, §6).
 
-    Returns ``depth`` (N,) int64 in 0..2**24-1 and ``weights`` (N, 3) float64 — the
-    weights of the *source* mesh triangle's corners (clipping undone) — or None when
-    ``weights`` is False (no attribute needs them).
+    Returns ``depth`` (N,) int64 in 0..2**24-1 and ``weights`` (3, N) float64 (channels
+    first) — the weights of the *source* mesh triangle's corners (clipping undone) — or
+    None when ``weights`` is False (no attribute needs them).
     """
     t = frags.tri
     b0, b1, b2 = frags.bary
@@ -588,13 +588,16 @@ def interpolate(
     iw = setup.iw[t]
     t0, t1, t2 = b0 * iw[:, 0], b1 * iw[:, 1], b2 * iw[:, 2]
     s = (t0 + t1) + t2
-    p = np.stack([t0 / s, t1 / s, t2 / s], axis=1)
+    p = np.empty((3, t.size), dtype=np.float64)  # channels first: each weight row contiguous
+    np.divide(t0, s, out=p[0])
+    np.divide(t1, s, out=p[1])
+    np.divide(t2, s, out=p[2])
     if setup.weights is not None:
         clipped = setup.clipped[t]
         if np.any(clipped):
             w = setup.weights[t[clipped]]  # (M, 3 vertices, 3 source corners)
-            pc = p[clipped]
-            p[clipped] = (pc[:, 0:1] * w[:, 0] + pc[:, 1:2] * w[:, 1]) + pc[:, 2:3] * w[:, 2]
+            pc = p[:, clipped]
+            p[:, clipped] = ((pc[0][:, None] * w[:, 0] + pc[1][:, None] * w[:, 1]) + pc[2][:, None] * w[:, 2]).T
     return depth, p
 
 
@@ -603,12 +606,23 @@ def flat_corners(corners: np.ndarray) -> np.ndarray:
     return np.all((corners[:, 0] == corners[:, 1]) & (corners[:, 0] == corners[:, 2]), axis=1)
 
 
-def interpolate_attribute(weights: np.ndarray, corners: np.ndarray, flat: np.ndarray | None = None) -> np.ndarray:
-    """``(o0*a0 + o1*a1) + o2*a2`` per component: weights (N, 3), corners (N, 3, C) → (N, C) float64.
+def interpolate_runs(weights: np.ndarray, corners: np.ndarray, counts: np.ndarray, flat: np.ndarray) -> np.ndarray:
+    """Interpolate an attribute over fragments grouped in runs of one triangle each (§6).
 
-    Where ``flat`` (N,) is True the corners are equal and the value is the corner value (§6).
+    ``weights`` (3, N) float64; ``corners`` (K, 3, C) corner values of the K triangles;
+    ``counts`` (K,) int64 fragments of each triangle, in order (sum N); ``flat`` (K,) bool:
+    the triangle's corners are equal, so its fragments take the corner value. Returns
+    (N, C) float64 ``(o0*a0 + o1*a1) + o2*a2`` per component. Corner values are expanded
+    with ``repeat`` (sequential copies) rather than gathered per fragment.
     """
-    out = (weights[:, 0:1] * corners[:, 0] + weights[:, 1:2] * corners[:, 1]) + weights[:, 2:3] * corners[:, 2]
-    if flat is not None and np.any(flat):
-        out[flat] = corners[flat, 0]
+    n = weights.shape[1]
+    out = np.empty((n, corners.shape[2]), dtype=np.float64)
+    for c in range(corners.shape[2]):
+        a0 = np.repeat(corners[:, 0, c], counts)
+        a1 = np.repeat(corners[:, 1, c], counts)
+        a2 = np.repeat(corners[:, 2, c], counts)
+        out[:, c] = (weights[0] * a0 + weights[1] * a1) + weights[2] * a2
+    if np.any(flat):
+        keep = np.repeat(flat, counts)
+        out[keep] = np.repeat(corners[flat, 0], counts[flat], axis=0)
     return out

@@ -152,3 +152,40 @@ def test_parallel_setup_and_spans_equal_serial():
         np.testing.assert_array_equal(one.color, two.color)
         np.testing.assert_array_equal(one.depth, two.depth)
         assert np.count_nonzero(one.color[..., 3] != 0.0) > 1000  # the clear alpha is 0
+
+
+def test_equal_corner_values_are_not_interpolated():
+    """docs/pipeline.md §6: equal corner values are the attribute itself. UV corners all at
+    (0.75, 0.75) on a 4x4 Point-sampled texture sit exactly on a texel boundary (0.75*4 = 3):
+    a weighted sum just below 0.75, as (w0*a + w1*a) + w2*a gives for about one fragment in
+    eight, would sample texel 2 instead of 3."""
+    from blendlib import raster
+    from blendlib.shaderlab import Texture
+
+    # The rule at the unit level, with weights whose sum differs from the corner value.
+    rng = np.random.default_rng(1)
+    w = rng.random((3, 400))
+    w /= w.sum(axis=0)
+    assert np.any((w[0] * 0.75 + w[1] * 0.75) + w[2] * 0.75 < 0.75)
+    out = raster.interpolate_runs(w, np.full((1, 3, 2), 0.75), np.array([400]), np.array([True]))
+    assert np.all(out == 0.75)
+
+    texels = np.zeros((4, 4, 4), np.float32)
+    texels[..., 1] = texels[..., 3] = 1.0  # green everywhere...
+    texels[3, 3] = (1.0, 0.0, 0.0, 1.0)  # ...except texel (3, 3): red
+    quad = sc.quad(-1.5, -1.5, 1.5, 1.5)
+    # Unlit: flat UVs make the triangle constant (shaded once). Lambert with differing corner
+    # normals: shaded per fragment, the UVs still flat. Both must sample texel (3, 3) only.
+    for lighting, normals in ((Lighting.Unlit, None), (Lighting.Lambert, [[(0, 0, 1), (0.3, 0, 1), (0, 0.4, 1)]] * 2)):
+        mat = Material(lighting=lighting, main_tex=Texture(texels, encoding="Data"),
+                       main_tex_filter=TextureFilter.Point, main_tex_wrap=TextureWrap.Clamp,
+                       passes=(Pass(cull=Cull.Off),))
+        mesh = sc.make_mesh(quad.positions, quad.triangles, normals=normals, uvs=np.full((2, 3, 2), 0.75))
+        scene = DrawScene(camera=sc.camera(48, 40, eye=(0.7, 0.4, 2.5)), renderers=(sc.renderer(mesh, mat),),
+                          light=sc.Light(direction=(0.2, 0.3, 1.0)), ambient=(0.1, 0.1, 0.1))
+        frame = render_scene(scene)
+        covered = frame.depth < 1.0
+        assert covered.sum() > 500
+        assert np.all(frame.color[covered][:, 1] == 0.0) and np.all(frame.color[covered][:, 0] > 0.0), lighting
+        color, _, _ = render_reference(scene)
+        np.testing.assert_array_equal(frame.color, color)

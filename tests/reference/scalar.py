@@ -539,6 +539,13 @@ def raster_triangle(tri, uv, nws, mirrored: bool, p, shader: Shader, buf: Buffer
             fragment(px, py, bw, win, zws, bias, use_offset, uv, nws, p, shader, buf)
 
 
+def lerp3(o: list, corners: list, n: int) -> list:
+    """docs/pipeline.md §6: ``(o0*a0 + o1*a1) + o2*a2``, or the corner value when all three are equal."""
+    if list(corners[0]) == list(corners[1]) == list(corners[2]):
+        return [float(corners[0][c]) for c in range(n)]
+    return [(o[0] * corners[0][c] + o[1] * corners[1][c]) + o[2] * corners[2][c] for c in range(n)]
+
+
 def fragment(px, py, bw, win, zws, bias, use_offset, uv, nws, p, shader: Shader, buf: Buffers) -> None:
     b0, b1, b2 = bw
     # §5 depth
@@ -553,8 +560,8 @@ def fragment(px, py, bw, win, zws, bias, use_offset, uv, nws, p, shader: Shader,
     pk = [div(tk, s) for tk in t]
     B = [win[k][4] for k in range(3)]
     o = [(pk[0] * B[0][j] + pk[1] * B[1][j]) + pk[2] * B[2][j] for j in range(3)]
-    uvf = [(o[0] * uv[0][c] + o[1] * uv[1][c]) + o[2] * uv[2][c] for c in range(2)]
-    nwf = [(o[0] * nws[0][c] + o[1] * nws[1][c]) + o[2] * nws[2][c] for c in range(3)]
+    uvf = lerp3(o, uv, 2)
+    nwf = lerp3(o, nws, 3)
     # §7 shading and alpha test
     rgba = shader.shade(uvf, nwf)
     if p.alpha_test and rgba[3] - shader.cutoff < 0:
