@@ -64,6 +64,21 @@ class _MaterialOperator:
         return getattr(context, "material", None) is not None
 
 
+class _SelectedPassOperator(_MaterialOperator):
+    """Operators on the selected pass: they need a material with at least ``min_passes`` passes."""
+
+    min_passes = 1
+
+    @classmethod
+    def poll(cls, context):
+        mat = getattr(context, "material", None)
+        return mat is not None and len(mat.unity.passes) >= cls.min_passes
+
+    @staticmethod
+    def selected_index(unity) -> int:
+        return min(unity.active_pass_index, len(unity.passes) - 1)
+
+
 class UNITY_OT_pass_add(_MaterialOperator, bpy.types.Operator):
     """Add a pass after the selected one"""
 
@@ -80,26 +95,21 @@ class UNITY_OT_pass_add(_MaterialOperator, bpy.types.Operator):
         return {"FINISHED"}
 
 
-class UNITY_OT_pass_remove(_MaterialOperator, bpy.types.Operator):
+class UNITY_OT_pass_remove(_SelectedPassOperator, bpy.types.Operator):
     """Remove the selected pass"""
 
     bl_idname = "unity.pass_remove"
     bl_label = "Remove Pass"
 
-    @classmethod
-    def poll(cls, context):
-        mat = getattr(context, "material", None)
-        return mat is not None and len(mat.unity.passes) > 0
-
     def execute(self, context):
         unity = context.material.unity
-        index = min(unity.active_pass_index, len(unity.passes) - 1)
+        index = self.selected_index(unity)
         unity.passes.remove(index)
         unity.active_pass_index = max(0, min(index, len(unity.passes) - 1))
         return {"FINISHED"}
 
 
-class UNITY_OT_pass_move(_MaterialOperator, bpy.types.Operator):
+class UNITY_OT_pass_move(_SelectedPassOperator, bpy.types.Operator):
     """Move the selected pass up or down (passes draw from top to bottom)"""
 
     bl_idname = "unity.pass_move"
@@ -108,14 +118,11 @@ class UNITY_OT_pass_move(_MaterialOperator, bpy.types.Operator):
     direction: bpy.props.EnumProperty(
         items=[("UP", "Up", "Draw earlier"), ("DOWN", "Down", "Draw later")], name="Direction", default="UP")
 
-    @classmethod
-    def poll(cls, context):
-        mat = getattr(context, "material", None)
-        return mat is not None and len(mat.unity.passes) > 1
+    min_passes = 2
 
     def execute(self, context):
         unity = context.material.unity
-        index = min(unity.active_pass_index, len(unity.passes) - 1)
+        index = self.selected_index(unity)
         target = index - 1 if self.direction == "UP" else index + 1
         if not 0 <= target < len(unity.passes):
             return {"CANCELLED"}
@@ -124,20 +131,15 @@ class UNITY_OT_pass_move(_MaterialOperator, bpy.types.Operator):
         return {"FINISHED"}
 
 
-class UNITY_OT_pass_duplicate(_MaterialOperator, bpy.types.Operator):
+class UNITY_OT_pass_duplicate(_SelectedPassOperator, bpy.types.Operator):
     """Duplicate the selected pass (the copy is drawn right after it)"""
 
     bl_idname = "unity.pass_duplicate"
     bl_label = "Duplicate Pass"
 
-    @classmethod
-    def poll(cls, context):
-        mat = getattr(context, "material", None)
-        return mat is not None and len(mat.unity.passes) > 0
-
     def execute(self, context):
         unity = context.material.unity
-        index = min(unity.active_pass_index, len(unity.passes) - 1)
+        index = self.selected_index(unity)
         item = unity.passes.add()
         copy_pass(unity.passes[index], item)
         unity.passes.move(len(unity.passes) - 1, index + 1)
