@@ -23,7 +23,7 @@ from bpy.props import BoolProperty, StringProperty
 from bpy.types import Operator
 from bpy_extras.io_utils import ExportHelper, ImportHelper
 
-from blendlib import shaderlab_io
+from blendlib import bridge, shaderlab_io
 from blendlib.shaderlab import pass_to_dict, queue_text
 
 _TEXTURE_FIELDS = ("main_tex", "main_tex_tiling", "main_tex_offset", "main_tex_filter", "main_tex_wrap")
@@ -201,7 +201,7 @@ class UNITY_OT_shaderlab_export(Operator, ExportHelper):
 
     def execute(self, context):
         mat = context.material
-        material = shaderlab_io.read_blender_material(mat)
+        material = bridge.material_from_blender(mat)
         name = self.shader_name.strip() or f"Unity Passes/{mat.name}"
         text = shaderlab_io.export_shaderlab(material, name)
         path = bpy.path.abspath(self.filepath)

@@ -394,6 +394,37 @@ class _Extractor:
         return out
 
 
+def open_blend(path: Any) -> Any:
+    """Open a .blend file (replacing Blender's current data) and return ``bpy.data``.
+
+    Raises :class:`SceneError` with one line naming the file and Blender's reason.
+    """
+    import os
+
+    import bpy
+
+    try:
+        bpy.ops.wm.open_mainfile(filepath=os.path.abspath(str(path)), load_ui=False)
+    except RuntimeError as exc:
+        lines = str(exc).strip().splitlines()
+        reason = lines[-1].removeprefix("Error: ").strip() if lines else "unknown error"
+        raise SceneError(f"{path}: cannot open .blend file ({reason})") from None
+    return bpy.data
+
+
+def scene_named(name: str | None, where: Any = "file") -> Any:
+    """The scene called ``name`` (the context scene for None); SceneError naming the choices."""
+    import bpy
+
+    if name is None:
+        return bpy.context.scene
+    scene = bpy.data.scenes.get(name)
+    if scene is None:
+        names = ", ".join(repr(s.name) for s in bpy.data.scenes)
+        raise SceneError(f"{where}: no scene named {name!r} (scenes: {names})")
+    return scene
+
+
 def material_from_blender(mat: Any, with_texture: bool = False) -> Material:
     """The Unity material of a ``bpy.types.Material`` as it renders (SPEC §3), with or without its image.
 
@@ -690,14 +721,15 @@ def _capture_engine_class() -> Any:
 
 
 def render_final(scene: Any = None, progress: Callable[[float], None] | None = None,
-                 should_cancel: Callable[[], bool] | None = None) -> pipeline.Frame:
+                 should_cancel: Callable[[], bool] | None = None, frame: int | None = None) -> pipeline.Frame:
     """Render as F12 does: through Blender's render-mode depsgraph.
 
     :func:`render` uses the viewport depsgraph (Python cannot make a render-mode one), so
     modifiers evaluate with their viewport settings there. This runs ``bpy.ops.render.render``
     with a capture engine instead, so modifier render levels and render visibility apply
     exactly as for F12 and ``blender -b -E UNITY_PASSES``. The scene's render engine is set
-    for the call and restored; no image is written. Raises like :func:`render`.
+    for the call and restored; no image is written. ``frame``: the frame to set first.
+    Raises like :func:`render`.
     """
     import bpy
 
@@ -711,6 +743,8 @@ def render_final(scene: Any = None, progress: Callable[[float], None] | None = N
     scene.render.engine = engine.bl_idname
     try:
         with bpy.context.temp_override(scene=scene):
+            if frame is not None:
+                scene.frame_set(frame)
             bpy.ops.render.render(scene=scene.name)
     finally:
         scene.render.engine = previous
@@ -718,9 +752,9 @@ def render_final(scene: Any = None, progress: Callable[[float], None] | None = N
         raise _capture.pop("error")
     if "frame" not in _capture:
         raise SceneError(f"scene {scene.name!r}: Blender did not render it (no view layer enabled for rendering?)")
-    frame = _capture.pop("frame")
+    result = _capture.pop("frame")
     _capture.clear()
-    return frame
+    return result
 
 
 def linear_rgba(frame: pipeline.Frame, encoded: bool | None = None, opaque: bool = False) -> np.ndarray:

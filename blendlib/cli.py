@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import importlib.util
 import os
 import sys
 from pathlib import Path
@@ -106,33 +107,21 @@ def cmd_render(args: argparse.Namespace) -> int:
     _check_output(out, "-o")
     if args.depth:
         _check_output(Path(args.depth), "--depth")
-    try:
-        import bpy
-    except ImportError:
-        raise CliError("the bpy module is not installed (pip install bpy==5.0.1, or run bash scripts/setup.sh)") \
-            from None
+    if importlib.util.find_spec("bpy") is None:
+        raise CliError("the bpy module is not installed (pip install bpy==5.0.1, or run bash scripts/setup.sh)")
     from . import bridge
     from .pipeline import RenderCancelled
     from .scene import SceneError
 
     with _redirect_fds(None):
         try:
-            bpy.ops.wm.open_mainfile(filepath=str(blend.resolve()), load_ui=False)
-        except RuntimeError as exc:
-            reason = str(exc).strip().splitlines()[-1] if str(exc).strip() else "unknown error"
-            raise CliError(f"{blend}: cannot open .blend file ({reason.removeprefix('Error: ')})") from None
-    if args.scene is not None:
-        scene = bpy.data.scenes.get(args.scene)
-        if scene is None:
-            names = ", ".join(repr(s.name) for s in bpy.data.scenes)
-            raise CliError(f"{blend}: no scene named {args.scene!r} (scenes: {names})")
-    else:
-        scene = bpy.context.scene
+            bridge.open_blend(blend)
+        except SceneError as exc:
+            raise CliError(str(exc)) from None
     try:
-        with _redirect_fds(2), bpy.context.temp_override(scene=scene):
-            if args.frame is not None:
-                scene.frame_set(args.frame)
-            frame = bridge.render_final(scene)  # F12's render-mode depsgraph (modifier render levels)
+        scene = bridge.scene_named(args.scene, where=blend)
+        with _redirect_fds(2):  # F12's render-mode depsgraph (modifier render levels)
+            frame = bridge.render_final(scene, frame=args.frame)
     except SceneError as exc:
         raise CliError(str(exc)) from None
     except RenderCancelled:

@@ -34,8 +34,8 @@ book's chapter 8 shaders whose import gives back the same settings (for the
 fields a ``.shader`` file holds; the texture image, its tiling/offset and sampler
 settings belong to the Unity material and texture asset, not the shader).
 
-This module does not import bpy at import time; only ``main(["--export", ...])``
-does.
+This module does not use bpy itself; ``main(["--export", ...])`` opens the .blend
+and reads the material through :mod:`blendlib.bridge`.
 """
 
 from __future__ import annotations
@@ -1344,16 +1344,6 @@ def export_shaderlab(material: Material, shader_name: str | None = None) -> str:
     return "\n".join(out)
 
 
-# --------------------------------------------------------------------------- reading a Blender material
-
-
-def read_blender_material(bpy_material) -> Material:
-    """The Unity material of a Blender material, without its image (an export needs no pixels)."""
-    from .bridge import material_from_blender
-
-    return material_from_blender(bpy_material)
-
-
 # --------------------------------------------------------------------------- CLI
 
 
@@ -1455,20 +1445,21 @@ def _export_cli(blend_path: str, material_name: str, output: str, shader_name: s
     out_dir = os.path.dirname(os.path.abspath(output))
     if not os.path.isdir(out_dir):
         raise _ExportError(f"{output}: folder {out_dir} does not exist")
+    from .scene import SceneError
+
     try:
-        import bpy
+        from .bridge import material_from_blender, open_blend
+
+        data = open_blend(blend_path)
     except ImportError as exc:
         raise _ExportError(f"--export needs the bpy module ({exc})") from None
-    _ensure_addon_registered()
-    try:
-        bpy.ops.wm.open_mainfile(filepath=os.path.abspath(blend_path), load_ui=False)
-    except RuntimeError as exc:
-        raise _ExportError(f"{blend_path}: cannot open: {' '.join(str(exc).split())}") from None
-    mat = bpy.data.materials.get(material_name)
+    except SceneError as exc:
+        raise _ExportError(str(exc)) from None
+    mat = data.materials.get(material_name)
     if mat is None:
-        names = ", ".join(sorted(m.name for m in bpy.data.materials)) or "none"
+        names = ", ".join(sorted(m.name for m in data.materials)) or "none"
         raise _ExportError(f"{blend_path}: no material named {material_name!r} (materials: {names})")
-    material = read_blender_material(mat)
+    material = material_from_blender(mat)
     text = export_shaderlab(material, shader_name)
     tmp = output + ".tmp"
     try:
@@ -1480,24 +1471,6 @@ def _export_cli(blend_path: str, material_name: str, output: str, shader_name: s
             os.remove(tmp)
         raise _ExportError(f"{output}: cannot write: {exc.strerror or exc}") from None
     return 0
-
-
-def _ensure_addon_registered() -> None:
-    """Register the add-on (for ``Material.unity``) when it exists and is not registered yet."""
-    import bpy
-
-    if hasattr(bpy.types.Material, "unity"):
-        return
-    try:
-        import addon
-    except ImportError:
-        return
-    register = getattr(addon, "register", None)
-    if register is not None:
-        try:
-            register()
-        except Exception:  # fall back to reading the stored ID properties
-            pass
 
 
 if __name__ == "__main__":  # pragma: no cover
