@@ -73,6 +73,19 @@ def unlit_material(name: str, color=(1.0, 0.0, 0.0, 1.0), **unity):
     return mat
 
 
+def principled_material(name: str, base_color=(0.8, 0.8, 0.8, 1.0), alpha: float = 1.0):
+    """A node material whose Principled BSDF has the given Base Color (linear) and Alpha; returns (mat, bsdf)."""
+    mat = bpy.data.materials.new(name)
+    tree = mat.node_tree
+    if tree is None:  # Blender < 5.0 creates the node tree on demand
+        mat.use_nodes = True
+        tree = mat.node_tree
+    bsdf = next(n for n in tree.nodes if n.type == "BSDF_PRINCIPLED")
+    bsdf.inputs["Base Color"].default_value = base_color
+    bsdf.inputs["Alpha"].default_value = alpha
+    return mat, bsdf
+
+
 def coverage(frame, clear=None) -> int:
     """Pixels whose colour differs from the clear colour (the top-left pixel by default)."""
     color = frame.color

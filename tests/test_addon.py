@@ -11,7 +11,7 @@ import pytest
 import addon
 from blendlib import bridge, colorspace, imageio, render
 from blendlib.shaderlab import PASS_PRESETS, Pass, preset
-from tests.blender_fixtures import add_cube, add_plane, empty_scene, unlit_material
+from tests.blender_fixtures import add_cube, add_plane, empty_scene, principled_material, unlit_material
 
 
 @pytest.fixture(autouse=True)
@@ -200,21 +200,14 @@ def test_pass_list_operators_and_preview():
 
 def test_fill_from_principled():
     empty_scene()
-    mat = bpy.data.materials.new("P")
-    tree = mat.node_tree
-    if tree is None:
-        mat.use_nodes = True
-        tree = mat.node_tree
-    bsdf = next(n for n in tree.nodes if n.type == "BSDF_PRINCIPLED")
-    bsdf.inputs["Base Color"].default_value = (0.5, 0.0, 1.0, 1.0)
-    bsdf.inputs["Alpha"].default_value = 0.3
+    mat, bsdf = principled_material("P", (0.5, 0.0, 1.0, 1.0), 0.3)
     with bpy.context.temp_override(material=mat):
         assert bpy.ops.unity.fill_from_principled() == {"FINISHED"}
     np.testing.assert_allclose(mat.unity.color, (0.735357, 0.0, 1.0, 0.3), atol=1e-5)  # sRGB-encoded 0.5
     img = bpy.data.images.new("T", 2, 2)
-    node = tree.nodes.new("ShaderNodeTexImage")
+    node = mat.node_tree.nodes.new("ShaderNodeTexImage")
     node.image = img
-    tree.links.new(node.outputs["Color"], bsdf.inputs["Base Color"])
+    mat.node_tree.links.new(node.outputs["Color"], bsdf.inputs["Base Color"])
     with bpy.context.temp_override(material=mat):
         bpy.ops.unity.fill_from_principled()
     assert mat.unity.main_tex == img and tuple(mat.unity.color)[:3] == (1.0, 1.0, 1.0)

@@ -14,7 +14,7 @@ from mathutils import Vector
 from blendlib import bridge, colorspace, render, write_image
 from blendlib.scene import SceneError
 from blendlib.shaderlab import Queue
-from tests.blender_fixtures import add_cube, add_mesh, add_plane, coverage, empty_scene, snapshot
+from tests.blender_fixtures import add_cube, add_mesh, add_plane, coverage, empty_scene, principled_material, snapshot
 
 
 @pytest.fixture(autouse=True)
@@ -165,23 +165,16 @@ def test_ambient_from_world_background_and_no_world():
 
 def test_disabled_material_uses_principled_inputs_encoded():
     empty_scene()
-    mat = bpy.data.materials.new("P")
-    tree = mat.node_tree
-    if tree is None:
-        mat.use_nodes = True
-        tree = mat.node_tree
-    bsdf = next(n for n in tree.nodes if n.type == "BSDF_PRINCIPLED")
-    bsdf.inputs["Base Color"].default_value = (0.5, 0.2, 0.0, 1.0)
-    bsdf.inputs["Alpha"].default_value = 0.25
+    mat, bsdf = principled_material("P", (0.5, 0.2, 0.0, 1.0), 0.25)
     add_plane("Plane", material=mat)
     m = bridge.build_draw_scene().renderers[0].material
     np.testing.assert_allclose(m.color, (colorspace.encode(0.5), colorspace.encode(0.2), 0.0, 0.25), atol=1e-6)
     assert m.queue is Queue.Geometry and len(m.draw_passes) == 1 and m.main_tex is None
     img = bpy.data.images.new("Tex", 2, 2)
     img.pixels.foreach_set(np.linspace(0, 1, 16, dtype=np.float32))
-    node = tree.nodes.new("ShaderNodeTexImage")
+    node = mat.node_tree.nodes.new("ShaderNodeTexImage")
     node.image = img
-    tree.links.new(node.outputs["Color"], bsdf.inputs["Base Color"])
+    mat.node_tree.links.new(node.outputs["Color"], bsdf.inputs["Base Color"])
     m = bridge.build_draw_scene().renderers[0].material
     assert m.color[:3] == (1.0, 1.0, 1.0) and m.main_tex.encoding == "sRGB"
     np.testing.assert_allclose(m.main_tex.pixels.ravel(), np.linspace(0, 1, 16), atol=1 / 255)

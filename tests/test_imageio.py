@@ -24,6 +24,7 @@ def test_png_round_trip_and_quantisation(tmp_path):
 
 def test_png_written_by_blender_with_all_filters(tmp_path):
     import bpy
+
     from tests.blender_fixtures import empty_scene
 
     scene = empty_scene()

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import os
 import re
@@ -767,10 +766,8 @@ def test_cli_subprocess_via_module_function(tmp_path):
         "DstAlpha, OneMinusSrcColor, OneMinusSrcAlpha, OneMinusDstColor, OneMinusDstAlpha, SrcAlphaSaturate)")
 
 
-_HAS_MAIN = (REPO / "blendlib" / "__main__.py").exists()
 
 
-@pytest.mark.skipif(not _HAS_MAIN, reason="blendlib/__main__.py (python -m blendlib) is not in the repo yet")
 def test_cli_python_m_blendlib_shaderlab(tmp_path):
     path = tmp_path / "good.shader"
     path.write_text(GOOD, encoding="utf-8")
@@ -789,109 +786,26 @@ def test_cli_python_m_blendlib_shaderlab(tmp_path):
 # --------------------------------------------------------------------------- Blender
 
 
-try:
-    import bpy
-except ImportError:  # the operator tests need the bpy module (pip install bpy)
-    bpy = None
+import bpy  # noqa: E402 - the Blender half of this module
 
-needs_bpy = pytest.mark.skipif(bpy is None, reason="the bpy module is not installed")
-
-
-def _addon_module():
-    """The add-on package if it is in the repo and registers everything; else None."""
-    if importlib.util.find_spec("addon") is None or not (REPO / "addon" / "__init__.py").exists():
-        return None
-    import addon
-
-    return addon if hasattr(addon, "register") else None
-
-
-def _register_fallback_properties():
-    """Until addon/__init__.py lands: Material.unity from the bridge's SPEC §3 schema, for these tests only."""
-    from bpy.props import (
-        BoolProperty,
-        CollectionProperty,
-        EnumProperty,
-        FloatProperty,
-        FloatVectorProperty,
-        IntProperty,
-        PointerProperty,
-        StringProperty,
-    )
-
-    from blendlib import bridge
-
-    def annotations(table):
-        ann = {}
-        for f in table:
-            if f.kind == "bool":
-                ann[f.name] = BoolProperty(default=f.default)
-            elif f.kind == "int":
-                ann[f.name] = IntProperty(default=f.default, **({"min": f.min, "max": f.max} if f.max else {}))
-            elif f.kind == "float":
-                ann[f.name] = FloatProperty(default=f.default)
-            elif f.kind == "string":
-                ann[f.name] = StringProperty(default=f.default)
-            elif f.kind == "enum":
-                ann[f.name] = EnumProperty(items=[(i, i, "", n) for i, n in f.items()], default=f.default)
-            elif f.kind == "flags":
-                ann[f.name] = EnumProperty(items=[(c, c, "", bridge.FLAG_BITS[c]) for c in "RGBA"],
-                                           options={"ENUM_FLAG"}, default=set(f.default))
-            elif f.kind in ("color", "vector"):
-                ann[f.name] = FloatVectorProperty(size=f.size, default=f.default,
-                                                  subtype=f.subtype if f.kind == "color" else "NONE")
-            elif f.kind == "image":
-                ann[f.name] = PointerProperty(type=bpy.types.Image)
-        return ann
-
-    pass_cls = type("TEST_UnityPass", (bpy.types.PropertyGroup,), {"__annotations__": annotations(
-        bridge.PASS_FIELDS)})
-    bpy.utils.register_class(pass_cls)
-    mat_ann = annotations(bridge.MATERIAL_FIELDS)
-    mat_ann["passes"] = CollectionProperty(type=pass_cls)
-    mat_cls = type("TEST_UnityMaterial", (bpy.types.PropertyGroup,), {"__annotations__": mat_ann})
-    bpy.utils.register_class(mat_cls)
-    bpy.types.Material.unity = PointerProperty(type=mat_cls)
-
-    def unregister():
-        del bpy.types.Material.unity
-        bpy.utils.unregister_class(mat_cls)
-        bpy.utils.unregister_class(pass_cls)
-
-    return unregister
+import addon  # noqa: E402
 
 
 @pytest.fixture(scope="module")
 def blender():
-    """Register the add-on (or, until it exists, the SPEC §3 properties plus this module's operators)."""
-    if bpy is None:
-        pytest.skip("the bpy module is not installed")
+    """The add-on registered (it registers this module's operators), restored afterwards."""
     from addon import shaderlab_ops
 
-    addon = _addon_module()
-    cleanups = []
-    if addon is not None:
-        if not hasattr(bpy.types.Material, "unity"):
-            addon.register()
-            cleanups.append(addon.unregister)
-        shaderlab_ops.register()  # idempotent: a no-op when the add-on registered it
-    else:
-        if not hasattr(bpy.types.Material, "unity"):
-            cleanups.append(_register_fallback_properties())
-        shaderlab_ops.register()
-        cleanups.insert(0, shaderlab_ops.unregister)
+    registered = hasattr(bpy.types.Material, "unity")
+    if not registered:
+        addon.register()
     yield shaderlab_ops
-    for fn in cleanups:
-        fn()
+    if not registered:
+        addon.unregister()
 
 
-@needs_bpy
 def test_addon_package_registers_the_operators():
-    """The add-on must call shaderlab_ops.register(); this reports it until addon/__init__.py exists."""
-    addon = _addon_module()
-    if addon is None:
-        pytest.skip("addon/__init__.py with register() is not in the repo yet: operator tests use a stand-in "
-                    "registration of Material.unity")
+    """addon.register() registers the three ShaderLab operators."""
     registered = hasattr(bpy.types.Material, "unity")
     if not registered:
         addon.register()
@@ -1064,7 +978,6 @@ def test_reading_a_blender_material_agrees_with_the_bridge(blender):
     """The exporter reads a material through the bridge: what its schema reads, registered or from
     stored ID properties (the add-on unregistered)."""
     from blendlib import bridge
-    from blendlib.shaderlab_io import read_blender_material
 
     mat = _new_material("Read")
     u = mat.unity
@@ -1082,7 +995,7 @@ def test_reading_a_blender_material_agrees_with_the_bridge(blender):
         bl_system_properties_get = mat.bl_system_properties_get
 
     for source in (mat, Stored()):
-        got = read_blender_material(source)
+        got = bridge.material_from_blender(source)
         assert got.queue.value == want["queue"] and got.queue_offset == want["queue_offset"] == 7
         assert got.color == pytest.approx(want["color"]) and got.lighting is Lighting.Unlit
         assert got.cutoff == pytest.approx(want["cutoff"]) and got.main_tex_filter.value == want["main_tex_filter"]
@@ -1090,7 +1003,8 @@ def test_reading_a_blender_material_agrees_with_the_bridge(blender):
         assert got.passes[1].ztest is CompareFunction.Always and got.passes[1].color_mask == {"R", "A"}
         assert got.passes[2].stencil_comp is CompareFunction.Never
     u.enabled = False
-    assert read_blender_material(mat).passes == (Pass(),) and read_blender_material(mat).queue is Queue.Geometry
+    disabled = bridge.material_from_blender(mat)
+    assert disabled.passes == (Pass(),) and disabled.queue is Queue.Geometry
 
 
 def test_register_unregister_are_idempotent(blender):
