@@ -13,9 +13,10 @@ from __future__ import annotations
 import bpy
 import numpy as np
 
-from blendlib import bridge, pipeline
-from blendlib.pipeline import RenderCancelled
-from blendlib.scene import SceneError
+from blendlib import blender
+from blendlib.core import pipeline
+from blendlib.core.pipeline import RenderCancelled
+from blendlib.core.scene import SceneError
 
 ALPHA_PASS = "UnityAlpha"
 DEPTH_PASS = "Depth"
@@ -23,7 +24,7 @@ DEPTH_PASS = "Depth"
 
 def result_arrays(frame) -> dict[str, np.ndarray]:
     """Pass name → (H*W, channels) float32, bottom row first (Blender's order)."""
-    combined = bridge.linear_rgba(frame, opaque=True)
+    combined = blender.linear_rgba(frame, opaque=True)
     h, w = combined.shape[:2]
     return {
         "Combined": np.ascontiguousarray(combined[::-1]).reshape(h * w, 4),
@@ -52,7 +53,7 @@ class UnityPassesRenderEngine(bpy.types.RenderEngine):
         self.update_stats("", "Unity Passes: reading the scene")
         self.update_progress(0.0)
         try:
-            draw = bridge.build_draw_scene(scene, depsgraph)
+            draw = blender.build_draw_scene(scene, depsgraph)
             if (draw.camera.width, draw.camera.height) != (width, height):
                 raise SceneError(f"render size {width}x{height} differs from the camera's "
                                  f"{draw.camera.width}x{draw.camera.height} (border/crop rendering is not supported)")

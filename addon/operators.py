@@ -6,12 +6,12 @@ from enum import Enum
 
 import bpy
 
-from blendlib.bridge import PASS_FIELDS, pass_from_values, principled_inputs, read_group
-from blendlib.shaderlab import PASS_PRESETS, Pass, preset
+from blendlib.blender import PASS_FIELDS, pass_from_values, principled_inputs, read_group
+from blendlib.core.vocabulary import PASS_PRESETS, Pass, preset
 
 
 def pass_from_item(item) -> Pass:
-    """The :class:`blendlib.shaderlab.Pass` of a pass property group."""
+    """The :class:`blendlib.core.vocabulary.Pass` of a pass property group."""
     return pass_from_values(read_group(item, PASS_FIELDS))
 
 

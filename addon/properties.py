@@ -1,4 +1,4 @@
-"""``Material.unity`` and ``Scene.unity``: bpy properties built from the schema in :mod:`blendlib.bridge`.
+"""``Material.unity`` and ``Scene.unity``: bpy properties built from the schema in :mod:`blendlib.blender`.
 
 The schema (names, defaults, enum item numbers) lives next to the code that reads
 stored values back without the add-on, so the two can never disagree.
@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import bpy
 
-from blendlib.bridge import FLAG_BITS, MATERIAL_FIELDS, PASS_FIELDS, SCENE_FIELDS, Field
-from blendlib.shaderlab import QUEUE_NUMBERS, Queue
+from blendlib.blender import FLAG_BITS, MATERIAL_FIELDS, PASS_FIELDS, SCENE_FIELDS, Field
+from blendlib.core.vocabulary import QUEUE_NUMBERS, Queue
 
 _ITEM_NOTES = {
     **{q.value: f"{q.value} = {QUEUE_NUMBERS[q]}" for q in Queue},

@@ -1,6 +1,6 @@
 """Material-panel operators: Import ShaderLab (file / clipboard) and Export ShaderLab.
 
-Import parses the whole ``.shader`` text first (:mod:`blendlib.shaderlab_io`); on a
+Import parses the whole ``.shader`` text first (:mod:`blendlib.formats.shaderlab`); on a
 parse error it reports one line (``FILE:LINE:COL: message``) and changes nothing.
 On success it replaces the material's Unity settings (``material.unity``, SPEC §3)
 in one step: queue, offset, ``_Color``, ``_AlphaScale``, ``_Cutoff``, lighting and
@@ -23,12 +23,14 @@ from bpy.props import BoolProperty, StringProperty
 from bpy.types import Operator
 from bpy_extras.io_utils import ExportHelper, ImportHelper
 
-from blendlib import bridge, shaderlab_io
-from blendlib.shaderlab import pass_to_dict, queue_text
+from blendlib import blender
+from blendlib.core.vocabulary import pass_to_dict, queue_text
+from blendlib.formats import shaderlab
+from blendlib.formats.atomic import write_atomic
 
 _TEXTURE_FIELDS = ("main_tex", "main_tex_tiling", "main_tex_offset", "main_tex_filter", "main_tex_wrap")
 _SCALAR_FIELDS = ("enabled", "queue", "queue_offset", "color", "alpha_scale", "cutoff", "lighting")
-_PASS_KEYS = tuple(pass_to_dict(shaderlab_io.Pass()).keys())
+_PASS_KEYS = tuple(pass_to_dict(shaderlab.Pass()).keys())
 
 
 def _plain(value):
@@ -38,7 +40,7 @@ def _plain(value):
     return value
 
 
-def result_settings(result: shaderlab_io.ShaderLabResult, reset_texture: bool = False) -> dict:
+def result_settings(result: shaderlab.ShaderLabResult, reset_texture: bool = False) -> dict:
     """The ``material.unity`` assignments of an import: ``{field: value, "passes": [dict, ...]}``."""
     fields = _SCALAR_FIELDS + (_TEXTURE_FIELDS if reset_texture else ())
     values = {key: _plain(result.material[key]) for key in fields}
@@ -80,7 +82,7 @@ def _write_settings(unity, values: dict) -> None:
         unity.active_pass_index = 0
 
 
-def apply_result(material, result: shaderlab_io.ShaderLabResult, reset_texture: bool = False) -> None:
+def apply_result(material, result: shaderlab.ShaderLabResult, reset_texture: bool = False) -> None:
     """Replace ``material.unity`` with an import result, all or nothing."""
     unity = material.unity
     new = result_settings(result, reset_texture)
@@ -112,8 +114,8 @@ class _ImportMixin:
 
     def import_text(self, context, text: str, filename: str):
         try:
-            result = shaderlab_io.parse_shaderlab(text, filename=filename)
-        except shaderlab_io.ShaderLabError as exc:
+            result = shaderlab.parse_shaderlab(text, filename=filename)
+        except shaderlab.ShaderLabError as exc:
             self.report({"ERROR"}, _one_line(str(exc)))
             return {"CANCELLED"}
         try:
@@ -201,18 +203,13 @@ class UNITY_OT_shaderlab_export(Operator, ExportHelper):
 
     def execute(self, context):
         mat = context.material
-        material = bridge.material_from_blender(mat)
+        material = blender.material_from_blender(mat)
         name = self.shader_name.strip() or f"Unity Passes/{mat.name}"
-        text = shaderlab_io.export_shaderlab(material, name)
+        text = shaderlab.export_shaderlab(material, name)
         path = bpy.path.abspath(self.filepath)
-        tmp = path + ".tmp"
         try:
-            with open(tmp, "w", encoding="utf-8", newline="\n") as fh:
-                fh.write(text)
-            os.replace(tmp, path)
+            write_atomic(path, text)
         except OSError as exc:
-            if os.path.exists(tmp):
-                os.remove(tmp)
             self.report({"ERROR"}, _one_line(f"{path}: cannot write: {exc.strerror or exc}"))
             return {"CANCELLED"}
         self.report({"INFO"}, f"Exported {name!r} to {path}")

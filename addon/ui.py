@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import bpy
 
-from blendlib.shaderlab import Queue, queue_text
+from blendlib.core.vocabulary import Queue, queue_text
 
 from . import shaderlab_ops
 from .operators import (

@@ -1,17 +1,17 @@
 """Unity Passes for Blender: the library.
 
-The renderer core (:mod:`blendlib.pipeline` and the stage modules it calls) is
-free of bpy: it takes a :class:`blendlib.scene.DrawScene` and returns a
-:class:`blendlib.pipeline.Frame` of numpy buffers. Only :mod:`blendlib.bridge`
-touches Blender; :func:`render` and :func:`write_image` import it lazily so that
-``import blendlib`` works without bpy.
+Layers, one folder each: :mod:`blendlib.core` (the bpy-free renderer: a
+:class:`DrawScene` in, a :class:`Frame` of numpy buffers out), :mod:`blendlib.formats`
+(ShaderLab and image files, bpy-free), :mod:`blendlib.blender` (the only layer that
+touches bpy) and :mod:`blendlib.cli`. :func:`render` and :func:`write_image` import the
+Blender layer lazily so that ``import blendlib`` works without bpy.
 """
 
 from __future__ import annotations
 
-from .pipeline import Frame, render_scene
-from .scene import Camera, DrawScene, Light, Mesh, Renderer, SceneError
-from .shaderlab import Material, Pass, Texture
+from .core.pipeline import Frame, render_scene
+from .core.scene import Camera, DrawScene, Light, Mesh, Renderer, SceneError
+from .core.vocabulary import Material, Pass, Texture
 
 __all__ = [
     "Camera", "DrawScene", "Frame", "Light", "Material", "Mesh", "Pass", "Renderer",
@@ -25,13 +25,13 @@ def render(scene=None, **kwargs) -> Frame:
     Returns a :class:`Frame` whose ``color`` (H, W, 4) float32 holds the stored frame
     values and ``depth`` (H, W) float32 the window depth; row 0 is the top.
     """
-    from . import bridge
+    from . import blender
 
-    return bridge.render(scene, **kwargs)
+    return blender.render(scene, **kwargs)
 
 
 def write_image(frame: Frame, name: str, **kwargs):
     """Write a frame's colour into the ``bpy.types.Image`` called ``name`` (created if needed)."""
-    from . import bridge
+    from . import blender
 
-    return bridge.write_image(frame, name, **kwargs)
+    return blender.write_image(frame, name, **kwargs)

@@ -8,9 +8,9 @@
 Every scene is a real Blender scene built with bpy (or a file of ``blend_files/``), so that
 every backend starts from the same data:
 
-- ``project``: ``blendlib.bridge.build_draw_scene`` (extraction: evaluated bpy scene → DrawScene)
+- ``project``: ``blendlib.blender.build_draw_scene`` (extraction: evaluated bpy scene → DrawScene)
   then ``blendlib.render_scene`` (the numpy renderer), timed separately;
-- ``opengl``: the same DrawScene drawn by :class:`blendlib.glref.GLRenderer` (moderngl, EGL,
+- ``opengl``: the same DrawScene drawn by :class:`tests.reference.glref.GLRenderer` (moderngl, EGL,
   Mesa llvmpipe): clear + every draw call + glFinish + readback of colour, depth and stencil.
   Context creation, vertex upload and the first (shader-compiling) draw are reported apart;
 - ``eevee``: ``bpy.ops.render.render()`` with ``BLENDER_EEVEE`` and ``taa_render_samples = 1``;
@@ -118,7 +118,7 @@ def _unity_settings(mat, *, queue: str, color, passes: list[dict], lighting: str
             for key, value in values.items():
                 setattr(item, key, set(value) if key == "color_mask" else value)
         return
-    from blendlib.bridge import FLAG_BITS, MATERIAL_FIELDS, PASS_FIELDS
+    from blendlib.blender import FLAG_BITS, MATERIAL_FIELDS, PASS_FIELDS
 
     def stored(fields, values):
         out = {}
@@ -344,9 +344,9 @@ class ProjectWorker:
 
     def setup(self, case: dict) -> dict:
         self.scene = build_case(case)
-        from blendlib import bridge
+        from blendlib import blender
 
-        bridge.build_draw_scene(self.scene)  # evaluates the depsgraph (untimed), like a viewport would
+        blender.build_draw_scene(self.scene)  # evaluates the depsgraph (untimed), like a viewport would
         first = self.run(first=True)
         return {"first_s": first["total_s"], "triangles": first["triangles"], "covered_px": first["covered_px"],
                 "peak_mb": self.traced_peak()}
@@ -357,10 +357,10 @@ class ProjectWorker:
         included, the input DrawScene excluded."""
         import tracemalloc
 
-        from blendlib import bridge
-        from blendlib.pipeline import render_scene
+        from blendlib import blender
+        from blendlib.core.pipeline import render_scene
 
-        draw = bridge.build_draw_scene(self.scene)
+        draw = blender.build_draw_scene(self.scene)
         tracemalloc.start()
         try:
             base = tracemalloc.get_traced_memory()[0]
@@ -383,12 +383,12 @@ class ProjectWorker:
     def run(self, first: bool = False) -> dict:
         import numpy as np
 
-        from blendlib import bridge
-        from blendlib.pipeline import render_scene
+        from blendlib import blender
+        from blendlib.core.pipeline import render_scene
 
         kwargs = self._kwargs()
         with Timer() as te:
-            draw = bridge.build_draw_scene(self.scene)
+            draw = blender.build_draw_scene(self.scene)
         can_peak = _reset_peak()
         rss0 = _proc_status().get("VmRSS", 0)
         with Timer() as tr:
@@ -414,15 +414,15 @@ class ProjectWorker:
         import io
         import pstats
 
-        from blendlib import bridge
-        from blendlib.pipeline import render_scene
+        from blendlib import blender
+        from blendlib.core.pipeline import render_scene
 
         kwargs = {"workers": 1}
         if self.opts.get("chunk_candidates"):
             kwargs["chunk_candidates"] = self.opts["chunk_candidates"]
         prof = cProfile.Profile()
         prof.enable()
-        draw = bridge.build_draw_scene(self.scene)
+        draw = blender.build_draw_scene(self.scene)
         render_scene(draw, **kwargs)
         prof.disable()
         stats = pstats.Stats(prof)
@@ -443,7 +443,7 @@ class ProjectWorker:
 
 class OpenGLWorker:
     def __init__(self, opts: dict):
-        from blendlib import glref
+        from tests.reference import glref
 
         with Timer() as t:
             glref.context()
@@ -451,10 +451,11 @@ class OpenGLWorker:
         self.renderer = None
 
     def setup(self, case: dict) -> dict:
-        from blendlib import bridge, glref
+        from blendlib import blender
+        from tests.reference import glref
 
         scene = build_case(case)
-        draw = bridge.build_draw_scene(scene)
+        draw = blender.build_draw_scene(scene)
         with Timer() as tu:
             self.renderer = glref.GLRenderer(draw)
         with Timer() as tf:

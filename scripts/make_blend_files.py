@@ -8,7 +8,7 @@ and the Cg wikibook's blending chapter): open it in Blender, press F12 with the
 "Unity Passes" engine, and the phenomenon is in the picture. Everything is made here
 from numbers (meshes, packed textures, materials with ``material.unity`` settings),
 so running the script twice gives the same scenes. After changing a scene, run
-``scripts/make_goldens.py`` to regenerate the golden buffers on purpose.
+``python -m tests.support.goldens`` to regenerate the golden buffers on purpose.
 
 Scenes are 640x360 at 100 %. Cameras look along +Y from -Y; "up" is +Z; quads and
 labels face the camera (normal -Y).
@@ -29,7 +29,7 @@ if str(ROOT) not in sys.path:
 import bpy  # noqa: E402
 from mathutils import Euler, Vector  # noqa: E402
 
-from blendlib import bridge, colorspace  # noqa: E402
+from blendlib import blender, colorspace  # noqa: E402
 
 OUT = ROOT / "blend_files"
 RES = (640, 360)
@@ -37,7 +37,7 @@ RES = (640, 360)
 # ---------------------------------------------------------------------------
 # The add-on: register it so that Material.unity / Scene.unity exist. Until the
 # add-on is importable, the settings are written as the stored ID properties the
-# add-on reads back (bridge.MATERIAL_FIELDS order and integer enum items).
+# add-on reads back (blender.MATERIAL_FIELDS order and integer enum items).
 # ---------------------------------------------------------------------------
 
 ADDON = False
@@ -57,11 +57,11 @@ def register_addon() -> bool:
     return ADDON
 
 
-def _stored(f: bridge.Field, value):
+def _stored(f: blender.Field, value):
     if f.kind == "enum":
         return dict(f.items())[value]
     if f.kind == "flags":
-        return sum(bridge.FLAG_BITS[c] for c in value)
+        return sum(blender.FLAG_BITS[c] for c in value)
     if f.kind in ("color", "vector"):
         return [float(v) for v in value]
     return value
@@ -84,7 +84,7 @@ def _set_group(id_block, fields, values: dict) -> None:
         return
     store = id_block.bl_system_properties_get(do_create=True)
     data = {}
-    pass_fields = {f.name: f for f in bridge.PASS_FIELDS}
+    pass_fields = {f.name: f for f in blender.PASS_FIELDS}
     for key, value in values.items():
         if key == "passes":
             data[key] = [{pk: _stored(pass_fields[pk], pv) for pk, pv in p.items()} for p in value]
@@ -144,7 +144,7 @@ def set_scene(scene, **values) -> None:
     values = dict(values)
     if "clear_color" in values:
         values["clear_color"] = tuple(values["clear_color"])
-    _set_group(scene, bridge.SCENE_FIELDS, values)
+    _set_group(scene, blender.SCENE_FIELDS, values)
 
 
 def save(name: str) -> Path:
@@ -339,7 +339,7 @@ def material(name: str, *, queue="Geometry", offset=0, color=(1, 1, 1, 1), tex=N
     """A material with ``material.unity`` enabled; ``passes``: dicts of SPEC §3 pass properties."""
     m = bpy.data.materials.new(name)
     m.diffuse_color = tuple(colorspace.decode_fast(np.array(color[:3])).tolist()) + (color[3],)
-    _set_group(m, bridge.MATERIAL_FIELDS, dict(
+    _set_group(m, blender.MATERIAL_FIELDS, dict(
         enabled=True, queue=queue, queue_offset=offset, color=tuple(color), lighting=lighting,
         alpha_scale=alpha_scale, cutoff=cutoff, main_tex_filter=filter, main_tex_wrap=wrap,
         passes=[dict(p) for p in passes],
@@ -354,7 +354,7 @@ def material(name: str, *, queue="Geometry", offset=0, color=(1, 1, 1, 1), tex=N
 
 def preset_passes(name: str) -> list[dict]:
     """The passes of a shaderlab preset as dicts of identifiers (color_mask as a letter list)."""
-    from blendlib.shaderlab import PASS_PRESETS
+    from blendlib.core.vocabulary import PASS_PRESETS
 
     out = []
     for p in PASS_PRESETS[name]["passes"]:
@@ -522,7 +522,7 @@ def background_texture():
 
 
 def blend_pass(mode: str) -> dict:
-    from blendlib.shaderlab import PASS_PRESETS
+    from blendlib.core.vocabulary import PASS_PRESETS
 
     name = "Alpha Blend" if mode == "Normal" else mode
     (p,) = PASS_PRESETS[name]["passes"]

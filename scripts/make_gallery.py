@@ -21,8 +21,6 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
-if str(ROOT) not in sys.path:
-    sys.path.insert(0, str(ROOT))
 
 #: (file, scene, caption) in gallery order.
 CAPTIONS = (
@@ -50,7 +48,7 @@ def text_image(text: str, width: int, height: int, size: int = 17) -> np.ndarray
     import blf
     import imbuf
 
-    from blendlib import imageio
+    from blendlib.formats import images
 
     ib = imbuf.new((width, height))
     with blf.bind_imbuf(0, ib):
@@ -61,7 +59,7 @@ def text_image(text: str, width: int, height: int, size: int = 17) -> np.ndarray
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "caption.png"
         imbuf.write(ib, filepath=str(path))
-        return imageio.load(path)[..., 3].astype(np.float32)
+        return images.load(path)[..., 3].astype(np.float32)
 
 
 def render_scene_png(file: str, scene_name: str, percentage: int = 100) -> np.ndarray:
@@ -85,12 +83,8 @@ def main(argv: list[str]) -> int:
 
     import bpy  # noqa: F401  (bpy before addon)
 
-    from blendlib import imageio
+    from blendlib.formats import images
 
-    sys.path.insert(0, str(ROOT / "scripts"))
-    import make_goldens
-
-    make_goldens.ensure_addon()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     tw, th = TILE
@@ -101,7 +95,7 @@ def main(argv: list[str]) -> int:
         full = render_scene_png(file, scene_name, 100)
         single = sum(1 for f, _, _ in CAPTIONS if f == file) == 1
         path = out / (f"{file}.png" if single else f"{file}-{scene_name}.png")
-        imageio.save(path, full.astype(np.float32) / 255)
+        images.save(path, full.astype(np.float32) / 255)
         print(f"wrote {path}")
         big = render_scene_png(file, scene_name, 150).astype(np.float32) / 255  # 960x540 → 2x2 box → 480x270
         tile = big.reshape(th, 2, tw, 2, 3).mean(axis=(1, 3))
@@ -114,7 +108,7 @@ def main(argv: list[str]) -> int:
         sheet[y0 + CAPTION_H:y0 + CAPTION_H + th, x0:x0 + tw] = tile
     sheet_path = Path(args.sheet)
     sheet_path.parent.mkdir(parents=True, exist_ok=True)
-    imageio.save(sheet_path, sheet)
+    images.save(sheet_path, sheet)
     print(f"wrote {sheet_path} ({sheet_path.stat().st_size} bytes)")
     return 0
 

@@ -32,6 +32,8 @@ if [ ! -x .venv/bin/python ]; then
 fi
 .venv/bin/python -m pip install --upgrade pip >/dev/null
 .venv/bin/python -m pip install -r requirements.txt
+# The project itself, editable: scripts and tests import blendlib without path tricks.
+.venv/bin/python -m pip install --no-deps -e .
 
 # The example scenes as F12 renders them (out/<file>.png), then every scene of every file and the
 # gallery contact sheet (out/gallery.png; docs/gallery.png is the committed copy).

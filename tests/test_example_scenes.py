@@ -11,13 +11,12 @@ check compares the scene's frame with an independent expectation:
 - expected blends are computed here in numpy from docs/pipeline.md §8 (8-bit
   codes, Gamma or Linear).
 
-Regenerating the goldens on purpose: ``.venv/bin/python scripts/make_goldens.py``.
+Regenerating the goldens on purpose: ``.venv/bin/python -m tests.support.goldens``.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import importlib.util
 import itertools
 import json
 from pathlib import Path
@@ -25,19 +24,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from blendlib.drawlist import sorted_renderers
-from blendlib.shaderlab import (
+from blendlib.core.drawlist import sorted_renderers
+from blendlib.core.vocabulary import (
     CompareFunction,
     Cull,
     Pass,
     Queue,
     StencilOp,
 )
+from tests.support import goldens as mg
 
 ROOT = Path(__file__).resolve().parent.parent
-_spec = importlib.util.spec_from_file_location("make_goldens", ROOT / "scripts" / "make_goldens.py")
-mg = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(mg)
 
 EXPECTED_FILES = {
     "alpha_test.blend": ["AlphaTest"],
@@ -187,11 +184,11 @@ def test_every_scene_file_is_there_with_its_goldens():
 
 @pytest.mark.parametrize("file", sorted(EXPECTED_FILES))
 def test_scene_file_unchanged_since_goldens(file):
-    """A .blend that changed without ``scripts/make_goldens.py`` being run fails here."""
+    """A .blend that changed without ``-m tests.support.goldens`` being run fails here."""
     manifest = json.loads(mg.MANIFEST.read_text())
     assert mg.sha256(mg.BLEND_DIR / file) == manifest["files"][file]["sha256"], (
         f"blend_files/{file} changed since its golden buffers were made: "
-        "run `.venv/bin/python scripts/make_goldens.py` on purpose and commit tests/golden/")
+        "run `.venv/bin/python -m tests.support.goldens` on purpose and commit tests/golden/")
 
 
 #: Golden tolerance: the renderer is bit-exact by design (integer coverage, float64 in a fixed
@@ -533,7 +530,7 @@ def test_blend_mode_catalogue(scenes):
 
 
 def _preset_pass(name):
-    from blendlib.shaderlab import PASS_PRESETS
+    from blendlib.core.vocabulary import PASS_PRESETS
 
     (p,) = PASS_PRESETS[name]["passes"]
     return p
@@ -646,7 +643,7 @@ def test_agrees_with_opengl_reference(scenes, file, name):
     """llvmpipe blends 8-bit buffers in fixed point, rounding each product: every blended layer may
     add one step. So a pixel agrees when it is within max(1, layers blended there) codes; all but
     0.1 % of the pixels must agree, and 99 % must be within one step."""
-    from blendlib.glref import render_gl
+    from tests.reference.glref import render_gl
 
     draw = scene(scenes, file, name)
     gl_color, gl_depth, _ = render_gl(draw)

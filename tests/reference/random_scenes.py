@@ -19,8 +19,8 @@ import math
 import numpy as np
 from hypothesis import strategies as st
 
-from blendlib.scene import Camera, DrawScene, Light, Renderer
-from blendlib.shaderlab import (
+from blendlib.core.scene import Camera, DrawScene, Light, Renderer
+from blendlib.core.vocabulary import (
     CHANNELS,
     ZTEST_FUNCTIONS,
     BlendFactor,

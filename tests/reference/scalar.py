@@ -10,7 +10,7 @@ order, so the output merger sees them exactly as a GPU would.
     color, depth, stencil = render_reference(scene)
 
 returns ``color`` (H, W, 4) float32, ``depth`` (H, W) float32 and ``stencil``
-(H, W) uint8 with row 0 = the top of the image, like :class:`blendlib.pipeline.Frame`.
+(H, W) uint8 with row 0 = the top of the image, like :class:`blendlib.core.pipeline.Frame`.
 """
 
 from __future__ import annotations
@@ -20,8 +20,8 @@ import struct
 
 import numpy as np
 
-from blendlib.scene import DrawScene, validate_scene
-from blendlib.shaderlab import (
+from blendlib.core.scene import DrawScene, validate_scene
+from blendlib.core.vocabulary import (
     LAST_OPAQUE_QUEUE,
     BlendFactor,
     BlendOp,

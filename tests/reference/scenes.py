@@ -7,8 +7,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from blendlib.scene import Camera, DrawScene, Light, Mesh, Renderer
-from blendlib.shaderlab import Lighting, Material, Pass, Queue
+from blendlib.core.scene import Camera, DrawScene, Light, Mesh, Renderer
+from blendlib.core.vocabulary import Lighting, Material, Pass, Queue
 
 
 def perspective(fov_deg: float, aspect: float, near: float = 0.1, far: float = 100.0) -> np.ndarray:

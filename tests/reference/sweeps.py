@@ -22,8 +22,8 @@ import itertools
 
 import numpy as np
 
-from blendlib.scene import DrawScene
-from blendlib.shaderlab import (
+from blendlib.core.scene import DrawScene
+from blendlib.core.vocabulary import (
     CHANNELS,
     ZTEST_FUNCTIONS,
     BlendFactor,

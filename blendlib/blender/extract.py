@@ -1,0 +1,407 @@
+"""Scene extraction: a Blender scene → :class:`blendlib.core.scene.DrawScene`.
+
+Extraction never modifies scene data: evaluated meshes come from
+``Object.evaluated_get(depsgraph).to_mesh()`` and are released with
+``to_mesh_clear()``; the Unity settings are read through :mod:`.schema`, never written.
+bpy is imported inside functions.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..core import colorspace
+from ..core.scene import Camera, DrawScene, Light, Mesh, Renderer, SceneError
+from ..core.vocabulary import ColorSpace, Lighting, Material, Pass, Queue, SortMode, Texture, TextureFilter, TextureWrap
+from .schema import MATERIAL_FIELDS, pass_from_values, read_group, scene_settings, unity_props
+
+MESH_LIKE = {"MESH", "CURVE", "SURFACE", "META", "FONT"}
+
+
+MAGENTA = (1.0, 0.0, 1.0, 1.0)
+
+
+def render_size(scene: Any) -> tuple[int, int]:
+    """Render resolution × percentage, as Blender computes it (integer division)."""
+    r = scene.render
+    return (r.resolution_x * r.resolution_percentage) // 100, (r.resolution_y * r.resolution_percentage) // 100
+
+
+def _matrix(m: Any) -> np.ndarray:
+    return np.array([list(row) for row in m], dtype=np.float64)
+
+
+class _Extractor:
+    def __init__(self, depsgraph: Any, warnings: list[str]):
+        self.dg = depsgraph
+        self.warnings = warnings
+        self.materials: dict[int, Material] = {}
+        self.textures: dict[int, Texture] = {}
+        self.default_material = Material(name="Default")
+
+    # -- textures -----------------------------------------------------------
+    def texture(self, image: Any) -> Texture | None:
+        if image is None:
+            return None
+        image = getattr(image, "original", image) or image
+        key = image.as_pointer()
+        if key not in self.textures:
+            self.textures[key] = self._load_texture(image)
+        return self.textures[key]
+
+    def _load_texture(self, image: Any) -> Texture:
+        name = image.name
+        try:
+            w, h = int(image.size[0]), int(image.size[1])
+            ok = w > 0 and h > 0 and image.has_data
+        except Exception:  # noqa: BLE001 - an unreadable image is reported, not raised
+            ok, w, h = False, 0, 0
+        if not ok:
+            where = image.filepath or "<no file>"
+            self.warnings.append(f"image {name!r}: cannot read {where}; using magenta")
+            return Texture(np.array([[MAGENTA]], np.float32), encoding="sRGB", name=name, missing=True)
+        pixels = np.empty(w * h * 4, np.float32)
+        image.pixels.foreach_get(pixels)
+        pixels = pixels.reshape(h, w, 4)
+        if image.alpha_mode == "NONE":
+            pixels[..., 3] = 1.0
+        if image.colorspace_settings.is_data:
+            encoding = "Data"
+        elif image.is_float:
+            encoding = "Linear"
+        elif image.colorspace_settings.name in ("sRGB", "sRGB 2.1"):
+            encoding = "sRGB"
+        else:
+            encoding = "Linear"
+        return Texture(pixels, encoding=encoding, name=name)
+
+    # -- materials -------------------------------------------------------------
+    def material(self, mat: Any) -> Material:
+        if mat is None:
+            return self.default_material
+        mat = getattr(mat, "original", mat) or mat
+        key = mat.as_pointer()
+        if key not in self.materials:
+            self.materials[key] = self._convert_material(mat)
+        return self.materials[key]
+
+    def _convert_material(self, mat: Any, with_texture: bool = True) -> Material:
+        values = read_group(unity_props(mat), MATERIAL_FIELDS)
+        texture = self.texture if with_texture else (lambda image: None)
+        if not values["enabled"]:
+            color, image = principled_inputs(mat)
+            return Material(name=mat.name, color=color, main_tex=texture(image))
+        passes = tuple(pass_from_values(p) for p in values["passes"])
+        return Material(
+            name=mat.name,
+            queue=Queue.parse(values["queue"]),
+            queue_offset=values["queue_offset"],
+            color=tuple(values["color"]),
+            main_tex=texture(values["main_tex"]),
+            main_tex_tiling=tuple(values["main_tex_tiling"]),
+            main_tex_offset=tuple(values["main_tex_offset"]),
+            main_tex_filter=TextureFilter.parse(values["main_tex_filter"]),
+            main_tex_wrap=TextureWrap.parse(values["main_tex_wrap"]),
+            alpha_scale=values["alpha_scale"],
+            cutoff=values["cutoff"],
+            lighting=Lighting.parse(values["lighting"]),
+            passes=passes or (Pass(),),
+        )
+
+    # -- meshes ----------------------------------------------------------------
+    def renderers(self, obj_eval: Any, matrix_world: np.ndarray, name: str) -> list[Renderer]:
+        mesh = obj_eval.to_mesh()
+        try:
+            return self._mesh_renderers(obj_eval, mesh, matrix_world, name)
+        finally:
+            obj_eval.to_mesh_clear()
+
+    def _mesh_renderers(self, obj_eval: Any, mesh: Any, matrix_world: np.ndarray, name: str) -> list[Renderer]:
+        if mesh is None:
+            return []
+        arrays = mesh_arrays(mesh)
+        positions = arrays["positions"]
+        slots = obj_eval.material_slots
+        mats = [s.material for s in slots] or list(mesh.materials)
+        if len(positions):
+            lo, hi = positions.min(axis=0).astype(np.float64), positions.max(axis=0).astype(np.float64)
+            corners = np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+            world = corners @ matrix_world.T
+            center = (world[:, :3].min(axis=0) + world[:, :3].max(axis=0)) * 0.5
+        else:
+            center = matrix_world[:3, 3].copy()
+        tri_mat = arrays["material_index"]
+        if len(mats) > 1:
+            used = np.unique(np.clip(tri_mat, 0, len(mats) - 1)) if len(tri_mat) else np.array([0])
+            tri_mat = np.clip(tri_mat, 0, len(mats) - 1)
+        else:
+            used = np.array([0])
+            tri_mat = None
+        out = []
+        for slot in used.tolist():
+            if tri_mat is None:
+                sel = slice(None)
+            else:
+                sel = np.flatnonzero(tri_mat == slot)
+            mat = mats[slot] if slot < len(mats) else None
+            if mat is None and len(arrays["triangles"]):
+                if mats:
+                    self.warnings.append(
+                        f"object {name!r} slot {slot}: empty material slot, using the default material")
+            uvs = arrays["uvs"]
+            sub = Mesh(
+                positions=positions,
+                triangles=arrays["triangles"][sel],
+                normals=arrays["normals"][sel],
+                uvs=None if uvs is None else uvs[sel],
+            )
+            out.append(Renderer(name=name, slot=int(slot), mesh=sub, matrix_world=matrix_world,
+                                material=self.material(mat), bounds_center=center))
+        return out
+
+
+def material_from_blender(mat: Any, with_texture: bool = False) -> Material:
+    """The Unity material of a ``bpy.types.Material`` as it renders (SPEC §3), with or without its image.
+
+    Reads ``mat.unity`` when the add-on is registered, else the stored properties; a
+    disabled material gives the default opaque material from its Principled BSDF.
+    """
+    return _Extractor(None, [])._convert_material(mat, with_texture=with_texture)
+
+
+def mesh_arrays(mesh: Any) -> dict[str, np.ndarray | None]:
+    """Triangles of a (temporary, evaluated) Blender mesh as numpy arrays, via fast ``foreach_get``.
+
+    ``positions`` (V, 3) float32, ``triangles`` (T, 3) int32 vertex indices in loop-triangle
+    order, ``normals`` (T, 3, 3) float32 corner normals, ``uvs`` (T, 3, 2) float32 of the
+    active UV map or None, ``material_index`` (T,) int32.
+    """
+    mesh.calc_loop_triangles()
+    t = len(mesh.loop_triangles)
+    v = len(mesh.vertices)
+    n_loops = len(mesh.loops)
+    positions = np.empty(v * 3, np.float32)
+    if v:
+        mesh.attributes["position"].data.foreach_get("vector", positions)
+    positions = positions.reshape(v, 3)
+    tri_loops = np.empty(t * 3, np.uint32)
+    corner_vert = np.empty(n_loops, np.int32)
+    if t:
+        mesh.loop_triangles.foreach_get("loops", tri_loops)
+        mesh.attributes[".corner_vert"].data.foreach_get("value", corner_vert)
+    tri_loops = tri_loops.astype(np.intp)
+    triangles = np.take(corner_vert, tri_loops).reshape(t, 3)
+    normals_c = np.empty(n_loops * 3, np.float32)
+    if t:
+        mesh.corner_normals.foreach_get("vector", normals_c)
+    normals = np.take(normals_c.reshape(n_loops, 3), tri_loops, axis=0).reshape(t, 3, 3)
+    uvs = None
+    layer = mesh.uv_layers.active
+    if layer is not None and t:
+        uv_c = np.empty(n_loops * 2, np.float32)
+        layer.uv.foreach_get("vector", uv_c)
+        uvs = np.take(uv_c.reshape(n_loops, 2), tri_loops, axis=0).reshape(t, 3, 2)
+    material_index = np.zeros(t, np.int32)
+    attr = mesh.attributes.get("material_index")
+    if attr is not None and t and attr.domain == "FACE" and attr.data_type == "INT":
+        poly_mat = np.empty(len(mesh.polygons), np.int32)
+        attr.data.foreach_get("value", poly_mat)
+        tri_poly = np.empty(t, np.int32)
+        mesh.loop_triangle_polygons.foreach_get("value", tri_poly)
+        material_index = np.take(poly_mat, tri_poly)
+    return {"positions": positions, "triangles": triangles, "normals": normals, "uvs": uvs,
+            "material_index": material_index}
+
+
+def principled_inputs(mat: Any) -> tuple[tuple[float, float, float, float], Any]:
+    """(_Color, image) of a material without Unity settings: the Principled BSDF Base Color (linear,
+    encoded to sRGB since _Color is COLOR_GAMMA) and Alpha, and an Image Texture linked to Base Color."""
+    tree = getattr(mat, "node_tree", None)
+    bsdf = None
+    if tree is not None:
+        for node in tree.nodes:
+            if node.type == "BSDF_PRINCIPLED":
+                bsdf = node
+                if any(link.to_node.type == "OUTPUT_MATERIAL" for out in node.outputs for link in out.links):
+                    break
+    if bsdf is None:
+        r, g, b, a = mat.diffuse_color
+        return (colorspace.encode(r), colorspace.encode(g), colorspace.encode(b), float(a)), None
+    base = bsdf.inputs["Base Color"]
+    r, g, b, _ = base.default_value
+    alpha = float(bsdf.inputs["Alpha"].default_value)
+    for link in base.links:
+        node = link.from_node
+        if node.type == "TEX_IMAGE" and node.image is not None:
+            return (1.0, 1.0, 1.0, alpha), node.image  # texture x white
+    return (colorspace.encode(r), colorspace.encode(g), colorspace.encode(b), alpha), None
+
+
+def world_ambient(world: Any) -> tuple[float, float, float]:
+    """World background colour (linear): the Background node's Color × Strength, or ``world.color``."""
+    if world is None:
+        return (0.0, 0.0, 0.0)
+    tree = getattr(world, "node_tree", None)
+    if tree is not None:
+        backgrounds = [n for n in tree.nodes if n.type == "BACKGROUND"]
+        linked = [n for n in backgrounds
+                  if any(link.to_node.type == "OUTPUT_WORLD" for link in n.outputs[0].links)]
+        node = (linked or backgrounds or [None])[0]
+        if node is not None:
+            c = node.inputs["Color"].default_value
+            s = float(node.inputs["Strength"].default_value)
+            return (c[0] * s, c[1] * s, c[2] * s)
+    c = world.color
+    return (float(c[0]), float(c[1]), float(c[2]))
+
+
+def render_visible_objects(view_layer: Any) -> set[int]:
+    """Pointers of the original objects that a render of ``view_layer`` shows: not ``hide_render``,
+    and in at least one collection path that is neither excluded nor hidden for renders."""
+    found: set[int] = set()
+
+    def visit(lc: Any) -> None:
+        if lc.exclude or lc.collection.hide_render:
+            return
+        for obj in lc.collection.objects:
+            if not obj.hide_render:
+                found.add(obj.as_pointer())
+        for child in lc.children:
+            visit(child)
+
+    visit(view_layer.layer_collection)
+    return found
+
+
+def build_draw_scene(scene: Any = None, depsgraph: Any = None) -> DrawScene:
+    """A :class:`DrawScene` of a ``bpy.types.Scene`` (default: the context scene).
+
+    ``depsgraph``: an evaluated depsgraph of the scene (the render engine passes its
+    render depsgraph); default ``bpy.context.evaluated_depsgraph_get()`` for the
+    context scene. Raises :class:`SceneError` when the scene has no camera.
+    """
+    import bpy
+
+    if depsgraph is not None and scene is None:
+        scene = depsgraph.scene
+    if scene is None:
+        scene = bpy.context.scene
+    scene = getattr(scene, "original", scene) or scene
+    if depsgraph is None:
+        depsgraph = _depsgraph_for(scene)
+    view_layer = depsgraph.view_layer
+    check_visibility = depsgraph.mode != "RENDER"
+    warnings: list[str] = []
+    settings = scene_settings(scene)
+
+    cam_obj = scene.camera
+    if cam_obj is None:
+        raise SceneError(f"scene {scene.name!r} has no camera")
+    if cam_obj.type != "CAMERA":
+        raise SceneError(f"scene {scene.name!r}: active camera {cam_obj.name!r} is not a camera object")
+    width, height = render_size(scene)
+    camera = _camera(cam_obj.evaluated_get(depsgraph), depsgraph, scene, width, height)
+
+    ex = _Extractor(depsgraph, warnings)
+    renderers: list[Renderer] = []
+    suns: list[tuple[float, str, Any, np.ndarray]] = []
+    visible = render_visible_objects(view_layer) if check_visibility else set()
+
+    def add(obj: Any, name: str, matrix: Any) -> None:
+        mw = _matrix(matrix)
+        if obj.type == "LIGHT" and obj.data.type == "SUN":
+            energy = float(obj.data.energy)
+            suns.append((energy * max(float(c) for c in obj.data.color), name, obj, mw))
+        elif obj.type in MESH_LIKE:
+            renderers.extend(ex.renderers(obj, mw, name))
+
+    # Curves and text evaluate to a mesh component that the depsgraph lists as an
+    # instance of the object itself: draw that, not the curve.
+    components: set[int] = set()
+    for inst in depsgraph.object_instances:
+        if inst.is_instance and inst.parent is not None and inst.object.original == inst.parent.original:
+            components.add(inst.parent.original.as_pointer())
+    seen: set[int] = set()
+    for inst in depsgraph.object_instances:
+        obj = inst.object
+        original = obj.original
+        if not inst.is_instance:
+            key = original.as_pointer()
+            seen.add(key)
+            if (check_visibility and key not in visible) or not inst.show_self:
+                continue
+            if obj.type in ("CURVE", "FONT", "SURFACE") and key in components:
+                continue
+            add(obj, original.name, inst.matrix_world)
+        else:
+            parent = inst.parent.original if inst.parent is not None else original
+            if (check_visibility and parent.as_pointer() not in visible) or not inst.show_self:
+                continue
+            if original == parent:
+                name = parent.name
+            else:
+                name = f"{parent.name}/{original.name}#{inst.random_id & 0xFFFFFFFF:08x}"
+            add(obj, name, inst.matrix_world)
+    if check_visibility:
+        # A viewport depsgraph leaves out objects hidden in the viewport that still render.
+        for original in view_layer.objects:
+            key = original.as_pointer()
+            if key in seen or key not in visible or original.type not in MESH_LIKE | {"LIGHT"}:
+                continue
+            obj = original.evaluated_get(depsgraph)
+            if not obj.is_evaluated:
+                warnings.append(f"object {original.name!r} is disabled in viewports: "
+                                "rendered without modifiers (enable it, or render with the Unity Passes engine)")
+            add(obj, original.name, obj.matrix_world)
+
+    light = None
+    if suns:
+        best = max(s[0] for s in suns)
+        _, name, obj, mw = min((s for s in suns if s[0] == best), key=lambda s: s[1])
+        axis = mw[:3, :3] @ np.array([0.0, 0.0, 1.0])
+        norm = float(np.linalg.norm(axis))
+        direction = tuple(float(v) for v in (axis / norm if norm > 0 else np.array([0.0, 0.0, 1.0])))
+        light = Light(direction=direction, color=tuple(float(c) for c in obj.data.color),
+                      energy=float(obj.data.energy), name=name)
+
+    if settings["ambient_from_world"]:
+        ambient, ambient_linear = world_ambient(scene.world), True
+    else:
+        ambient, ambient_linear = tuple(settings["ambient_color"][:3]), False
+
+    return DrawScene(
+        camera=camera,
+        renderers=tuple(renderers),
+        light=light,
+        ambient=tuple(float(c) for c in ambient),
+        ambient_is_linear=ambient_linear,
+        color_space=ColorSpace.parse(settings["color_space"]),
+        hdr=settings["hdr"],
+        clear_color=tuple(settings["clear_color"]),
+        sort_mode=SortMode.parse(settings["sort_mode"]),
+        sort_axis=tuple(settings["sort_axis"]),
+        warnings=warnings,
+    )
+
+
+def _depsgraph_for(scene: Any) -> Any:
+    """The evaluated (viewport) depsgraph of ``scene`` and its first render-enabled view layer."""
+    import bpy
+
+    if scene == bpy.context.scene:
+        return bpy.context.evaluated_depsgraph_get()
+    layer = next((v for v in scene.view_layers if v.use), scene.view_layers[0])
+    with bpy.context.temp_override(scene=scene, view_layer=layer):
+        return bpy.context.evaluated_depsgraph_get()
+
+
+def _camera(cam_eval: Any, depsgraph: Any, scene: Any, width: int, height: int) -> Camera:
+    r = scene.render
+    proj = cam_eval.calc_matrix_camera(depsgraph, x=width, y=height,
+                                       scale_x=float(r.pixel_aspect_x), scale_y=float(r.pixel_aspect_y))
+    view = _matrix(cam_eval.matrix_world.inverted())
+    return Camera(view_matrix=view, projection=_matrix(proj), width=int(width), height=int(height),
+                  orthographic=cam_eval.data.type == "ORTHO")
+

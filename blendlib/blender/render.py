@@ -1,0 +1,137 @@
+"""Rendering a Blender scene with the Unity pipeline, and writing a Frame back as a Blender image.
+
+:func:`render` evaluates with the viewport depsgraph; :func:`render_final` renders as F12
+does, through Blender's render-mode depsgraph (a capture engine keeps the Frame in memory).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from ..core import colorspace, pipeline
+from ..core.scene import SceneError
+from .extract import build_draw_scene
+
+
+def render(scene: Any = None, depsgraph: Any = None, progress: Callable[[float], None] | None = None,
+           should_cancel: Callable[[], bool] | None = None) -> pipeline.Frame:
+    """Render a Blender scene with the Unity pipeline; see :func:`blendlib.render`.
+
+    The Frame's ``warnings`` hold the extraction warnings followed by the core's.
+    Raises :class:`SceneError` (no camera, bad input) or :class:`pipeline.RenderCancelled`.
+    """
+    draw = build_draw_scene(scene, depsgraph)
+    frame = pipeline.render_scene(draw, progress=progress, should_cancel=should_cancel)
+    extra = [w for w in draw.warnings if w not in frame.warnings]
+    frame.warnings[:0] = extra
+    return frame
+
+
+_CAPTURE_ENGINE_ID = "UNITY_PASSES_CAPTURE"
+_capture: dict[str, Any] = {}
+_capture_engine: list = []
+
+
+def _capture_engine_class() -> Any:
+    """A minimal render engine that renders with the Unity pipeline and keeps the Frame in memory.
+
+    Registered on first use (not listed for users: the add-on's engine is ``UNITY_PASSES``).
+    """
+    import bpy
+
+    if _capture_engine:
+        return _capture_engine[0]
+
+    class UnityPassesCaptureEngine(bpy.types.RenderEngine):
+        bl_idname = _CAPTURE_ENGINE_ID
+        bl_label = "Unity Passes (capture)"
+        bl_use_preview = False
+
+        def render(self, depsgraph):
+            try:
+                _capture["frame"] = render(depsgraph.scene, depsgraph, progress=_capture.get("progress"),
+                                           should_cancel=_capture.get("should_cancel"))
+            except Exception as exc:  # noqa: BLE001 - handed back to render_final's caller
+                _capture["error"] = exc
+
+    bpy.utils.register_class(UnityPassesCaptureEngine)
+    _capture_engine.append(UnityPassesCaptureEngine)
+    return UnityPassesCaptureEngine
+
+
+def render_final(scene: Any = None, progress: Callable[[float], None] | None = None,
+                 should_cancel: Callable[[], bool] | None = None, frame: int | None = None) -> pipeline.Frame:
+    """Render as F12 does: through Blender's render-mode depsgraph.
+
+    :func:`render` uses the viewport depsgraph (Python cannot make a render-mode one), so
+    modifiers evaluate with their viewport settings there. This runs ``bpy.ops.render.render``
+    with a capture engine instead, so modifier render levels and render visibility apply
+    exactly as for F12 and ``blender -b -E UNITY_PASSES``. The scene's render engine is set
+    for the call and restored; no image is written. ``frame``: the frame to set first.
+    Raises like :func:`render`.
+    """
+    import bpy
+
+    scene = scene or bpy.context.scene
+    if scene.camera is None:  # checked here: the operator would fail with its own wording
+        raise SceneError(f"scene {scene.name!r} has no camera")
+    engine = _capture_engine_class()
+    previous = scene.render.engine
+    _capture.clear()
+    _capture.update(progress=progress, should_cancel=should_cancel)
+    scene.render.engine = engine.bl_idname
+    try:
+        with bpy.context.temp_override(scene=scene):
+            if frame is not None:
+                scene.frame_set(frame)
+            bpy.ops.render.render(scene=scene.name)
+    finally:
+        scene.render.engine = previous
+    if "error" in _capture:
+        raise _capture.pop("error")
+    if "frame" not in _capture:
+        raise SceneError(f"scene {scene.name!r}: Blender did not render it (no view layer enabled for rendering?)")
+    result = _capture.pop("frame")
+    _capture.clear()
+    return result
+
+
+def linear_rgba(frame: pipeline.Frame, encoded: bool | None = None, opaque: bool = False) -> np.ndarray:
+    """The frame as linear RGBA float32 (row 0 top): encoded frame values are decoded to linear.
+    ``opaque``: alpha 1 (what a screen shows, the Combined pass)."""
+    if encoded is None:
+        encoded = frame.encoded
+    color = np.array(frame.color, dtype=np.float32, copy=True)
+    if encoded:
+        color[..., :3] = colorspace.decode_fast(color[..., :3]).astype(np.float32)
+    if opaque:
+        color[..., 3] = 1.0
+    return color
+
+
+def write_image(frame: pipeline.Frame, name: str, *, encoded: bool | None = None, opaque: bool = False) -> Any:
+    """Write a frame into the ``bpy.types.Image`` called ``name`` (created, or resized, as a float image).
+
+    The image holds linear RGB (encoded frame values decoded; ``encoded`` overrides what the
+    frame says) and the frame's alpha (or 1 with ``opaque``), bottom row first as Blender stores it,
+    so that the Image Editor with the Standard view transform shows the frame values.
+    """
+    import bpy
+
+    h, w = frame.color.shape[:2]
+    image = bpy.data.images.get(name)
+    if image is not None and (not image.is_float or image.source != "GENERATED"):
+        bpy.data.images.remove(image)
+        image = None
+    if image is None:
+        image = bpy.data.images.new(name, width=w, height=h, alpha=True, float_buffer=True)
+    elif tuple(image.size) != (w, h):
+        image.scale(w, h)
+    rgba = linear_rgba(frame, encoded=encoded, opaque=opaque)
+    image.pixels.foreach_set(np.ascontiguousarray(rgba[::-1]).ravel())
+    image.update()
+    return image
+

@@ -1,0 +1,322 @@
+"""Output merger (docs/pipeline.md §8): stencil, depth, blending, colour mask — in exact primitive order.
+
+A chunk of fragments arrives in draw order. Fragments alone on their pixel are
+independent and applied at once. The rest are sorted stably by pixel, ranked
+within their pixel (0 = first drawn), and applied layer by layer: layer k holds
+the k-th fragment of every such pixel, so each layer touches distinct pixels and
+is one vectorised read-modify-write. The result equals applying the fragments one
+by one in order, as a GPU does, with a loop over layers (the depth complexity of
+one draw call), never over fragments or pixels.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import colorspace
+from .vertex import DEPTH_MAX
+from .vocabulary import BlendFactor, BlendOp, ColorSpace, CompareFunction, Pass, StencilOp
+
+_COMPARE = {
+    CompareFunction.Less: np.less,
+    CompareFunction.Greater: np.greater,
+    CompareFunction.LEqual: np.less_equal,
+    CompareFunction.GEqual: np.greater_equal,
+    CompareFunction.Equal: np.equal,
+    CompareFunction.NotEqual: np.not_equal,
+}
+_CHANNEL_INDEX = {"R": 0, "G": 1, "B": 2, "A": 3}
+#: float32(q / 255.0) for the 256 8-bit codes (the output value of an LDR code).
+_CODE_VALUES = (np.arange(256) / 255.0).astype(np.float32)
+
+
+def compare(func: CompareFunction, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a OP b`` elementwise as a bool array."""
+    if func is CompareFunction.Always:
+        return np.ones(np.broadcast(a, b).shape, dtype=bool)
+    if func is CompareFunction.Never:
+        return np.zeros(np.broadcast(a, b).shape, dtype=bool)
+    return _COMPARE[func](a, b)
+
+
+def stencil_op(op: StencilOp, s: np.ndarray, ref: int) -> np.ndarray:
+    """The new stencil value (int64) before the write mask."""
+    s = s.astype(np.int64)
+    if op is StencilOp.Keep:
+        return s
+    if op is StencilOp.Zero:
+        return np.zeros_like(s)
+    if op is StencilOp.Replace:
+        return np.full_like(s, ref)
+    if op is StencilOp.IncrSat:
+        return np.minimum(s + 1, 255)
+    if op is StencilOp.DecrSat:
+        return np.maximum(s - 1, 0)
+    if op is StencilOp.Invert:
+        return 255 - s
+    if op is StencilOp.IncrWrap:
+        return (s + 1) & 255
+    return (s - 1) & 255  # DecrWrap
+
+
+class FrameBuffers:
+    """Colour, depth and stencil of a frame, flat in window order (index ``y*W + x``, y up).
+
+    ``color``: LDR (H*W, 4) uint8 codes (sRGB-encoded rgb in Linear), HDR (H*W, 4) float32.
+    ``depth``: (H*W,) int64 in 0..2**24-1. ``stencil``: (H*W,) uint8.
+    """
+
+    def __init__(self, width: int, height: int, hdr: bool, color_space: ColorSpace, clear_rgba) -> None:
+        self.width, self.height = int(width), int(height)
+        self.hdr = bool(hdr)
+        self.linear = color_space is ColorSpace.Linear
+        n = self.width * self.height
+        clear = np.array([float(c) for c in clear_rgba], dtype=np.float64)[None, :]
+        if self.hdr:
+            self.color = np.empty((n, 4), dtype=np.float32)
+        else:
+            self.color = np.empty((n, 4), dtype=np.uint8)
+        self.color[:] = self.encode(clear)
+        self.depth = np.full(n, DEPTH_MAX, dtype=np.int64)
+        self.stencil = np.zeros(n, dtype=np.uint8)
+
+    def encode(self, rgba: np.ndarray) -> np.ndarray:
+        """Shading-space values (N, 4) float64 → what the colour buffer stores."""
+        if self.hdr:
+            return rgba.astype(np.float32)
+        out = np.empty(rgba.shape, dtype=np.uint8)
+        if self.linear:
+            out[:, :3] = colorspace.quantize_encoded(rgba[:, :3])
+        else:
+            out[:, :3] = colorspace.quantize_unorm(rgba[:, :3])
+        out[:, 3] = colorspace.quantize_unorm(rgba[:, 3])
+        return out
+
+    def decode(self, stored: np.ndarray) -> np.ndarray:
+        """Stored colour (N, 4) → shading-space float64 values (the blend destination)."""
+        if self.hdr:
+            return stored.astype(np.float64)
+        if self.linear:
+            out = np.empty(stored.shape, dtype=np.float64)
+            out[:, :3] = colorspace.DECODE_LUT[stored[:, :3]]
+            out[:, 3] = stored[:, 3] / 255.0
+            return out
+        return stored / 255.0
+
+    def output(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(color (H, W, 4) float32, depth (H, W) float32, stencil (H, W) uint8), row 0 = top."""
+        h, w = self.height, self.width
+        if self.hdr:
+            color = self.color.reshape(h, w, 4)[::-1].copy()
+        else:
+            color = _CODE_VALUES[self.color.reshape(h, w, 4)[::-1]]
+        depth = (self.depth.reshape(h, w)[::-1] / float(DEPTH_MAX)).astype(np.float32)
+        stencil = self.stencil.reshape(h, w)[::-1].copy()
+        return color, depth, stencil
+
+
+def _rgb_factor(f: BlendFactor, s: np.ndarray, d: np.ndarray) -> np.ndarray | float:
+    """Colour factor (N, 3) or a scalar for One/Zero."""
+    if f is BlendFactor.One:
+        return 1.0
+    if f is BlendFactor.Zero:
+        return 0.0
+    if f is BlendFactor.SrcAlphaSaturate:
+        return np.minimum(s[:, 3], 1.0 - d[:, 3])[:, None]
+    base = {
+        BlendFactor.SrcColor: s[:, :3], BlendFactor.OneMinusSrcColor: s[:, :3],
+        BlendFactor.SrcAlpha: s[:, 3:4], BlendFactor.OneMinusSrcAlpha: s[:, 3:4],
+        BlendFactor.DstColor: d[:, :3], BlendFactor.OneMinusDstColor: d[:, :3],
+        BlendFactor.DstAlpha: d[:, 3:4], BlendFactor.OneMinusDstAlpha: d[:, 3:4],
+    }[f]
+    return 1.0 - base if f.value.startswith("OneMinus") else base
+
+
+def _alpha_factor(f: BlendFactor, s: np.ndarray, d: np.ndarray) -> np.ndarray | float:
+    """Alpha factor (N,) or a scalar."""
+    if f in (BlendFactor.One, BlendFactor.SrcAlphaSaturate):
+        return 1.0
+    if f is BlendFactor.Zero:
+        return 0.0
+    src = f in (BlendFactor.SrcColor, BlendFactor.SrcAlpha, BlendFactor.OneMinusSrcColor,
+                BlendFactor.OneMinusSrcAlpha)
+    base = s[:, 3] if src else d[:, 3]
+    return 1.0 - base if f.value.startswith("OneMinus") else base
+
+
+def _apply_op(op: BlendOp, s: np.ndarray, fs, d: np.ndarray, fd) -> np.ndarray:
+    if op is BlendOp.Min:
+        return np.minimum(s, d)
+    if op is BlendOp.Max:
+        return np.maximum(s, d)
+    if op is BlendOp.Add:
+        return s * fs + d * fd
+    if op is BlendOp.Sub:
+        return s * fs - d * fd
+    return d * fd - s * fs  # RevSub
+
+
+def blend(p: Pass, src: np.ndarray, dst: np.ndarray) -> np.ndarray:
+    """Blend result (N, 4) float64 from source and destination in shading space (§8)."""
+    if not p.blend:
+        return src
+    out = np.empty_like(src)
+    out[:, :3] = _apply_op(p.blend_op, src[:, :3], _rgb_factor(p.src_blend, src, dst),
+                           dst[:, :3], _rgb_factor(p.dst_blend, src, dst))
+    sa, da, opa = p.alpha_factors
+    out[:, 3] = _apply_op(opa, src[:, 3], _alpha_factor(sa, src, dst), dst[:, 3], _alpha_factor(da, src, dst))
+    return out
+
+
+#: Colour factors that read another channel of the destination (its alpha): a per-channel
+#: lookup table cannot express them.
+_CROSS_CHANNEL = frozenset({BlendFactor.DstAlpha, BlendFactor.OneMinusDstAlpha, BlendFactor.SrcAlphaSaturate})
+
+
+def lut_eligible(p: Pass, hdr: bool) -> bool:
+    """Whether each written channel of this pass depends only on the source and the same
+    destination channel's 8-bit code, so :func:`blend_lut` can tabulate it exactly."""
+    if hdr:
+        return False
+    return not p.blend or (p.src_blend not in _CROSS_CHANNEL and p.dst_blend not in _CROSS_CHANNEL)
+
+
+def blend_lut(buf: FrameBuffers, p: Pass, palette: np.ndarray) -> np.ndarray:
+    """Stored codes for every (source colour, destination code): (K, 256, 4) uint8.
+
+    Row (k, d) is the ordinary blend of ``palette[k]`` over a destination whose four
+    channels all hold code ``d``, computed by the same functions as per-fragment blending,
+    so a lookup equals the per-fragment result bit for bit (for :func:`lut_eligible` passes).
+    """
+    k = palette.shape[0]
+    src = np.repeat(np.minimum(np.maximum(palette, 0.0), 1.0), 256, axis=0)
+    codes = np.repeat(np.tile(np.arange(256, dtype=np.uint8), k)[:, None], 4, axis=1)
+    result = blend(p, src, buf.decode(codes)) if p.blend else src
+    return buf.encode(result).reshape(k, 256, 4)
+
+
+def apply_layer(
+    buf: FrameBuffers, p: Pass, pix: np.ndarray, depth: np.ndarray, rgba: np.ndarray,
+    ids: np.ndarray | None = None, lut: np.ndarray | None = None,
+) -> None:
+    """Apply fragments on *distinct* pixels: stencil → depth → stencil op → depth write → blend → mask.
+
+    ``pix`` (N,) int64, ``depth`` (N,) int64, ``rgba`` (N, 4) float64 shading-space colours.
+    With ``ids`` (N,) int32 and ``lut`` from :func:`blend_lut`, fragments with ``ids >= 0``
+    take their stored codes from the table (their ``rgba`` rows are not read).
+    """
+    d_old = buf.depth[pix]
+    passed = compare(p.ztest, depth, d_old)
+    if p.stencil:
+        s_old = buf.stencil[pix]
+        rm, wm, ref = p.stencil_read_mask, p.stencil_write_mask, p.stencil_ref
+        s_pass = compare(p.stencil_comp, np.int64(ref & rm), s_old.astype(np.int64) & rm)
+        z_pass = passed & s_pass
+        new = np.where(
+            ~s_pass, stencil_op(p.stencil_fail, s_old, ref),
+            np.where(z_pass, stencil_op(p.stencil_pass, s_old, ref), stencil_op(p.stencil_zfail, s_old, ref)),
+        )
+        buf.stencil[pix] = ((s_old.astype(np.int64) & (~wm & 255)) | (new & wm)).astype(np.uint8)
+        passed = z_pass
+    if not np.any(passed):
+        return
+    if not passed.all():
+        pix, depth, rgba = pix[passed], depth[passed], rgba[passed]
+        if ids is not None:
+            ids = ids[passed]
+    if p.zwrite:
+        buf.depth[pix] = depth
+    mask = [_CHANNEL_INDEX[c] for c in ("R", "G", "B", "A") if c in p.color_mask]
+    if not mask:
+        return
+    if ids is not None:
+        tabled = ids >= 0
+        if tabled.all():
+            result = _lookup(buf, lut, pix, ids)
+        else:
+            result = np.empty((pix.shape[0], 4), dtype=buf.color.dtype)
+            result[tabled] = _lookup(buf, lut, pix[tabled], ids[tabled])
+            plain = ~tabled
+            result[plain] = _blend_fragments(buf, p, pix[plain], rgba[plain])
+    else:
+        result = _blend_fragments(buf, p, pix, rgba)
+    if len(mask) == 4:
+        buf.color[pix] = result
+    else:
+        buf.color[pix[:, None], np.array(mask)[None, :]] = result[:, mask]
+
+
+def _blend_fragments(buf: FrameBuffers, p: Pass, pix: np.ndarray, rgba: np.ndarray) -> np.ndarray:
+    """Stored values (N, 4) of blending ``rgba`` over the buffer at ``pix``."""
+    src = rgba if buf.hdr else np.minimum(np.maximum(rgba, 0.0), 1.0)
+    if p.blend:
+        return buf.encode(blend(p, src, buf.decode(buf.color[pix])))
+    return buf.encode(src)
+
+
+def _lookup(buf: FrameBuffers, lut: np.ndarray, pix: np.ndarray, ids: np.ndarray) -> np.ndarray:
+    """Stored codes (N, 4) uint8 from the table: channel c of ``lut[ids, stored_c, c]``."""
+    stored = buf.color[pix]
+    base = ids.astype(np.int64) * 1024
+    flat = lut.reshape(-1)
+    out = np.empty_like(stored)
+    for c in range(4):
+        out[:, c] = flat[base + stored[:, c].astype(np.int64) * 4 + c]
+    return out
+
+
+#: Up to this many fragments per pixel, layers are peeled (one ``minimum.at`` per layer);
+#: deeper draw calls rank all fragments with one stable sort instead.
+PEEL_LAYERS = 8
+
+
+def merge(
+    buf: FrameBuffers, p: Pass, pix: np.ndarray, depth: np.ndarray, rgba: np.ndarray,
+    ids: np.ndarray | None = None, palette: np.ndarray | None = None,
+) -> int:
+    """Apply a chunk of fragments (in draw order) exactly as one-by-one; returns the layer count.
+
+    Optional ``ids`` (N,) int32 / ``palette`` (K, 4) float64: fragments with ``ids >= 0``
+    have the colour ``palette[ids]`` (constant over their triangle) and blend through a
+    lookup table (:func:`blend_lut`); only valid when :func:`lut_eligible`.
+    """
+    n = pix.shape[0]
+    if n == 0:
+        return 0
+    lut = blend_lut(buf, p, palette) if ids is not None else None
+
+    def layer(sel) -> None:
+        if sel is None:
+            apply_layer(buf, p, pix, depth, rgba, ids, lut)
+        else:
+            apply_layer(buf, p, pix[sel], depth[sel], rgba[sel], None if ids is None else ids[sel], lut)
+
+    lo = int(pix.min())
+    local = pix - lo
+    counts = np.bincount(local, minlength=int(pix.max()) - lo + 1)
+    layers = int(counts.max())
+    if layers == 1:
+        layer(None)
+        return 1
+    if layers <= PEEL_LAYERS:
+        # Layer k = the first remaining fragment of each pixel, found with an unbuffered minimum.
+        first = np.full(counts.size, n, dtype=np.int64)
+        remaining = np.arange(n, dtype=np.int64)
+        while remaining.size:
+            where = local[remaining]
+            np.minimum.at(first, where, remaining)
+            is_first = first[where] == remaining
+            layer(remaining[is_first])
+            first[where] = n
+            remaining = remaining[~is_first]
+        return layers
+    order = np.argsort(local, kind="stable")
+    sp = local[order]
+    starts = np.ones(sp.size, dtype=bool)
+    starts[1:] = sp[1:] != sp[:-1]
+    rank = np.arange(sp.size) - np.maximum.accumulate(np.where(starts, np.arange(sp.size), 0))
+    by_rank = order[np.argsort(rank.astype(np.int32), kind="stable")]
+    bounds = np.concatenate([[0], np.cumsum(np.bincount(rank, minlength=layers))])
+    for k in range(layers):
+        layer(by_rank[bounds[k]:bounds[k + 1]])
+    return layers

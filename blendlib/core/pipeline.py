@@ -1,0 +1,242 @@
+"""The frame driver: draw list → per draw call (vertex → raster → shade → output merger) → Frame.
+
+Each draw call's rows are split into horizontal screen bands of about equal fragment
+counts; one worker thread per band rasterises, shades and merges its band (numpy
+releases the GIL in its array loops, so both CPU cores work). Bands own disjoint pixels
+and each band is processed in draw order, so the result is exact.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor, wait
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import merger, raster, shade, vertex
+from .drawlist import sorted_renderers
+from .merger import FrameBuffers, merge
+from .scene import DrawScene, SceneError, validate_scene
+from .vocabulary import ColorSpace, Lighting, Pass
+
+#: Candidate pixels per chunk: bounds the memory of one chunk's arrays to a few hundred MB.
+CHUNK_CANDIDATES = 1 << 20
+
+
+class RenderCancelled(Exception):
+    """Raised when ``should_cancel()`` returned True; no buffers are returned."""
+
+
+@dataclass(eq=False)
+class Frame:
+    """A rendered frame. Row 0 is the top of the image.
+
+    - ``color`` (H, W, 4) float32: the stored frame values (sRGB-encoded in Gamma
+      mode and in Linear LDR; linear in Linear HDR).
+    - ``depth`` (H, W) float32: window depth ``d / (2**24 - 1)``.
+    - ``stencil`` (H, W) uint8.
+    - ``warnings``: one line each (skipped triangles, empty meshes, missing images).
+    - ``encoded``: whether ``color``'s rgb is sRGB-encoded (Gamma mode, and Linear LDR);
+      False only for Linear HDR, whose buffer holds linear values.
+    """
+
+    color: np.ndarray
+    depth: np.ndarray
+    stencil: np.ndarray
+    warnings: list[str] = field(default_factory=list)
+    encoded: bool = True
+
+
+def _shade_chunk(setup, rows, start, stop, width, p: Pass, material, texels, lights, color_space, hdr):
+    """Raster + interpolate + shade + alpha test of rows [start, stop), in draw order.
+
+    Returns the arguments of :func:`merger.merge`: (pix, depth, rgba, ids, palette).
+
+    Triangles whose inputs to shading are constant (no texture or flat UVs, Unlit or flat
+    normals: §6) are shaded once per triangle; the others once per fragment.
+    """
+    frags = raster.rasterize_rows(rows, start, stop, width)
+    if frags.count == 0:
+        return None
+    # Fragments come in triangle order: each source triangle's fragments form one run.
+    src = setup.src[frags.tri]
+    first = np.ones(src.size, dtype=bool)
+    first[1:] = src[1:] != src[:-1]
+    run = np.cumsum(first) - 1
+    tris = src[first]  # (K,) the source triangles of this chunk
+    uvs = setup.uvs_of(tris) if texels is not None and setup.object_uvs is not None else None
+    normals = setup.world_normals_of(tris) if setup.object_normals is not None else None
+    flat = np.ones(tris.size, dtype=bool)  # shading inputs constant over the triangle (§6)
+    uv_flat = normal_flat = None
+    if uvs is not None:
+        uv_flat = raster.flat_corners(uvs)
+        flat &= uv_flat
+    if normals is not None:
+        normal_flat = raster.flat_corners(normals)
+        flat &= normal_flat
+    constant = flat[run]
+    varying = ~constant
+    any_varying = bool(np.any(varying))
+    depth, weights = raster.interpolate(setup, frags, p.offset_factor, p.offset_units, weights=any_varying)
+    rgba = np.empty((frags.count, 4), dtype=np.float64)
+    ids = palette = None
+
+    def shade_at(uv: np.ndarray | None, normal: np.ndarray | None, n: int) -> np.ndarray:
+        uv = np.zeros((n, 2), dtype=np.float64) if uv is None else uv
+        normal = np.zeros((n, 3), dtype=np.float64) if normal is None else normal
+        return shade.shade(material, texels, lights, color_space, uv, normal)
+
+    if np.any(constant):
+        const_tris = np.nonzero(flat)[0]
+        palette = shade_at(None if uvs is None else uvs[const_tris, 0],
+                           None if normals is None else normals[const_tris, 0], const_tris.size)
+        slot = np.full(tris.size, -1, dtype=np.int32)
+        slot[const_tris] = np.arange(const_tris.size, dtype=np.int32)
+        ids = slot[run]
+        # 8-bit blending of a constant colour is a function of the destination code: tabulate
+        # it (256 rows per colour) when that is cheaper than blending every fragment.
+        if not (merger.lut_eligible(p, hdr) and palette.shape[0] * 256 <= np.count_nonzero(constant)):
+            rgba[constant] = palette[ids[constant]]
+            ids = palette = None
+    if any_varying:
+        # Varying fragments are exactly those of the non-flat triangles: whole runs.
+        counts = np.diff(np.append(np.flatnonzero(first), src.size))
+        every = not np.any(constant)  # e.g. a smooth mesh: no masked copies needed
+        keep = slice(None) if every else ~flat
+        w = weights if every else weights[:, varying]
+        uv = None if uvs is None else raster.interpolate_runs(w, uvs[keep], counts[keep], uv_flat[keep])
+        normal = None if normals is None else \
+            raster.interpolate_runs(w, normals[keep], counts[keep], normal_flat[keep])
+        if every:
+            rgba = shade_at(uv, normal, w.shape[1])
+        else:
+            rgba[varying] = shade_at(uv, normal, w.shape[1])
+    pix = frags.pix
+    if p.alpha_test:
+        alpha = rgba[:, 3] if ids is None else np.where(ids >= 0, palette[np.maximum(ids, 0), 3], rgba[:, 3])
+        keep = ~(alpha - float(material.cutoff) < 0)
+        pix, depth, rgba = pix[keep], depth[keep], rgba[keep]
+        if ids is not None:
+            ids = ids[keep]
+    return pix, depth, rgba, ids, palette
+
+
+def _draw_band(buf, setup, rows, chunk_candidates, tail, stop_flag) -> None:
+    """Raster, shade and merge one screen band of a draw call, chunk by chunk in draw order."""
+    p = tail[1]
+    for a, b in raster.row_chunks(rows, chunk_candidates):
+        if stop_flag.is_set():
+            return
+        res = _shade_chunk(setup, rows, a, b, *tail)
+        if res is not None:
+            merge(buf, p, *res)
+
+
+def _wait(futures, should_cancel, stop_flag) -> None:
+    """Wait for band workers, polling ``should_cancel`` from this (the calling) thread."""
+    pending = set(futures)
+    while pending:
+        done, pending = wait(pending, timeout=0.05)
+        for f in done:
+            f.result()  # re-raise worker errors
+        if should_cancel is not None and should_cancel():
+            stop_flag.set()
+            wait(pending)
+            return
+
+
+def render_scene(
+    scene: DrawScene,
+    *,
+    progress: Callable[[float], None] | None = None,
+    should_cancel: Callable[[], bool] | None = None,
+    workers: int | None = None,
+    chunk_candidates: int = CHUNK_CANDIDATES,
+) -> Frame:
+    """Render a draw scene exactly as Unity's built-in pipeline would (docs/pipeline.md).
+
+    ``progress(fraction)`` is called between draw calls; ``should_cancel()`` is polled
+    between draw calls and chunks, and a True answer raises :class:`RenderCancelled`.
+    Raises :class:`blendlib.scene.SceneError` (one line) for input that cannot render.
+    """
+    warnings = list(scene.warnings) + validate_scene(scene)
+    cam = scene.camera
+    width, height = int(cam.width), int(cam.height)
+    cs = scene.color_space
+    clear = shade.gamma_color_to_shading(scene.clear_color[:3], cs) + (float(scene.clear_color[3]),)
+    buf = FrameBuffers(width, height, scene.hdr, cs, clear)
+    lights = shade.frame_lights(scene)
+    try:
+        order = sorted_renderers(scene)
+    except ValueError as exc:
+        raise SceneError(str(exc)) from None
+    calls = sum(len(r.material.draw_passes) for r in order)
+    texel_cache: dict[int, np.ndarray] = {}
+    workers = workers if workers is not None else min(2, os.cpu_count() or 1)
+
+    def cancelled() -> None:
+        if should_cancel is not None and should_cancel():
+            raise RenderCancelled("render cancelled")
+
+    done = 0
+    degenerate: list[tuple[str, int]] = []  # (object, zero-area triangles): one summary warning
+    stop_flag = threading.Event()
+    pool = ThreadPoolExecutor(max_workers=workers) if workers > 1 else None
+    try:
+        for renderer in order:
+            cancelled()
+            mesh = renderer.mesh
+            if mesh.triangle_count == 0:
+                done += len(renderer.material.draw_passes)
+                continue
+            material = renderer.material
+            setup = vertex.setup_triangles(
+                mesh, renderer.matrix_world, cam,
+                need_normals=material.lighting is not Lighting.Unlit, need_uvs=material.main_tex is not None,
+                pool=pool, parts=workers,
+            )
+            label = f"object {renderer.name!r} slot {renderer.slot}"
+            if setup.skipped_nonfinite:
+                warnings.append(f"{label}: skipped {setup.skipped_nonfinite} triangles with non-finite vertices")
+            if setup.degenerate:
+                degenerate.append((renderer.name, setup.degenerate))
+            texels = None
+            if material.main_tex is not None:
+                key = id(material.main_tex)
+                if key not in texel_cache:
+                    texel_cache[key] = shade.texture_texels(material.main_tex, cs)
+                texels = texel_cache[key]
+            for p in material.draw_passes:
+                cancelled()
+                selected = vertex.cull_select(setup, p.cull)
+                rows = raster.coverage_rows(setup, selected, width, height, pool=pool, parts=workers)
+                tail = (width, p, material, texels, lights, cs, scene.hdr)
+                bands = rows.split_bands(workers, height) if pool is not None else [rows]
+                if len(bands) == 1:
+                    _draw_band(buf, setup, bands[0], chunk_candidates, tail, stop_flag)
+                else:
+                    futures = [pool.submit(_draw_band, buf, setup, band, chunk_candidates, tail, stop_flag)
+                               for band in bands]
+                    _wait(futures, should_cancel, stop_flag)
+                if stop_flag.is_set():
+                    raise RenderCancelled("render cancelled")
+                done += 1
+                if progress is not None:
+                    progress(done / max(calls, 1))
+    finally:
+        if pool is not None:
+            pool.shutdown(wait=True, cancel_futures=True)
+    if degenerate:
+        total = sum(n for _, n in degenerate)
+        names = sorted({name for name, _ in degenerate})
+        shown = ", ".join(repr(n) for n in names[:3]) + (f" and {len(names) - 3} more" if len(names) > 3 else "")
+        warnings.append(f"{total} degenerate (zero-area) triangles draw nothing, in {shown}")
+    color, depth, stencil = buf.output()
+    textures = (r.material.main_tex for r in order)
+    missing = {t.name for t in textures if t is not None and t.missing}
+    warnings.extend(f"image {name!r}: file missing, drawn magenta" for name in sorted(missing))
+    encoded = not (scene.hdr and cs is ColorSpace.Linear)
+    return Frame(color=color, depth=depth, stencil=stencil, warnings=warnings, encoded=encoded)

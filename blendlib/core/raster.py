@@ -1,0 +1,270 @@
+"""Raster stage (docs/pipeline.md §4–§6), vectorised numpy.
+
+- :func:`coverage_rows`: the triangles a pass draws → per-row candidate spans.
+- :func:`rasterize_rows`: a slice of those rows → :class:`Fragments` (exact integer
+  top-left coverage), in draw order.
+- :func:`interpolate`: fragments → 24-bit depth and perspective-correct weights.
+
+Work is proportional to covered pixels plus rows (spans), not to bounding boxes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .vertex import DEPTH_MAX, HALF, SUBPIXEL, TriangleSetup, run_parts
+
+
+@dataclass(eq=False)
+class Rows:
+    """Spans of a pass: one entry per (triangle, pixel row) with covered pixels, in draw order.
+
+    ``tri`` (R,) int64 setup index; ``y`` (R,) int64 pixel row (from the bottom);
+    ``x0`` (R,) int64 first covered column and ``length`` (R,) int64 covered pixels: the
+    span ``[x0, x0 + length)`` is exactly the row's covered pixels (top-left rule applied
+    in integers). ``c0``, ``c1``, ``dy0``, ``dy1`` (R,) int64: the row's edge functions
+    ``E_k = c_k - dy_k*Px`` for the counter-clockwise edges b→c and c→a (the third is
+    ``area - E_0 - E_1``); ``swap`` (R,) bool: the triangle was clockwise and its coverage
+    order is (v0, v2, v1); ``area`` (R,) int64 |area2|.
+    """
+
+    tri: np.ndarray
+    y: np.ndarray
+    x0: np.ndarray
+    length: np.ndarray
+    c0: np.ndarray
+    c1: np.ndarray
+    dy0: np.ndarray
+    dy1: np.ndarray
+    swap: np.ndarray
+    area: np.ndarray
+
+    @property
+    def count(self) -> int:
+        return int(self.tri.shape[0])
+
+    def take(self, mask: np.ndarray) -> Rows:
+        """The rows where ``mask`` is True, order kept."""
+        return Rows(**{name: getattr(self, name)[mask] for name in self.__dataclass_fields__})
+
+    def split_bands(self, bands: int, height: int) -> list[Rows]:
+        """Split into up to ``bands`` horizontal screen bands of about equal fragment counts.
+
+        Bands cover disjoint pixel rows, so they can be merged independently and exactly.
+        """
+        if bands <= 1 or self.count == 0:
+            return [self]
+        per_y = np.bincount(self.y, weights=self.length, minlength=height)
+        total = per_y.sum()
+        if total == 0:
+            return [self]
+        cuts = np.searchsorted(np.cumsum(per_y), total * np.arange(1, bands) / bands, side="right")
+        band = np.searchsorted(cuts, self.y, side="right")
+        return [part for k in range(bands) if (part := self.take(band == k)).count]
+
+
+def _ceil_div(a: np.ndarray, b: int) -> np.ndarray:
+    return -((-a) // b)
+
+
+def coverage_rows(
+    setup: TriangleSetup, selected: np.ndarray, width: int, height: int, pool=None, parts: int = 1
+) -> Rows:
+    """Per-row spans of exactly the covered pixels of the selected triangles (docs/pipeline.md §4).
+
+    With a thread ``pool``, contiguous parts of ``selected`` are done in parallel and joined
+    in order (rows stay in draw order).
+    """
+    results: dict[int, Rows] = {}
+
+    def part(lo: int, hi: int) -> None:
+        results[lo] = _coverage_rows(setup, selected[lo:hi], width, height)
+
+    run_parts(pool, parts, selected.size, part)
+    if len(results) == 1:
+        return next(iter(results.values()))
+    pieces = [results[k] for k in sorted(results)]
+    return Rows(**{name: np.concatenate([getattr(r, name) for r in pieces]) for name in Rows.__dataclass_fields__})
+
+
+def _coverage_rows(setup: TriangleSetup, selected: np.ndarray, width: int, height: int) -> Rows:
+    """:func:`coverage_rows` for one contiguous part.
+
+    A pixel centre ``Px = x*S + S/2`` of row ``y`` is covered when every edge has
+    ``E_k = c_k - dy_k*Px >= bias_k`` (bias 0 on top-left edges, else 1), i.e.
+    ``dy_k*Px <= rhs_k`` with ``rhs_k = c_k - bias_k``. With ``q = (rhs_k - (S/2)*dy_k) //
+    (S*|dy_k|)``, that is ``x <= q`` when ``dy_k > 0`` and ``x >= -q`` when ``dy_k < 0``
+    (one exact integer division per edge); a horizontal edge keeps or empties the row.
+    """
+    X, Y = setup.X[selected], setup.Y[selected]
+    swap = setup.area2[selected] < 0
+    # Counter-clockwise vertex order (a, b, c) = (v0, v1, v2), or (v0, v2, v1) when clockwise.
+    ax, ay = X[:, 0], Y[:, 0]
+    bx = np.where(swap, X[:, 2], X[:, 1])
+    by = np.where(swap, Y[:, 2], Y[:, 1])
+    cx = np.where(swap, X[:, 1], X[:, 2])
+    cy = np.where(swap, Y[:, 1], Y[:, 2])
+    x_lo = np.maximum(_ceil_div(np.minimum(np.minimum(ax, bx), cx) - HALF, SUBPIXEL), 0)
+    x_hi = np.minimum((np.maximum(np.maximum(ax, bx), cx) - HALF) // SUBPIXEL, width - 1)
+    y_lo = np.maximum(_ceil_div(np.minimum(np.minimum(ay, by), cy) - HALF, SUBPIXEL), 0)
+    y_hi = np.minimum((np.maximum(np.maximum(ay, by), cy) - HALF) // SUBPIXEL, height - 1)
+    has = (x_lo <= x_hi) & (y_lo <= y_hi)  # most tiny triangles hold no pixel centre at all
+    if not np.all(has):
+        selected, swap, ax, ay, bx, by, cx, cy, x_lo, x_hi, y_lo, y_hi = (
+            v[has] for v in (selected, swap, ax, ay, bx, by, cx, cy, x_lo, x_hi, y_lo, y_hi))
+    nrows = y_hi - y_lo + 1
+    total = int(nrows.sum())
+    starts = np.cumsum(nrows) - nrows
+    y = np.repeat(y_lo, nrows) + (np.arange(total, dtype=np.int64) - np.repeat(starts, nrows))
+    py = y * SUBPIXEL + HALF
+    x0 = np.repeat(x_lo, nrows)
+    x1 = np.repeat(x_hi, nrows)
+    # Edges p -> q: b->c (opposite a), c->a (opposite b), a->b (opposite c).
+    c_rows, dy_rows = [], []
+    for xp, yp, xq, yq in ((bx, by, cx, cy), (cx, cy, ax, ay), (ax, ay, bx, by)):
+        dx_t, dy_t = xq - xp, yq - yp
+        top_left = (dy_t < 0) | ((dy_t == 0) & (dx_t < 0))
+        k_t = dy_t * xp - dx_t * yp  # E = dx*(Py - yp) - dy*(Px - xp) = (dx*Py + k) - dy*Px
+        dy = np.repeat(dy_t, nrows)
+        c = np.repeat(dx_t, nrows) * py + np.repeat(k_t, nrows)
+        rhs = c - np.repeat(np.where(top_left, 0, 1), nrows)
+        q = (rhs - HALF * dy) // (SUBPIXEL * np.maximum(np.abs(dy), 1))
+        x1 = np.where(dy > 0, np.minimum(x1, q), x1)
+        x0 = np.where(dy < 0, np.maximum(x0, -q), x0)
+        x1 = np.where((dy == 0) & (rhs < 0), x0 - 1, x1)
+        c_rows.append(c)
+        dy_rows.append(dy)
+    length = np.maximum(x1 - x0 + 1, 0)
+    keep = length > 0
+    area = np.repeat(np.abs(setup.area2[selected]), nrows)
+    rows = Rows(tri=np.repeat(selected, nrows), y=y, x0=x0, length=length, c0=c_rows[0], c1=c_rows[1],
+                dy0=dy_rows[0], dy1=dy_rows[1], swap=np.repeat(swap, nrows), area=area)
+    return rows if np.all(keep) else rows.take(keep)
+
+
+def row_chunks(rows: Rows, max_candidates: int) -> list[tuple[int, int]]:
+    """Split rows into consecutive ranges of at most ``max_candidates`` candidates (at least one row)."""
+    if rows.count == 0:
+        return []
+    ends = np.cumsum(rows.length)
+    total = int(ends[-1])
+    if total == 0:
+        return []
+    bounds = [0]
+    while bounds[-1] < rows.count:
+        start = bounds[-1]
+        base = int(ends[start - 1]) if start else 0
+        stop = int(np.searchsorted(ends, base + max_candidates, side="right"))
+        bounds.append(max(stop, start + 1))
+    return list(zip(bounds[:-1], bounds[1:], strict=True))
+
+
+@dataclass(eq=False)
+class Fragments:
+    """Covered pixels of a chunk, in draw order (fragments of one triangle hit distinct pixels).
+
+    ``pix`` (N,) int64 window pixel index ``y*W + x`` (y from the bottom);
+    ``tri`` (N,) int64 setup triangle index; ``bary`` (3, N) float64 screen-space
+    barycentrics in the triangle's own vertex order (channels first: each row contiguous).
+    """
+
+    pix: np.ndarray
+    tri: np.ndarray
+    bary: np.ndarray
+
+    @property
+    def count(self) -> int:
+        return int(self.pix.shape[0])
+
+
+def rasterize_rows(rows: Rows, start: int, stop: int, width: int) -> Fragments:
+    """The covered pixels of rows ``[start, stop)`` with their barycentrics (docs/pipeline.md §4)."""
+    length = rows.length[start:stop]
+    n = int(length.sum())
+    sl = slice(start, stop)
+    # Per-row values are expanded with repeat (sequential) rather than gathered per fragment.
+    offsets = np.arange(n, dtype=np.int64) - np.repeat(np.cumsum(length) - length, length)
+    x = np.repeat(rows.x0[sl], length) + offsets
+    px = x * SUBPIXEL + HALF
+    area = np.repeat(rows.area[sl], length)
+    ea = np.repeat(rows.c0[sl], length) - np.repeat(rows.dy0[sl], length) * px
+    eb = np.repeat(rows.c1[sl], length) - np.repeat(rows.dy1[sl], length) * px
+    ec = area - ea - eb  # the three edge functions sum to the doubled area
+    farea = area.astype(np.float64)
+    bary = np.empty((3, n), dtype=np.float64)
+    np.divide(ea, farea, out=bary[0])
+    swap = np.repeat(rows.swap[sl], length)
+    if np.any(swap):
+        bary[1] = np.where(swap, ec, eb) / farea
+        bary[2] = np.where(swap, eb, ec) / farea
+    else:
+        np.divide(eb, farea, out=bary[1])
+        np.divide(ec, farea, out=bary[2])
+    pix = np.repeat(rows.y[sl] * width, length) + x
+    return Fragments(pix=pix, tri=np.repeat(rows.tri[sl], length), bary=bary)
+
+
+def interpolate(
+    setup: TriangleSetup, frags: Fragments, offset_factor: float = 0.0, offset_units: float = 0.0,
+    weights: bool = True,
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """Depth and perspective-correct source-triangle weights of fragments (§5, §6).
+
+    Returns ``depth`` (N,) int64 in 0..2**24-1 and ``weights`` (3, N) float64 (channels
+    first) — the weights of the *source* mesh triangle's corners (clipping undone) — or
+    None when ``weights`` is False (no attribute needs them).
+    """
+    t = frags.tri
+    b0, b1, b2 = frags.bary
+    zw = setup.zw[t]
+    z = (b0 * zw[:, 0] + b1 * zw[:, 1]) + b2 * zw[:, 2]
+    if offset_factor != 0.0 or offset_units != 0.0:
+        z = z + (float(offset_factor) * setup.slope()[t] + float(offset_units) * 2.0**-24)
+    z = np.minimum(np.maximum(z, 0.0), 1.0)
+    depth = np.floor(z * DEPTH_MAX + 0.5).astype(np.int64)
+    if not weights:
+        return depth, None
+
+    iw = setup.iw[t]
+    t0, t1, t2 = b0 * iw[:, 0], b1 * iw[:, 1], b2 * iw[:, 2]
+    s = (t0 + t1) + t2
+    p = np.empty((3, t.size), dtype=np.float64)  # channels first: each weight row contiguous
+    np.divide(t0, s, out=p[0])
+    np.divide(t1, s, out=p[1])
+    np.divide(t2, s, out=p[2])
+    if setup.weights is not None:
+        clipped = setup.clipped[t]
+        if np.any(clipped):
+            w = setup.weights[t[clipped]]  # (M, 3 vertices, 3 source corners)
+            pc = p[:, clipped]
+            p[:, clipped] = ((pc[0][:, None] * w[:, 0] + pc[1][:, None] * w[:, 1]) + pc[2][:, None] * w[:, 2]).T
+    return depth, p
+
+
+def flat_corners(corners: np.ndarray) -> np.ndarray:
+    """(T,) bool: the three corner values of each triangle are equal (corners (T, 3, C))."""
+    return np.all((corners[:, 0] == corners[:, 1]) & (corners[:, 0] == corners[:, 2]), axis=1)
+
+
+def interpolate_runs(weights: np.ndarray, corners: np.ndarray, counts: np.ndarray, flat: np.ndarray) -> np.ndarray:
+    """Interpolate an attribute over fragments grouped in runs of one triangle each (§6).
+
+    ``weights`` (3, N) float64; ``corners`` (K, 3, C) corner values of the K triangles;
+    ``counts`` (K,) int64 fragments of each triangle, in order (sum N); ``flat`` (K,) bool:
+    the triangle's corners are equal, so its fragments take the corner value. Returns
+    (N, C) float64 ``(o0*a0 + o1*a1) + o2*a2`` per component. Corner values are expanded
+    with ``repeat`` (sequential copies) rather than gathered per fragment.
+    """
+    n = weights.shape[1]
+    out = np.empty((n, corners.shape[2]), dtype=np.float64)
+    for c in range(corners.shape[2]):
+        a0 = np.repeat(corners[:, 0, c], counts)
+        a1 = np.repeat(corners[:, 1, c], counts)
+        a2 = np.repeat(corners[:, 2, c], counts)
+        out[:, c] = (weights[0] * a0 + weights[1] * a1) + weights[2] * a2
+    if np.any(flat):
+        keep = np.repeat(flat, counts)
+        out[keep] = np.repeat(corners[flat, 0], counts[flat], axis=0)
+    return out

@@ -1,0 +1,177 @@
+"""Plain data the renderer core takes: a draw scene of renderers, camera, light and frame settings.
+
+Nothing here imports bpy; the bridge (:mod:`blendlib.bridge`) builds these from a
+Blender scene, tests build them by hand. Arrays are numpy; shapes and dtypes are
+stated per field and checked by :func:`validate_scene`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .vocabulary import ColorSpace, Material, SortMode
+
+
+class SceneError(ValueError):
+    """Bad input to the core: the message is one line naming the object and what is wrong."""
+
+
+@dataclass(frozen=True, eq=False)
+class Mesh:
+    """Triangles of one renderer, in object space.
+
+    - ``positions``: (V, 3) float32/float64 vertex positions.
+    - ``triangles``: (T, 3) integer vertex indices, in Blender's loop-triangle order
+      (the draw order of the triangles).
+    - ``normals``: (T, 3, 3) float32 object-space normals per triangle corner.
+    - ``uvs``: (T, 3, 2) float32 texture coordinates per corner, or None (all zero).
+    """
+
+    positions: np.ndarray
+    triangles: np.ndarray
+    normals: np.ndarray
+    uvs: np.ndarray | None = None
+
+    @property
+    def triangle_count(self) -> int:
+        return int(self.triangles.shape[0])
+
+
+@dataclass(frozen=True, eq=False)
+class Renderer:
+    """One Unity renderer: one object's triangles that use one material slot.
+
+    ``matrix_world`` (4, 4) float64 object → world. ``bounds_center`` (3,) float64:
+    centre of the object's world-space bounding box (the sort point of SPEC §4).
+    ``name`` is the object name and ``slot`` the material slot index (sort ties).
+    """
+
+    name: str
+    slot: int
+    mesh: Mesh
+    matrix_world: np.ndarray
+    material: Material
+    bounds_center: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class Camera:
+    """The render camera.
+
+    - ``view_matrix`` (4, 4) float64: world → camera (Blender camera looks down its −Z).
+    - ``projection`` (4, 4) float64: camera → OpenGL clip space, as
+      ``Object.calc_matrix_camera(depsgraph, x=W, y=H, scale_x, scale_y)`` gives it.
+    - ``width``, ``height``: the frame size in pixels (resolution × percentage).
+    - ``orthographic``: True for orthographic cameras (the Default sort mode follows it).
+    """
+
+    view_matrix: np.ndarray
+    projection: np.ndarray
+    width: int
+    height: int
+    orthographic: bool = False
+
+    @property
+    def position(self) -> np.ndarray:
+        """World-space camera position (3,) float64."""
+        return np.linalg.inv(np.asarray(self.view_matrix, np.float64))[:3, 3]
+
+    @property
+    def forward(self) -> np.ndarray:
+        """World-space unit view direction (3,) float64 (the camera's −Z axis)."""
+        axis = -np.linalg.inv(np.asarray(self.view_matrix, np.float64))[:3, 2]
+        return axis / np.linalg.norm(axis)
+
+
+@dataclass(frozen=True)
+class Light:
+    """The main directional light (SPEC §4): the render-visible Sun with the largest energy × max(colour).
+
+    ``direction`` (3,) unit vector from the surface towards the light (the lamp's
+    local +Z in world space). ``color`` is Blender's linear lamp colour; ``energy``
+    its strength. The light colour in shading is ``color × energy`` (``color``
+    sRGB-encoded first in Gamma mode).
+    """
+
+    direction: tuple[float, float, float]
+    color: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    energy: float = 1.0
+    name: str = "Sun"
+
+
+@dataclass(frozen=True, eq=False)
+class DrawScene:
+    """Everything one frame needs.
+
+    ``ambient`` is an RGB colour; ``ambient_is_linear`` says whether it is a
+    linear Blender colour (the World background) or COLOR_GAMMA (sRGB-encoded,
+    ``Scene.unity.ambient_color``). ``clear_color`` is COLOR_GAMMA (encoded).
+    """
+
+    camera: Camera
+    renderers: tuple[Renderer, ...] = ()
+    light: Light | None = None
+    ambient: tuple[float, float, float] = (0.2, 0.2, 0.2)
+    ambient_is_linear: bool = False
+    color_space: ColorSpace = ColorSpace.Gamma
+    hdr: bool = False
+    clear_color: tuple[float, float, float, float] = (0.19, 0.30, 0.47, 0.0)
+    sort_mode: SortMode = SortMode.Default
+    sort_axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    warnings: list[str] = field(default_factory=list)
+
+
+#: Refuse frames whose buffers alone would exceed this many pixels (about 1 GB of float32 RGBA).
+MAX_PIXELS = 64 * 1024 * 1024
+
+
+def validate_scene(scene: DrawScene) -> list[str]:
+    """Check a draw scene; raise :class:`SceneError` for what cannot render, return warnings.
+
+    Fatal: bad camera matrices or size, absurd resolutions, non-finite matrices,
+    mismatched array shapes. Warned (and rendered around): empty meshes.
+    Non-finite or degenerate triangles are skipped by the rasterizer with a warning.
+    """
+    cam = scene.camera
+    warnings: list[str] = []
+    w, h = cam.width, cam.height
+    if not (isinstance(w, (int, np.integer)) and isinstance(h, (int, np.integer))) or w < 1 or h < 1:
+        raise SceneError(f"camera: resolution must be positive integers, got {w}x{h}")
+    if int(w) * int(h) > MAX_PIXELS or w > 65536 or h > 65536:
+        raise SceneError(
+            f"camera: resolution {w}x{h} is too large ({w * h * 20 / 2**30:.1f} GiB of buffers; "
+            f"the limit is {MAX_PIXELS} pixels and 65536 per side)"
+        )
+    for name in ("view_matrix", "projection"):
+        m = np.asarray(getattr(cam, name), dtype=np.float64)
+        if m.shape != (4, 4) or not np.all(np.isfinite(m)):
+            raise SceneError(f"camera: {name} must be a finite 4x4 matrix")
+    if not all(math.isfinite(c) for c in scene.clear_color):
+        raise SceneError("scene: clear_color is not finite")
+    for r in scene.renderers:
+        label = f"object {r.name!r} slot {r.slot}"
+        mesh = r.mesh
+        m = np.asarray(r.matrix_world, dtype=np.float64)
+        if m.shape != (4, 4) or not np.all(np.isfinite(m)):
+            raise SceneError(f"{label}: matrix_world must be a finite 4x4 matrix")
+        center = np.asarray(r.bounds_center, dtype=np.float64)
+        if center.shape != (3,) or not np.all(np.isfinite(center)):
+            raise SceneError(f"{label}: bounds_center must be a finite 3-vector (it is the sort point)")
+        pos, tri = np.asarray(mesh.positions), np.asarray(mesh.triangles)
+        if pos.ndim != 2 or pos.shape[1] != 3:
+            raise SceneError(f"{label}: positions must be (V, 3), got {pos.shape}")
+        if tri.ndim != 2 or tri.shape[1] != 3 or not np.issubdtype(tri.dtype, np.integer):
+            raise SceneError(f"{label}: triangles must be integer (T, 3), got {tri.dtype} {tri.shape}")
+        t = tri.shape[0]
+        if t and (tri.min() < 0 or tri.max() >= pos.shape[0]):
+            raise SceneError(f"{label}: triangle indices out of range 0..{pos.shape[0] - 1}")
+        if np.asarray(mesh.normals).shape != (t, 3, 3):
+            raise SceneError(f"{label}: normals must be (T, 3, 3), got {np.asarray(mesh.normals).shape}")
+        if mesh.uvs is not None and np.asarray(mesh.uvs).shape != (t, 3, 2):
+            raise SceneError(f"{label}: uvs must be (T, 3, 2), got {np.asarray(mesh.uvs).shape}")
+        if t == 0:
+            warnings.append(f"{label}: empty mesh, nothing drawn")
+    return warnings

@@ -1,0 +1,370 @@
+"""Vertex and clip stage (docs/pipeline.md §1–§3), vectorised numpy.
+
+- :func:`setup_triangles`: a renderer's mesh → :class:`TriangleSetup` (clip-space
+  transform, near/far/guard-band clipping, snapping to 1/256 pixel, areas). Done
+  once per renderer and shared by its passes.
+- :func:`cull_select`: the triangles a pass with a given ``Cull`` draws.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .scene import Camera, Mesh
+from .vocabulary import Cull
+
+SUBPIXEL = 256
+HALF = SUBPIXEL // 2
+GUARD_BAND = 4.0
+DEPTH_MAX = 2**24 - 1
+_MAX_POLY = 3 + 6  # a triangle clipped by six planes has at most nine vertices
+
+
+def matmul4(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """4x4 product with the explicit left-to-right sums of docs/pipeline.md §1 (float64)."""
+    a = [[float(v) for v in row] for row in np.asarray(a, dtype=np.float64)]
+    b = [[float(v) for v in row] for row in np.asarray(b, dtype=np.float64)]
+    out = [[((a[i][0] * b[0][j] + a[i][1] * b[1][j]) + a[i][2] * b[2][j]) + a[i][3] * b[3][j]
+            for j in range(4)] for i in range(4)]
+    return np.array(out, dtype=np.float64)
+
+
+def normal_matrix(matrix_world: np.ndarray) -> tuple[np.ndarray, float]:
+    """Sign-corrected cofactor matrix of the upper 3x3 and its determinant (docs/pipeline.md §1)."""
+    m = [[float(v) for v in row[:3]] for row in np.asarray(matrix_world, dtype=np.float64)[:3]]
+    c = [[m[(i + 1) % 3][(j + 1) % 3] * m[(i + 2) % 3][(j + 2) % 3]
+          - m[(i + 1) % 3][(j + 2) % 3] * m[(i + 2) % 3][(j + 1) % 3] for j in range(3)] for i in range(3)]
+    det = (m[0][0] * c[0][0] + m[0][1] * c[0][1]) + m[0][2] * c[0][2]
+    if det < 0:
+        c = [[-v for v in row] for row in c]
+    return np.array(c, dtype=np.float64), det
+
+
+def _affine_rows(m: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray, rows: int) -> list[np.ndarray]:
+    """``((m[i,0]*x + m[i,1]*y) + m[i,2]*z) + m[i,3]`` for i < rows (m[i,3] omitted when m has 3 columns)."""
+    out = []
+    for i in range(rows):
+        v = (m[i, 0] * x + m[i, 1] * y) + m[i, 2] * z
+        if m.shape[1] == 4:
+            v = v + m[i, 3]
+        out.append(v)
+    return out
+
+
+@dataclass(eq=False)
+class TriangleSetup:
+    """Screen-space triangles of one renderer, after clipping, in draw order.
+
+    n triangles; all arrays indexed by triangle:
+    - ``X``, ``Y`` (n, 3) int64: snapped window positions in 1/256 pixel, y up.
+    - ``zw`` (n, 3) float64 window depth; ``iw`` (n, 3) float64 ``1/w``.
+    - ``area2`` (n,) int64 twice the signed area (> 0: counter-clockwise).
+    - ``src`` (n,) int64: index of the mesh triangle it came from.
+    - ``weights`` (n, 3, 3) float64 or None: original-triangle weights of each
+      vertex for clipped triangles (row k = vertex k); None when nothing was clipped.
+    - ``clipped`` (n,) bool.
+    - ``front`` (n,) bool: the triangle shows its front side (False for zero area, which
+      no cull mode draws).
+    - ``object_normals`` (T, 3, 3) corner normals and ``normal_matrix`` (3, 3) (§1), or
+      None when shading does not read normals; ``object_uvs`` (T, 3, 2) or None. World
+      normals and float64 UVs are made on demand for the triangles that produce fragments
+      (:meth:`world_normals_of`, :meth:`uvs_of`).
+    """
+
+    X: np.ndarray
+    Y: np.ndarray
+    zw: np.ndarray
+    iw: np.ndarray
+    area2: np.ndarray
+    src: np.ndarray
+    weights: np.ndarray | None
+    clipped: np.ndarray
+    front: np.ndarray
+    object_normals: np.ndarray | None
+    normal_matrix: np.ndarray | None
+    object_uvs: np.ndarray | None
+    skipped_nonfinite: int = 0
+    degenerate: int = 0
+    _slope: np.ndarray | None = None
+
+    def world_normals_of(self, src: np.ndarray) -> np.ndarray:
+        """World-space corner normals (K, 3, 3) float64 of source triangles ``src`` (K,)."""
+        return _world_normals(self.object_normals[src], self.normal_matrix)
+
+    def uvs_of(self, src: np.ndarray) -> np.ndarray:
+        """Corner UVs (K, 3, 2) float64 of source triangles ``src`` (K,)."""
+        return np.asarray(self.object_uvs[src], dtype=np.float64)
+
+    @property
+    def count(self) -> int:
+        return int(self.src.shape[0])
+
+    def slope(self) -> np.ndarray:
+        """(n,) float64 ``max(|dz/dx|, |dz/dy|)`` in window units (polygon offset, §5)."""
+        if self._slope is None:
+            x = self.X.astype(np.float64) / SUBPIXEL
+            y = self.Y.astype(np.float64) / SUBPIXEL
+            z = self.zw
+            a = (x[:, 1] - x[:, 0]) * (y[:, 2] - y[:, 0]) - (x[:, 2] - x[:, 0]) * (y[:, 1] - y[:, 0])
+            with np.errstate(divide="ignore", invalid="ignore"):
+                dzdx = ((z[:, 1] - z[:, 0]) * (y[:, 2] - y[:, 0]) - (z[:, 2] - z[:, 0]) * (y[:, 1] - y[:, 0])) / a
+                dzdy = ((z[:, 2] - z[:, 0]) * (x[:, 1] - x[:, 0]) - (z[:, 1] - z[:, 0]) * (x[:, 2] - x[:, 0])) / a
+            self._slope = np.maximum(np.abs(dzdx), np.abs(dzdy))
+        return self._slope
+
+
+def _plane_distance(v: np.ndarray, plane: int) -> np.ndarray:
+    """Signed distance of clip-space vertices ``v[..., 0:4]`` to clip plane ``plane`` (§2 order)."""
+    x, y, z, w = v[..., 0], v[..., 1], v[..., 2], v[..., 3]
+    if plane == 0:
+        return z + w
+    if plane == 1:
+        return w - z
+    g = GUARD_BAND * w
+    return (g - x, g + x, g - y, g + y)[plane - 2]
+
+
+def _clip_polygons(tri: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Sutherland–Hodgman over the six planes for m triangles carrying 7 values per vertex.
+
+    ``tri`` (m, 3, 7) float64 (x, y, z, w, B0, B1, B2) → polygons (m, 9, 7), counts (m,).
+    """
+    m = tri.shape[0]
+    poly = np.zeros((m, _MAX_POLY, 7), dtype=np.float64)
+    poly[:, :3] = tri
+    count = np.full(m, 3, dtype=np.int64)
+    slots = np.arange(_MAX_POLY)
+    for plane in range(6):
+        d = _plane_distance(poly, plane)  # (m, K)
+        valid = slots[None, :] < count[:, None]
+        nxt = np.where(slots[None, :] + 1 < count[:, None], slots[None, :] + 1, 0)
+        b = np.take_along_axis(poly, nxt[:, :, None], axis=1)
+        db = np.take_along_axis(d, nxt, axis=1)
+        a_in = d >= 0
+        b_in = db >= 0
+        emit_a = valid & a_in
+        emit_i = valid & (a_in != b_in)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            t = d / (d - db)  # only used where the edge crosses the plane; nan elsewhere is masked out
+            inter = poly + t[:, :, None] * (b - poly)
+        cand = np.empty((m, 2 * _MAX_POLY, 7), dtype=np.float64)
+        cand[:, 0::2] = poly
+        cand[:, 1::2] = inter
+        flags = np.empty((m, 2 * _MAX_POLY), dtype=bool)
+        flags[:, 0::2] = emit_a
+        flags[:, 1::2] = emit_i
+        pos = np.cumsum(flags, axis=1) - 1
+        count = flags.sum(axis=1)
+        if np.any(count > _MAX_POLY):  # cannot happen for convex input; guard against float surprises
+            raise AssertionError("clipped polygon exceeds nine vertices")
+        out = np.zeros_like(poly)
+        rows, cols = np.nonzero(flags)
+        out[rows, pos[rows, cols]] = cand[rows, cols]
+        poly = out
+    return poly, count
+
+
+def _to_window(clip: np.ndarray, camera: Camera) -> tuple[np.ndarray, ...]:
+    """Clip coordinates (..., 4) → X, Y (int64 1/256 px), zw, iw (float64), finite mask."""
+    x, y, z, w = clip[..., 0], clip[..., 1], clip[..., 2], clip[..., 3]
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        iw = 1.0 / w
+        xw = (x * iw * 0.5 + 0.5) * camera.width
+        yw = (y * iw * 0.5 + 0.5) * camera.height
+        zw = z * iw * 0.5 + 0.5
+        fx = np.floor(xw * SUBPIXEL + 0.5)
+        fy = np.floor(yw * SUBPIXEL + 0.5)
+    finite = np.isfinite(fx) & np.isfinite(fy) & np.isfinite(zw) & np.isfinite(iw)
+    fx = np.where(finite, fx, 0.0)
+    fy = np.where(finite, fy, 0.0)
+    return fx.astype(np.int64), fy.astype(np.int64), zw, iw, finite
+
+
+def _world_normals(normals: np.ndarray, nmat: np.ndarray) -> np.ndarray:
+    """Corner normals (T, 3, 3) → world space with the explicit sums of §1, float64 (T, 3, 3)."""
+    t = normals.shape[0]
+    cols = np.ascontiguousarray(np.asarray(normals, dtype=np.float64).reshape(t * 3, 3).T)  # (3, 3T)
+    out = np.empty((t * 3, 3), dtype=np.float64)
+    for i, row in enumerate(_affine_rows(nmat, cols[0], cols[1], cols[2], 3)):
+        out[:, i] = row
+    return out.reshape(t, 3, 3)
+
+
+def run_parts(pool, parts: int, n: int, fn, min_part: int = 1 << 15) -> None:
+    """Call ``fn(lo, hi)`` over ``[0, n)`` in up to ``parts`` contiguous ranges on ``pool``.
+
+    ``fn`` must only write its own slice of preallocated outputs. Small ``n`` (or no pool)
+    runs in the calling thread in one piece.
+    """
+    if pool is None or parts <= 1 or n < 2 * min_part:
+        fn(0, n)
+        return
+    bounds = np.linspace(0, n, parts + 1).astype(np.int64)
+    futures = [pool.submit(fn, int(lo), int(hi)) for lo, hi in zip(bounds[:-1], bounds[1:], strict=True) if hi > lo]
+    for f in futures:
+        f.result()
+
+
+def setup_triangles(
+    mesh: Mesh, matrix_world: np.ndarray, camera: Camera, need_normals: bool = True, need_uvs: bool = True,
+    pool=None, parts: int = 1,
+) -> TriangleSetup:
+    """Vertex stage, clipping, viewport and snapping for one renderer (docs/pipeline.md §1–§4).
+
+    ``need_normals`` / ``need_uvs``: whether shading reads them (Lambert; a texture).
+    Attributes not needed are left out (``object_normals`` / ``object_uvs`` None).
+    ``pool`` / ``parts``: a thread pool to split per-vertex and per-triangle work over.
+    """
+    mv = matmul4(camera.view_matrix, matrix_world)
+    mvp = matmul4(camera.projection, mv)
+    nmat, det = normal_matrix(matrix_world)
+
+    pos = np.asarray(mesh.positions, dtype=np.float64)
+    tris = np.asarray(mesh.triangles, dtype=np.int64)
+    t_count = tris.shape[0]
+    v_count = pos.shape[0]
+    object_normals = np.asarray(mesh.normals).reshape(t_count, 3, 3) if need_normals else None
+    object_uvs = np.asarray(mesh.uvs).reshape(t_count, 3, 2) if need_uvs and mesh.uvs is not None else None
+
+    # Per-vertex work first (V <= 3T), gathered per corner afterwards.
+    clip_v = np.empty((v_count, 4), dtype=np.float64)
+    finite_v = np.empty(v_count, dtype=bool)
+    outcode_v = np.empty(v_count, dtype=np.uint8)
+    Xv = np.empty(v_count, dtype=np.int64)
+    Yv = np.empty(v_count, dtype=np.int64)
+    zwv = np.empty(v_count, dtype=np.float64)
+    iwv = np.empty(v_count, dtype=np.float64)
+    okv = np.empty(v_count, dtype=bool)
+
+    def vertex_part(lo: int, hi: int) -> None:
+        p = pos[lo:hi]
+        for i, row in enumerate(_affine_rows(mvp, p[:, 0], p[:, 1], p[:, 2], 4)):
+            clip_v[lo:hi, i] = row
+        cv = clip_v[lo:hi]
+        finite_v[lo:hi] = np.all(np.isfinite(cv), axis=1)
+        code = np.zeros(hi - lo, dtype=np.uint8)
+        for k in range(6):
+            code |= (_plane_distance(cv, k) < 0).astype(np.uint8) << np.uint8(k)
+        outcode_v[lo:hi] = code
+        Xv[lo:hi], Yv[lo:hi], zwv[lo:hi], iwv[lo:hi], okv[lo:hi] = _to_window(cv, camera)
+
+    run_parts(pool, parts, v_count, vertex_part)
+
+    keep_whole = np.empty(t_count, dtype=bool)
+    to_clip = np.empty(t_count, dtype=bool)
+    finite = np.empty(t_count, dtype=bool)
+    degenerate_t = np.empty(t_count, dtype=bool)
+
+    def triangle_part(lo: int, hi: int) -> None:
+        t = tris[lo:hi]
+        a, b, c = t[:, 0], t[:, 1], t[:, 2]
+        ok = finite_v[a] & finite_v[b] & finite_v[c]
+        out_or = outcode_v[a] | outcode_v[b] | outcode_v[c]
+        out_and = outcode_v[a] & outcode_v[b] & outcode_v[c]
+        finite[lo:hi] = ok
+        keep_whole[lo:hi] = ok & (out_or == 0) & okv[a] & okv[b] & okv[c]
+        to_clip[lo:hi] = ok & (out_or != 0) & (out_and == 0)
+        # Object-space degenerate triangles (zero area) are reported; they draw nothing.
+        e1 = pos[b] - pos[a]
+        e2 = pos[c] - pos[a]
+        with np.errstate(over="ignore", invalid="ignore"):
+            degenerate_t[lo:hi] = ok & ((e1[:, 1] * e2[:, 2] - e1[:, 2] * e2[:, 1]) == 0) & \
+                ((e1[:, 2] * e2[:, 0] - e1[:, 0] * e2[:, 2]) == 0) & \
+                ((e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]) == 0)
+
+    run_parts(pool, parts, t_count, triangle_part)
+    skipped = int(t_count - np.count_nonzero(finite))
+    degenerate = int(np.count_nonzero(degenerate_t))
+
+    # Unclipped triangles: window coordinates per vertex, gathered per corner.
+    if np.all(keep_whole):
+        whole, tw = np.arange(t_count, dtype=np.int64), tris
+    else:
+        whole = np.nonzero(keep_whole)[0]
+        tw = tris[whole]
+    X = np.empty(tw.shape, dtype=np.int64)
+    Y = np.empty(tw.shape, dtype=np.int64)
+    zw = np.empty(tw.shape, dtype=np.float64)
+    iw = np.empty(tw.shape, dtype=np.float64)
+
+    def gather_part(lo: int, hi: int) -> None:
+        t = tw[lo:hi]
+        np.take(Xv, t, out=X[lo:hi])
+        np.take(Yv, t, out=Y[lo:hi])
+        np.take(zwv, t, out=zw[lo:hi])
+        np.take(iwv, t, out=iw[lo:hi])
+
+    run_parts(pool, parts, tw.shape[0], gather_part)
+    parts_list = [(whole, X, Y, zw, iw, None)]
+
+    clip_idx = np.nonzero(to_clip)[0]
+    if clip_idx.size:
+        carried = np.zeros((clip_idx.size, 3, 7), dtype=np.float64)
+        carried[:, :, :4] = clip_v[tris[clip_idx]]
+        carried[:, :, 4:] = np.eye(3)[None]
+        poly, count = _clip_polygons(carried)
+        fan_src, fan_verts = [], []
+        for j in range(1, _MAX_POLY - 1):  # fan triangles (v0, vj, vj+1), at most seven per polygon
+            has = count >= j + 2
+            if not np.any(has):
+                break
+            rows = np.nonzero(has)[0]
+            fan_src.append(np.stack([rows, np.full(rows.size, j)], axis=1))
+            fan_verts.append(np.stack([poly[rows, 0], poly[rows, j], poly[rows, j + 1]], axis=1))
+        if fan_src:
+            fs = np.concatenate(fan_src)
+            fv = np.concatenate(fan_verts)
+            order = np.lexsort((fs[:, 1], fs[:, 0]))  # by polygon, then fan position
+            fs, fv = fs[order], fv[order]
+            cX, cY, czw, ciw, cok = _to_window(fv[:, :, :4], camera)
+            cgood = np.all(cok, axis=1)
+            parts_list.append(
+                (clip_idx[fs[cgood, 0]], cX[cgood], cY[cgood], czw[cgood], ciw[cgood], fv[cgood, :, 4:]))
+
+    weights = None
+    if len(parts_list) == 1:  # nothing clipped: already in draw order
+        src = whole.astype(np.int64)
+        clipped = np.zeros(src.size, dtype=bool)
+    else:
+        src = np.concatenate([q[0] for q in parts_list]).astype(np.int64)
+        order = np.argsort(src, kind="stable")
+        src = src[order]
+        X = np.concatenate([q[1] for q in parts_list])[order]
+        Y = np.concatenate([q[2] for q in parts_list])[order]
+        zw = np.concatenate([q[3] for q in parts_list])[order]
+        iw = np.concatenate([q[4] for q in parts_list])[order]
+        clipped = np.concatenate([np.zeros(whole.size, bool)] + [np.ones(q[0].size, bool) for q in parts_list[1:]])
+        clipped = clipped[order]
+        weights = np.concatenate(
+            [np.broadcast_to(np.eye(3), (whole.size, 3, 3))] + [q[5] for q in parts_list[1:]])
+        weights = np.ascontiguousarray(weights[order])
+
+    area2 = np.empty(src.size, dtype=np.int64)
+    front = np.empty(src.size, dtype=bool)
+
+    def area_part(lo: int, hi: int) -> None:
+        x, y = X[lo:hi], Y[lo:hi]
+        a2 = (x[:, 1] - x[:, 0]) * (y[:, 2] - y[:, 0]) - (x[:, 2] - x[:, 0]) * (y[:, 1] - y[:, 0])
+        area2[lo:hi] = a2
+        # Zero-area triangles stay in the arrays (no copies) but are neither front nor back.
+        front[lo:hi] = (a2 > 0) if det >= 0 else (a2 < 0)
+
+    run_parts(pool, parts, src.size, area_part)
+    return TriangleSetup(
+        X=X, Y=Y, zw=zw, iw=iw, area2=area2, src=src, weights=weights, clipped=clipped, front=front,
+        object_normals=object_normals, normal_matrix=nmat, object_uvs=object_uvs,
+        skipped_nonfinite=skipped, degenerate=degenerate,
+    )
+
+
+def cull_select(setup: TriangleSetup, cull: Cull) -> np.ndarray:
+    """Indices (int64) of the setup's triangles that a pass with ``cull`` draws, in draw order."""
+    if cull is Cull.Off:
+        keep = setup.area2 != 0
+    elif cull is Cull.Back:
+        keep = setup.front
+    else:
+        keep = ~setup.front & (setup.area2 != 0)
+    return np.nonzero(keep)[0].astype(np.int64)

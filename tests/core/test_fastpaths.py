@@ -1,0 +1,192 @@
+"""The core's fast paths must give the scalar reference's answer bit for bit.
+
+Large, flat, untextured triangles take three shortcuts the small sweep cells never reach:
+shading once per triangle (docs/pipeline.md §6), blending 8-bit buffers through a lookup
+table per source colour (``merger.blend_lut``), and screen bands merged by two threads.
+Each test renders a scene where the shortcut is taken (asserted), against the pure-Python
+reference of tests/reference/scalar.py.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from blendlib import render_scene
+from blendlib.core import merger
+from blendlib.core.scene import DrawScene
+from blendlib.core.vocabulary import (
+    BlendFactor,
+    BlendOp,
+    ColorSpace,
+    CompareFunction,
+    Cull,
+    Lighting,
+    Material,
+    Pass,
+    Queue,
+    TextureFilter,
+    TextureWrap,
+)
+from tests.reference import scenes as sc
+from tests.reference.scalar import render_reference
+
+W, H = 40, 32  # each triangle of the full-frame quad covers 640 pixels: more than 256, so it is tabulated
+CROSS = {BlendFactor.DstAlpha, BlendFactor.OneMinusDstAlpha, BlendFactor.SrcAlphaSaturate}
+
+
+def _background(seed: int) -> object:
+    """An opaque quad with one random texel per pixel: every destination code differs."""
+    rng = np.random.default_rng(seed)
+    px = rng.uniform(0, 1, size=(H, W, 4)).astype(np.float32)
+    from blendlib.core.vocabulary import Texture
+
+    mat = Material(name="Background", queue=Queue.Background, lighting=Lighting.Unlit,
+                   main_tex=Texture(px, encoding="sRGB", name="bg"),
+                   main_tex_filter=TextureFilter.Point, main_tex_wrap=TextureWrap.Clamp)
+    return sc.renderer(sc.quad(0, 0, W, H, z=-1.0), mat, name="Background")
+
+
+def _scene(p: Pass, color_space: ColorSpace, color=(0.8, 0.35, 0.6, 0.45), lighting=Lighting.Unlit) -> DrawScene:
+    top = Material(name="Top", queue=Queue.Transparent, color=color, lighting=lighting, passes=(p,))
+    return DrawScene(camera=sc.screen_camera(W, H), color_space=color_space, ambient=(0.3, 0.2, 0.1),
+                     light=None, renderers=(_background(7), sc.renderer(sc.quad(0, 0, W, H, z=1.0), top, name="Top")))
+
+
+def _assert_equal_with_table(scene: DrawScene, monkeypatch, expect_table: bool = True) -> None:
+    calls = []
+    original = merger.blend_lut
+
+    def counting(buf, p, palette):
+        calls.append(palette.shape[0])
+        return original(buf, p, palette)
+
+    monkeypatch.setattr(merger, "blend_lut", counting)
+    frame = render_scene(scene)
+    color, depth, stencil = render_reference(scene)
+    assert bool(calls) == expect_table, f"lookup table used {len(calls)} times"
+    np.testing.assert_array_equal(frame.color, color)
+    np.testing.assert_array_equal(frame.depth, depth)
+    np.testing.assert_array_equal(frame.stencil, stencil)
+
+
+FACTOR_CASES = (
+    [(f, BlendFactor.OneMinusSrcAlpha, BlendOp.Add) for f in BlendFactor]
+    + [(BlendFactor.SrcAlpha, f, BlendOp.Add) for f in BlendFactor]
+    + [(BlendFactor.SrcColor, BlendFactor.DstColor, op) for op in BlendOp]
+)
+
+
+@pytest.mark.parametrize("color_space", list(ColorSpace))
+@pytest.mark.parametrize("src,dst,op", FACTOR_CASES, ids=lambda v: str(v))
+def test_constant_colour_blending_equals_reference(src, dst, op, color_space, monkeypatch):
+    """Every factor and op: the table path (or, for factors that read destination alpha, the
+    per-fragment path) equals one-fragment-at-a-time blending."""
+    p = Pass(cull=Cull.Off, zwrite=False, blend=True, src_blend=src, dst_blend=dst, blend_op=op)
+    eligible = src not in CROSS and dst not in CROSS
+    _assert_equal_with_table(_scene(p, color_space), monkeypatch, expect_table=eligible)
+
+
+@pytest.mark.parametrize("color_space", list(ColorSpace))
+def test_separate_alpha_and_colour_mask_through_the_table(color_space, monkeypatch):
+    p = Pass(cull=Cull.Off, zwrite=False, blend=True, src_blend=BlendFactor.OneMinusDstColor,
+             dst_blend=BlendFactor.SrcAlpha, blend_op=BlendOp.RevSub, separate_alpha=True,
+             src_blend_alpha=BlendFactor.DstAlpha, dst_blend_alpha=BlendFactor.One, blend_op_alpha=BlendOp.Max,
+             color_mask=frozenset("RB"))
+    _assert_equal_with_table(_scene(p, color_space), monkeypatch)
+
+
+def test_blend_off_and_out_of_range_colour_through_the_table(monkeypatch):
+    """Blend Off writes the clamped source; an HDR-ish colour (> 1, < 0) is clamped first."""
+    _assert_equal_with_table(_scene(Pass(ztest=CompareFunction.Always), ColorSpace.Gamma,
+                                    color=(1.7, -0.2, 0.5, 1.3)), monkeypatch)
+
+
+def test_lambert_flat_triangles_shade_once_and_match(monkeypatch):
+    """Flat normals and no texture: one shading per triangle, equal to per-fragment shading."""
+    scene = _scene(Pass(cull=Cull.Off, zwrite=False, blend=True, src_blend=BlendFactor.SrcAlpha,
+                        dst_blend=BlendFactor.OneMinusSrcAlpha), ColorSpace.Linear, lighting=Lighting.Lambert)
+    scene = DrawScene(camera=scene.camera, renderers=scene.renderers, color_space=scene.color_space,
+                      ambient=(0.3, 0.2, 0.1), light=sc.Light(direction=(0.3, -0.2, 0.9), color=(1, 0.9, 0.8),
+                                                              energy=1.5))
+    _assert_equal_with_table(scene, monkeypatch)
+
+
+def test_hdr_never_uses_the_table(monkeypatch):
+    p = Pass(cull=Cull.Off, zwrite=False, blend=True, src_blend=BlendFactor.SrcAlpha,
+             dst_blend=BlendFactor.OneMinusSrcAlpha)
+    scene = _scene(p, ColorSpace.Linear)
+    scene = DrawScene(camera=scene.camera, renderers=scene.renderers, color_space=scene.color_space, hdr=True)
+    _assert_equal_with_table(scene, monkeypatch, expect_table=False)
+
+
+def test_worker_bands_and_chunks_do_not_change_the_frame():
+    """One worker, two worker bands and tiny chunks give identical buffers on a self-overlapping draw."""
+    mesh = sc.uv_sphere(radius=1.0, segments=24, rings=16)
+    p = Pass(cull=Cull.Off, zwrite=False, blend=True, src_blend=BlendFactor.SrcAlpha,
+             dst_blend=BlendFactor.OneMinusSrcAlpha)
+    mat = Material(color=(0.2, 0.6, 0.9, 0.4), passes=(p,))
+    scene = DrawScene(camera=sc.camera(96, 64, eye=(0, 0, 3.2)), renderers=(sc.renderer(mesh, mat),),
+                      light=sc.Light(direction=(0.2, 0.5, 0.8)))
+    frames = [render_scene(scene, workers=1), render_scene(scene, workers=2),
+              render_scene(scene, workers=2, chunk_candidates=97)]
+    for other in frames[1:]:
+        np.testing.assert_array_equal(frames[0].color, other.color)
+        np.testing.assert_array_equal(frames[0].depth, other.depth)
+    color, _, _ = render_reference(scene)
+    np.testing.assert_array_equal(frames[0].color, color)
+
+
+def test_parallel_setup_and_spans_equal_serial():
+    """A 160k-triangle sphere crossing the near plane: setup and span building split over two
+    threads (and clipping in both halves) give the same buffers as one thread."""
+    mesh = sc.uv_sphere(radius=1.0, segments=400, rings=200)
+    split = 2 * (1 << 15)  # raster.run_parts splits from this many items on
+    assert mesh.triangle_count > split and mesh.positions.shape[0] > split
+    p = Pass(cull=Cull.Off, zwrite=False, blend=True, src_blend=BlendFactor.SrcAlpha,
+             dst_blend=BlendFactor.OneMinusSrcAlpha)
+    mat = Material(color=(0.9, 0.5, 0.2, 0.3), passes=(p,))
+    for eye in ((0.0, 0.0, 3.0), (0.3, 0.2, 1.02)):  # outside, then touching the surface: near-plane clipping
+        scene = DrawScene(camera=sc.camera(120, 90, eye=eye), renderers=(sc.renderer(mesh, mat),),
+                          light=sc.Light(direction=(0.2, 0.5, 0.8)))
+        one, two = render_scene(scene, workers=1), render_scene(scene, workers=2)
+        np.testing.assert_array_equal(one.color, two.color)
+        np.testing.assert_array_equal(one.depth, two.depth)
+        assert np.count_nonzero(one.color[..., 3] != 0.0) > 1000  # the clear alpha is 0
+
+
+def test_equal_corner_values_are_not_interpolated():
+    """docs/pipeline.md §6: equal corner values are the attribute itself. UV corners all at
+    (0.75, 0.75) on a 4x4 Point-sampled texture sit exactly on a texel boundary (0.75*4 = 3):
+    a weighted sum just below 0.75, as (w0*a + w1*a) + w2*a gives for about one fragment in
+    eight, would sample texel 2 instead of 3."""
+    from blendlib.core import raster
+    from blendlib.core.vocabulary import Texture
+
+    # The rule at the unit level, with weights whose sum differs from the corner value.
+    rng = np.random.default_rng(1)
+    w = rng.random((3, 400))
+    w /= w.sum(axis=0)
+    assert np.any((w[0] * 0.75 + w[1] * 0.75) + w[2] * 0.75 < 0.75)
+    out = raster.interpolate_runs(w, np.full((1, 3, 2), 0.75), np.array([400]), np.array([True]))
+    assert np.all(out == 0.75)
+
+    texels = np.zeros((4, 4, 4), np.float32)
+    texels[..., 1] = texels[..., 3] = 1.0  # green everywhere...
+    texels[3, 3] = (1.0, 0.0, 0.0, 1.0)  # ...except texel (3, 3): red
+    quad = sc.quad(-1.5, -1.5, 1.5, 1.5)
+    # Unlit: flat UVs make the triangle constant (shaded once). Lambert with differing corner
+    # normals: shaded per fragment, the UVs still flat. Both must sample texel (3, 3) only.
+    for lighting, normals in ((Lighting.Unlit, None), (Lighting.Lambert, [[(0, 0, 1), (0.3, 0, 1), (0, 0.4, 1)]] * 2)):
+        mat = Material(lighting=lighting, main_tex=Texture(texels, encoding="Data"),
+                       main_tex_filter=TextureFilter.Point, main_tex_wrap=TextureWrap.Clamp,
+                       passes=(Pass(cull=Cull.Off),))
+        mesh = sc.make_mesh(quad.positions, quad.triangles, normals=normals, uvs=np.full((2, 3, 2), 0.75))
+        scene = DrawScene(camera=sc.camera(48, 40, eye=(0.7, 0.4, 2.5)), renderers=(sc.renderer(mesh, mat),),
+                          light=sc.Light(direction=(0.2, 0.3, 1.0)), ambient=(0.1, 0.1, 0.1))
+        frame = render_scene(scene)
+        covered = frame.depth < 1.0
+        assert covered.sum() > 500
+        assert np.all(frame.color[covered][:, 1] == 0.0) and np.all(frame.color[covered][:, 0] > 0.0), lighting
+        color, _, _ = render_reference(scene)
+        np.testing.assert_array_equal(frame.color, color)

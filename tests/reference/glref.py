@@ -1,0 +1,524 @@
+"""The real-GPU reference (SPEC §7, reference 2): a draw scene rendered through OpenGL.
+
+The same draw list as the core, drawn with OpenGL's own fixed-function state on
+Mesa's llvmpipe through a headless EGL context (moderngl). Everything the core does
+by hand is done here by GL: near/far clipping, snapping, the fill rule, culling,
+perspective-correct interpolation, depth, polygon offset, stencil, depth test,
+blending, sRGB framebuffer conversion, the colour write mask and the clear.
+
+    color, depth, stencil = render_gl(scene)       # row 0 = top, like Frame
+
+For timing the draw alone::
+
+    r = GLRenderer(scene)     # uploads buffers, textures, builds the FBO
+    r.render(); r.finish()    # clear + every draw call, then glFinish
+    color, depth, stencil = r.read()
+    r.release()
+
+What is done on the CPU (in float64, then handed to GL as float32): the vertex
+transform to clip space (``matmul4`` order of docs/pipeline.md §1), world normals
+(cofactor matrix), and the conversion of texels, ``_Color``, ambient, light and
+clear colours to shading space (docs/pipeline.md §7), so both sides convert colours
+identically and GL only filters. The fragment program of §7 runs in GLSL (float32).
+
+The fixed-function state goes straight to GL through ctypes (``eglGetProcAddress``)
+because moderngl has no stencil API and no DEPTH24_STENCIL8 attachment: the
+framebuffer is a raw GL FBO with a colour texture (RGBA8, SRGB8_ALPHA8 with
+GL_FRAMEBUFFER_SRGB for Linear LDR, RGBA32F for HDR) and a DEPTH24_STENCIL8
+renderbuffer. moderngl only provides the context, programs, buffers and textures.
+
+This module is free of bpy; moderngl is imported lazily (``pip install
+unity-passes-for-blender[reference]``).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+
+import numpy as np
+
+from blendlib.core.scene import DrawScene, validate_scene
+from blendlib.core.vocabulary import (
+    LAST_OPAQUE_QUEUE,
+    BlendFactor,
+    BlendOp,
+    ColorSpace,
+    CompareFunction,
+    Cull,
+    Lighting,
+    SortMode,
+    StencilOp,
+    TextureFilter,
+    TextureWrap,
+)
+
+DMAX = 2**24 - 1
+
+# ------------------------------------------------------------------ GL enums
+
+GL_NEVER, GL_LESS, GL_EQUAL, GL_LEQUAL = 0x0200, 0x0201, 0x0202, 0x0203
+GL_GREATER, GL_NOTEQUAL, GL_GEQUAL, GL_ALWAYS = 0x0204, 0x0205, 0x0206, 0x0207
+GL_ZERO, GL_ONE = 0, 1
+GL_SRC_COLOR, GL_ONE_MINUS_SRC_COLOR, GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA = 0x0300, 0x0301, 0x0302, 0x0303
+GL_DST_ALPHA, GL_ONE_MINUS_DST_ALPHA, GL_DST_COLOR, GL_ONE_MINUS_DST_COLOR = 0x0304, 0x0305, 0x0306, 0x0307
+GL_SRC_ALPHA_SATURATE = 0x0308
+GL_FUNC_ADD, GL_MIN, GL_MAX = 0x8006, 0x8007, 0x8008
+GL_FUNC_SUBTRACT, GL_FUNC_REVERSE_SUBTRACT = 0x800A, 0x800B
+GL_KEEP, GL_REPLACE, GL_INCR, GL_DECR, GL_INVERT = 0x1E00, 0x1E01, 0x1E02, 0x1E03, 0x150A
+GL_INCR_WRAP, GL_DECR_WRAP = 0x8507, 0x8508
+GL_CULL_FACE, GL_DEPTH_TEST, GL_STENCIL_TEST, GL_BLEND = 0x0B44, 0x0B71, 0x0B90, 0x0BE2
+GL_DITHER, GL_POLYGON_OFFSET_FILL, GL_FRAMEBUFFER_SRGB, GL_SCISSOR_TEST = 0x0BD0, 0x8037, 0x8DB9, 0x0C11
+GL_MULTISAMPLE = 0x809D
+GL_FRONT, GL_BACK, GL_CW, GL_CCW = 0x0404, 0x0405, 0x0900, 0x0901
+GL_COLOR_BUFFER_BIT, GL_DEPTH_BUFFER_BIT, GL_STENCIL_BUFFER_BIT = 0x4000, 0x0100, 0x0400
+GL_FRAMEBUFFER, GL_RENDERBUFFER = 0x8D40, 0x8D41
+GL_COLOR_ATTACHMENT0, GL_DEPTH_STENCIL_ATTACHMENT = 0x8CE0, 0x821A
+GL_FRAMEBUFFER_COMPLETE = 0x8CD5
+GL_TEXTURE_2D = 0x0DE1
+GL_DEPTH24_STENCIL8, GL_SRGB8_ALPHA8 = 0x88F0, 0x8C43
+GL_RGBA, GL_DEPTH_STENCIL = 0x1908, 0x84F9
+GL_UNSIGNED_BYTE, GL_FLOAT, GL_UNSIGNED_INT_24_8 = 0x1401, 0x1406, 0x84FA
+GL_PACK_ALIGNMENT = 0x0D05
+
+_COMPARE = {
+    CompareFunction.Never: GL_NEVER, CompareFunction.Less: GL_LESS, CompareFunction.Equal: GL_EQUAL,
+    CompareFunction.LEqual: GL_LEQUAL, CompareFunction.Greater: GL_GREATER,
+    CompareFunction.NotEqual: GL_NOTEQUAL, CompareFunction.GEqual: GL_GEQUAL, CompareFunction.Always: GL_ALWAYS,
+}
+_FACTOR = {
+    BlendFactor.One: GL_ONE, BlendFactor.Zero: GL_ZERO,
+    BlendFactor.SrcColor: GL_SRC_COLOR, BlendFactor.SrcAlpha: GL_SRC_ALPHA,
+    BlendFactor.DstColor: GL_DST_COLOR, BlendFactor.DstAlpha: GL_DST_ALPHA,
+    BlendFactor.OneMinusSrcColor: GL_ONE_MINUS_SRC_COLOR, BlendFactor.OneMinusSrcAlpha: GL_ONE_MINUS_SRC_ALPHA,
+    BlendFactor.OneMinusDstColor: GL_ONE_MINUS_DST_COLOR, BlendFactor.OneMinusDstAlpha: GL_ONE_MINUS_DST_ALPHA,
+    BlendFactor.SrcAlphaSaturate: GL_SRC_ALPHA_SATURATE,
+}
+_EQUATION = {
+    BlendOp.Add: GL_FUNC_ADD, BlendOp.Sub: GL_FUNC_SUBTRACT, BlendOp.RevSub: GL_FUNC_REVERSE_SUBTRACT,
+    BlendOp.Min: GL_MIN, BlendOp.Max: GL_MAX,
+}
+_STENCIL_OP = {
+    StencilOp.Keep: GL_KEEP, StencilOp.Zero: GL_ZERO, StencilOp.Replace: GL_REPLACE,
+    StencilOp.IncrSat: GL_INCR, StencilOp.DecrSat: GL_DECR, StencilOp.Invert: GL_INVERT,
+    StencilOp.IncrWrap: GL_INCR_WRAP, StencilOp.DecrWrap: GL_DECR_WRAP,
+}
+
+# ------------------------------------------------------------------ raw GL through EGL
+
+_u = ctypes.c_uint
+_i = ctypes.c_int
+_f = ctypes.c_float
+_d = ctypes.c_double
+_b = ctypes.c_ubyte
+_p = ctypes.c_void_p
+_PROTOS = {
+    "glEnable": (None, _u), "glDisable": (None, _u),
+    "glDepthFunc": (None, _u), "glDepthMask": (None, _b),
+    "glColorMask": (None, _b, _b, _b, _b),
+    "glStencilFunc": (None, _u, _i, _u), "glStencilOp": (None, _u, _u, _u), "glStencilMask": (None, _u),
+    "glBlendFuncSeparate": (None, _u, _u, _u, _u), "glBlendEquationSeparate": (None, _u, _u),
+    "glPolygonOffset": (None, _f, _f), "glCullFace": (None, _u), "glFrontFace": (None, _u),
+    "glClearColor": (None, _f, _f, _f, _f), "glClearDepth": (None, _d), "glClearStencil": (None, _i),
+    "glClear": (None, _u), "glViewport": (None, _i, _i, _i, _i),
+    "glReadPixels": (None, _i, _i, _i, _i, _u, _u, _p), "glPixelStorei": (None, _u, _i),
+    "glGenFramebuffers": (None, _i, _p), "glDeleteFramebuffers": (None, _i, _p),
+    "glBindFramebuffer": (None, _u, _u),
+    "glGenRenderbuffers": (None, _i, _p), "glDeleteRenderbuffers": (None, _i, _p),
+    "glBindRenderbuffer": (None, _u, _u), "glRenderbufferStorage": (None, _u, _u, _i, _i),
+    "glFramebufferRenderbuffer": (None, _u, _u, _u, _u), "glFramebufferTexture2D": (None, _u, _u, _u, _u, _i),
+    "glCheckFramebufferStatus": (_u, _u), "glFinish": (None,), "glGetError": (_u,),
+}
+
+
+class _GL:
+    """The GL entry points used here, resolved through ``eglGetProcAddress``."""
+
+    def __init__(self) -> None:
+        egl = ctypes.CDLL("libEGL.so.1")
+        egl.eglGetProcAddress.restype = ctypes.c_void_p
+        egl.eglGetProcAddress.argtypes = [ctypes.c_char_p]
+        for name, (restype, *argtypes) in _PROTOS.items():
+            address = egl.eglGetProcAddress(name.encode())
+            if not address:
+                raise RuntimeError(f"OpenGL function {name} is not available")
+            setattr(self, name[2:], ctypes.CFUNCTYPE(restype, *argtypes)(address))
+
+    def check(self, where: str) -> None:
+        err = self.GetError()
+        if err:
+            raise RuntimeError(f"OpenGL error 0x{err:04X} after {where}")
+
+
+_CONTEXT = None
+
+
+def context():
+    """The cached headless moderngl context (EGL, Mesa llvmpipe) and its raw GL table."""
+    global _CONTEXT
+    if _CONTEXT is None:
+        import moderngl
+
+        ctx = moderngl.create_standalone_context(backend="egl")
+        gl = _GL()
+        _CONTEXT = (ctx, gl, {})
+    return _CONTEXT
+
+
+_VERTEX_SHADER = """
+#version 330
+in vec4 in_clip;
+in vec2 in_uv;
+in vec3 in_nw;
+out vec2 v_uv;
+out vec3 v_nw;
+void main() {
+    v_uv = in_uv;
+    v_nw = in_nw;
+    gl_Position = in_clip;
+}
+"""
+
+_FRAGMENT_SHADER = """
+#version 330
+in vec2 v_uv;
+in vec3 v_nw;
+uniform vec4 color;
+uniform vec2 tiling;
+uniform vec2 uv_offset;
+uniform float alpha_scale;
+uniform float cutoff;
+uniform bool lambert;
+uniform bool has_tex;
+uniform bool alpha_test;
+uniform vec3 ambient;
+uniform vec3 light;
+uniform vec3 ldir;
+uniform sampler2D tex;
+out vec4 frag;
+void main() {
+    vec2 uv = v_uv * tiling + uv_offset;
+    vec4 t = has_tex ? texture(tex, uv) : vec4(1.0);
+    vec3 albedo = t.rgb * color.rgb;
+    float alpha = (t.a * color.a) * alpha_scale;
+    if (alpha_test && alpha - cutoff < 0.0) discard;
+    vec3 rgb = albedo;
+    if (lambert) {
+        float len = length(v_nw);
+        vec3 n = len > 0.0 ? v_nw / len : vec3(0.0);
+        float ndl = max(0.0, dot(n, ldir));
+        rgb = ambient * albedo + (light * albedo) * ndl;
+    }
+    frag = vec4(rgb, alpha);
+}
+"""
+
+
+# ------------------------------------------------------------------ CPU side (float64)
+
+
+def encode(x):
+    x = np.asarray(x, dtype=np.float64)
+    return np.where(x <= 0.0031308, x * 12.92, 1.055 * np.power(np.maximum(x, 0.0031308), 1.0 / 2.4) - 0.055)
+
+
+def decode(x):
+    x = np.asarray(x, dtype=np.float64)
+    return np.where(x <= 0.04045, x / 12.92, np.power((np.maximum(x, 0.04045) + 0.055) / 1.055, 2.4))
+
+
+def draw_order(scene: DrawScene) -> list:
+    """Renderers in draw order: key (queue, signed distance, name, slot) of docs/pipeline.md §0."""
+    cam = scene.camera
+    p = np.asarray(cam.position, dtype=np.float64)
+    mode = scene.sort_mode
+    if mode is SortMode.Default:
+        mode = SortMode.Orthographic if cam.orthographic else SortMode.Perspective
+    axis = None
+    if mode is SortMode.Orthographic:
+        axis = np.asarray(cam.forward, dtype=np.float64)
+    elif mode is SortMode.CustomAxis:
+        a = np.asarray(scene.sort_axis, dtype=np.float64)
+        axis = a / math.sqrt((a[0] * a[0] + a[1] * a[1]) + a[2] * a[2])
+
+    def key(r):
+        dx, dy, dz = (np.asarray(r.bounds_center, dtype=np.float64) - p).tolist()
+        if axis is None:
+            d = (dx * dx + dy * dy) + dz * dz
+        else:
+            d = (dx * axis[0] + dy * axis[1]) + dz * axis[2]
+        q = r.material.render_queue
+        return (q, d if q <= LAST_OPAQUE_QUEUE else -d, r.name, r.slot)
+
+    return sorted(scene.renderers, key=key)
+
+
+def _matmul4(a, b):
+    out = np.empty((4, 4))
+    for i in range(4):
+        for j in range(4):
+            out[i, j] = ((a[i, 0] * b[0, j] + a[i, 1] * b[1, j]) + a[i, 2] * b[2, j]) + a[i, 3] * b[3, j]
+    return out
+
+
+def vertex_data(scene: DrawScene, r) -> tuple[np.ndarray, bool, int]:
+    """Per-corner float32 vertex records ``clip(4) uv(2) nw(3)`` (3 rows per triangle), whether the object is mirrored,
+    and the number of non-finite triangles left out."""
+    V = np.asarray(scene.camera.view_matrix, np.float64)
+    P = np.asarray(scene.camera.projection, np.float64)
+    M = np.asarray(r.matrix_world, np.float64)
+    mvp = _matmul4(P, _matmul4(V, M))
+    m = M[:3, :3]
+    C = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            C[i, j] = (m[(i + 1) % 3, (j + 1) % 3] * m[(i + 2) % 3, (j + 2) % 3]
+                       - m[(i + 1) % 3, (j + 2) % 3] * m[(i + 2) % 3, (j + 1) % 3])
+    det = (m[0, 0] * C[0, 0] + m[0, 1] * C[0, 1]) + m[0, 2] * C[0, 2]
+    N = C if det >= 0 else -C
+    mesh = r.mesh
+    tri = np.asarray(mesh.triangles, dtype=np.int64).reshape(-1, 3)
+    pos = np.asarray(mesh.positions, dtype=np.float64)[tri]  # (T, 3, 3)
+    x, y, z = pos[..., 0], pos[..., 1], pos[..., 2]
+    clip = np.stack([((mvp[i, 0] * x + mvp[i, 1] * y) + mvp[i, 2] * z) + mvp[i, 3] for i in range(4)], axis=-1)
+    n = np.asarray(mesh.normals, dtype=np.float64).reshape(-1, 3, 3)
+    nw = np.stack([(N[i, 0] * n[..., 0] + N[i, 1] * n[..., 1]) + N[i, 2] * n[..., 2] for i in range(3)], axis=-1)
+    t = tri.shape[0]
+    uv = np.zeros((t, 3, 2)) if mesh.uvs is None else np.asarray(mesh.uvs, dtype=np.float64).reshape(-1, 3, 2)
+    finite = np.all(np.isfinite(clip), axis=(1, 2))
+    rec = np.concatenate([clip, uv, nw], axis=-1)[finite].reshape(-1, 9)
+    return np.ascontiguousarray(rec, dtype=np.float32), bool(det < 0), int(t - finite.sum())
+
+
+class _Shading:
+    """Material constants in shading space (docs/pipeline.md §7)."""
+
+    def __init__(self, scene: DrawScene, material) -> None:
+        linear = scene.color_space is ColorSpace.Linear
+
+        def from_gamma(c):
+            return decode(c) if linear else np.asarray(c, np.float64)
+
+        def from_linear(c):
+            return np.asarray(c, np.float64) if linear else encode(c)
+
+        col = np.asarray(material.color, np.float64)
+        self.color = tuple(np.concatenate([from_gamma(col[:3]), col[3:]]).tolist())
+        amb = np.asarray(scene.ambient, np.float64)
+        self.ambient = tuple((from_linear(amb) if scene.ambient_is_linear else from_gamma(amb)).tolist())
+        if scene.light is None:
+            self.light, self.ldir = (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)
+        else:
+            self.light = tuple((from_linear(np.asarray(scene.light.color, np.float64)) * scene.light.energy).tolist())
+            d = np.asarray(scene.light.direction, np.float64)
+            length = math.sqrt((d[0] * d[0] + d[1] * d[1]) + d[2] * d[2])
+            self.ldir = tuple((d / length if length else d * 0).tolist())
+        self.texels = None
+        tex = material.main_tex
+        if tex is not None:
+            px = np.asarray(tex.pixels, np.float32).astype(np.float64)
+            rgb = px[..., :3]
+            if tex.encoding == "sRGB" and linear:
+                rgb = decode(rgb)
+            elif tex.encoding == "Linear" and not linear:
+                rgb = encode(rgb)
+            self.texels = np.ascontiguousarray(np.concatenate([rgb, px[..., 3:]], axis=-1), dtype=np.float32)
+
+
+class GLRenderer:
+    """One scene on the GPU: build once, then :meth:`render` (repeatable), :meth:`finish`, :meth:`read`."""
+
+    def __init__(self, scene: DrawScene) -> None:
+        self.warnings = validate_scene(scene)
+        self.scene = scene
+        ctx, gl, cache = context()
+        self.ctx, self.gl = ctx, gl
+        if "program" not in cache:
+            cache["program"] = ctx.program(vertex_shader=_VERTEX_SHADER, fragment_shader=_FRAGMENT_SHADER)
+        self.program = prog = cache["program"]
+        cam = scene.camera
+        self.W, self.H = int(cam.width), int(cam.height)
+        self.hdr = bool(scene.hdr)
+        self.linear = scene.color_space is ColorSpace.Linear
+        self._resources = []
+
+        # Framebuffer: colour texture + DEPTH24_STENCIL8 renderbuffer on a raw FBO.
+        import moderngl
+
+        size = (self.W, self.H)
+        if self.hdr:
+            self.color_tex = ctx.texture(size, 4, dtype="f4")
+        elif self.linear:
+            self.color_tex = ctx.texture(size, 4, dtype="f1", internal_format=GL_SRGB8_ALPHA8)
+        else:
+            self.color_tex = ctx.texture(size, 4, dtype="f1")
+        self._resources.append(self.color_tex)
+        ids = (ctypes.c_uint * 1)()
+        gl.GenRenderbuffers(1, ids)
+        self.rbo = ids[0]
+        gl.BindRenderbuffer(GL_RENDERBUFFER, self.rbo)
+        gl.RenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH24_STENCIL8, self.W, self.H)
+        gl.GenFramebuffers(1, ids)
+        self.fbo = ids[0]
+        gl.BindFramebuffer(GL_FRAMEBUFFER, self.fbo)
+        gl.FramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, self.color_tex.glo, 0)
+        gl.FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_STENCIL_ATTACHMENT, GL_RENDERBUFFER, self.rbo)
+        status = gl.CheckFramebufferStatus(GL_FRAMEBUFFER)
+        if status != GL_FRAMEBUFFER_COMPLETE:
+            raise RuntimeError(f"framebuffer incomplete: 0x{status:04X}")
+        gl.check("framebuffer set-up")
+
+        # Draw calls: (vao, vertex count, mirrored, texture, uniforms, pass).
+        self.calls = []
+        for r in draw_order(scene):
+            data, mirrored, skipped = vertex_data(scene, r)
+            if skipped:
+                self.warnings.append(f"object {r.name!r} slot {r.slot}: {skipped} non-finite triangle(s) skipped")
+            if len(data) == 0:
+                continue
+            vbo = ctx.buffer(data.tobytes())
+            vao = ctx.vertex_array(prog, [(vbo, "4f 2f 3f", "in_clip", "in_uv", "in_nw")])
+            self._resources += [vao, vbo]
+            mat = r.material
+            sh = _Shading(scene, mat)
+            tex = None
+            if sh.texels is not None:
+                th, tw = sh.texels.shape[:2]
+                tex = ctx.texture((tw, th), 4, sh.texels.tobytes(), dtype="f4")
+                f = moderngl.NEAREST if mat.main_tex_filter is TextureFilter.Point else moderngl.LINEAR
+                tex.filter = (f, f)
+                rep = mat.main_tex_wrap is TextureWrap.Repeat
+                tex.repeat_x = tex.repeat_y = rep
+                self._resources.append(tex)
+            uniforms = {
+                "color": sh.color, "tiling": tuple(map(float, mat.main_tex_tiling)),
+                "uv_offset": tuple(map(float, mat.main_tex_offset)), "alpha_scale": float(mat.alpha_scale),
+                "cutoff": float(mat.cutoff), "lambert": mat.lighting is Lighting.Lambert,
+                "has_tex": tex is not None, "ambient": sh.ambient, "light": sh.light, "ldir": sh.ldir,
+            }
+            for p in mat.draw_passes:
+                self.calls.append((vao, len(data), mirrored, tex, uniforms, p))
+
+        clear = np.asarray(scene.clear_color, np.float64)
+        if self.linear:
+            clear = np.concatenate([decode(clear[:3]), clear[3:]])
+        self.clear = tuple(float(c) for c in clear)
+
+    # -------------------------------------------------------------- drawing
+
+    def _set_pass(self, p, mirrored: bool) -> None:
+        gl = self.gl
+        if p.cull is Cull.Off:
+            gl.Disable(GL_CULL_FACE)
+        else:
+            gl.Enable(GL_CULL_FACE)
+            gl.CullFace(GL_BACK if p.cull is Cull.Back else GL_FRONT)
+        gl.FrontFace(GL_CW if mirrored else GL_CCW)
+        gl.Enable(GL_DEPTH_TEST)  # ZTest Always still needs the test enabled for depth writes
+        gl.DepthFunc(_COMPARE[p.ztest])
+        gl.DepthMask(1 if p.zwrite else 0)
+        if p.offset_factor or p.offset_units:
+            gl.Enable(GL_POLYGON_OFFSET_FILL)
+            gl.PolygonOffset(float(p.offset_factor), float(p.offset_units))
+        else:
+            gl.Disable(GL_POLYGON_OFFSET_FILL)
+        if p.stencil:
+            gl.Enable(GL_STENCIL_TEST)
+            gl.StencilFunc(_COMPARE[p.stencil_comp], p.stencil_ref, p.stencil_read_mask)
+            gl.StencilOp(_STENCIL_OP[p.stencil_fail], _STENCIL_OP[p.stencil_zfail], _STENCIL_OP[p.stencil_pass])
+            gl.StencilMask(p.stencil_write_mask)
+        else:
+            gl.Disable(GL_STENCIL_TEST)
+            gl.StencilMask(0)
+        if p.blend:
+            gl.Enable(GL_BLEND)
+            sa, da, opa = p.alpha_factors
+            gl.BlendFuncSeparate(_FACTOR[p.src_blend], _FACTOR[p.dst_blend], _FACTOR[sa], _FACTOR[da])
+            gl.BlendEquationSeparate(_EQUATION[p.blend_op], _EQUATION[opa])
+        else:
+            gl.Disable(GL_BLEND)
+        gl.ColorMask(*(1 if c in p.color_mask else 0 for c in "RGBA"))
+
+    def _bind(self) -> None:
+        gl = self.gl
+        gl.BindFramebuffer(GL_FRAMEBUFFER, self.fbo)
+        gl.Viewport(0, 0, self.W, self.H)
+        gl.Disable(GL_SCISSOR_TEST)
+        gl.Disable(GL_DITHER)
+        gl.Disable(GL_MULTISAMPLE)
+        if self.linear and not self.hdr:
+            gl.Enable(GL_FRAMEBUFFER_SRGB)
+        else:
+            gl.Disable(GL_FRAMEBUFFER_SRGB)
+
+    def render(self, max_calls: int | None = None) -> None:
+        """Clear and issue every draw call (or the first ``max_calls``); no readback, no wait."""
+        gl = self.gl
+        self._bind()
+        gl.ColorMask(1, 1, 1, 1)
+        gl.DepthMask(1)
+        gl.StencilMask(0xFF)
+        gl.ClearColor(*self.clear)
+        gl.ClearDepth(1.0)
+        gl.ClearStencil(0)
+        gl.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT | GL_STENCIL_BUFFER_BIT)
+        prog = self.program
+        for vao, count, mirrored, tex, uniforms, p in self.calls[:max_calls]:
+            for name, value in uniforms.items():
+                if name in prog:
+                    prog[name].value = value
+            if "alpha_test" in prog:
+                prog["alpha_test"].value = bool(p.alpha_test)
+            if tex is not None:
+                tex.use(0)
+                if "tex" in prog:
+                    prog["tex"].value = 0
+            self._bind()
+            self._set_pass(p, mirrored)
+            vao.render(vertices=count)
+        gl.check("drawing")
+
+    def finish(self) -> None:
+        """Wait until the GPU has finished every draw call."""
+        self.gl.Finish()
+
+    def read(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(color, depth, stencil)`` as in :class:`blendlib.core.pipeline.Frame`, row 0 = top."""
+        gl, W, H = self.gl, self.W, self.H
+        gl.BindFramebuffer(GL_FRAMEBUFFER, self.fbo)
+        gl.Disable(GL_FRAMEBUFFER_SRGB)  # read the stored (encoded) codes, no conversion
+        gl.PixelStorei(GL_PACK_ALIGNMENT, 1)
+        if self.hdr:
+            color = np.empty((H, W, 4), np.float32)
+            gl.ReadPixels(0, 0, W, H, GL_RGBA, GL_FLOAT, color.ctypes.data)
+        else:
+            codes = np.empty((H, W, 4), np.uint8)
+            gl.ReadPixels(0, 0, W, H, GL_RGBA, GL_UNSIGNED_BYTE, codes.ctypes.data)
+            color = (codes / 255.0).astype(np.float32)
+        ds = np.empty((H, W), np.uint32)
+        gl.ReadPixels(0, 0, W, H, GL_DEPTH_STENCIL, GL_UNSIGNED_INT_24_8, ds.ctypes.data)
+        gl.check("readback")
+        depth = ((ds >> 8).astype(np.int64) / DMAX).astype(np.float32)
+        stencil = (ds & 0xFF).astype(np.uint8)
+        return color[::-1].copy(), depth[::-1].copy(), stencil[::-1].copy()
+
+    def release(self) -> None:
+        gl = self.gl
+        ids = (ctypes.c_uint * 1)(self.fbo)
+        gl.DeleteFramebuffers(1, ids)
+        ids[0] = self.rbo
+        gl.DeleteRenderbuffers(1, ids)
+        for res in self._resources:
+            res.release()
+        self._resources = []
+
+
+def render_gl(scene: DrawScene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Render ``scene`` through OpenGL (llvmpipe); returns ``(color, depth, stencil)``, row 0 = top."""
+    r = GLRenderer(scene)
+    try:
+        r.render()
+        r.finish()
+        return r.read()
+    finally:
+        r.release()
