@@ -118,6 +118,9 @@ class _ImportMixin:
         except shaderlab.ShaderLabError as exc:
             self.report({"ERROR"}, _one_line(str(exc)))
             return {"CANCELLED"}
+        except Exception as exc:  # noqa: BLE001 - a report, never a traceback in the UI
+            self.report({"ERROR"}, _one_line(f"{filename}: internal error: {type(exc).__name__}: {exc}"))
+            return {"CANCELLED"}
         try:
             apply_result(context.material, result, self.reset_texture)
         except (TypeError, ValueError, AttributeError) as exc:

@@ -40,6 +40,8 @@ and reads the material through :mod:`blendlib.bridge`.
 
 from __future__ import annotations
 
+import bisect
+import functools
 import json
 import math
 import re
@@ -99,7 +101,7 @@ class ShaderLabError(ValueError):
 # --------------------------------------------------------------------------- scanner
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)  # not frozen: a frozen dataclass's __init__ is several times slower
 class Token:
     kind: str  # "ident", "string", "number", "code", "punct", "eof"
     text: str  # identifier / string contents / number text / program text / punctuation
@@ -133,6 +135,12 @@ _CODE_BLOCKS = {
 _PUNCT = "{}()[],=+"
 _NUMBER_RE = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
 _IDENT_RE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+_SPACE_RE = re.compile(r"(?:[\s\ufeff]+|//[^\n]*\n?|/\*.*?\*/)*", re.DOTALL)  # spaces and closed comments
+
+#: ``Category`` blocks nest at most this deep (deeper input is an error, not a RecursionError).
+MAX_NESTING = 64
+#: A warning with the same text (position aside) is listed this often, then summed up as "and N more".
+MAX_REPEATED_WARNINGS = 10
 
 
 class Scanner:
@@ -148,13 +156,7 @@ class Scanner:
 
     # positions -------------------------------------------------------------
     def where(self, offset: int) -> tuple[int, int]:
-        lo, hi = 0, len(self._line_starts) - 1
-        while lo < hi:
-            mid = (lo + hi + 1) // 2
-            if self._line_starts[mid] <= offset:
-                lo = mid
-            else:
-                hi = mid - 1
+        lo = bisect.bisect_right(self._line_starts, offset) - 1
         return lo + 1, offset - self._line_starts[lo] + 1
 
     def error(self, message: str, at: Token | int) -> ShaderLabError:
@@ -166,21 +168,9 @@ class Scanner:
 
     # scanning --------------------------------------------------------------
     def _skip_space_and_comments(self) -> None:
-        text, n = self.text, len(self.text)
-        while self.pos < n:
-            c = text[self.pos]
-            if c.isspace() or c == "\ufeff":
-                self.pos += 1
-            elif text.startswith("//", self.pos):
-                nl = text.find("\n", self.pos)
-                self.pos = n if nl < 0 else nl + 1
-            elif text.startswith("/*", self.pos):
-                close = text.find("*/", self.pos + 2)
-                if close < 0:
-                    raise self.error("comment '/*' is never closed by '*/'", self.pos)
-                self.pos = close + 2
-            else:
-                break
+        self.pos = _SPACE_RE.match(self.text, self.pos).end()
+        if self.text.startswith("/*", self.pos):
+            raise self.error("comment '/*' is never closed by '*/'", self.pos)
 
     def peek(self) -> Token:
         if self._peeked is None:
@@ -209,6 +199,8 @@ class Scanner:
             return Token("string", text[start + 1 : close], line, col, self.pos)
         m = _NUMBER_RE.match(text, start)
         if m and (c.isdigit() or c == "." or (c in "+-" and m.end() > start + 1)):
+            if not math.isfinite(float(m.group())):
+                raise self.error(f"number {m.group()} is out of range (not a finite float)", start)
             self.pos = m.end()
             return Token("number", m.group(), line, col, self.pos)
         if c in _PUNCT:
@@ -463,10 +455,33 @@ class _PassInfo:
     token: Token
 
 
+class _Warnings(list):
+    """Warnings ``"LINE:COL: message"``; a message repeated more than :data:`MAX_REPEATED_WARNINGS` times
+    is listed that often, then one line at the first left-out position says how many more there are."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._counts: dict[str, int] = {}
+        self._summary: dict[str, tuple[int, str]] = {}  # message -> (index of its summary line, position)
+
+    def append(self, text: str) -> None:
+        position, _, message = text.partition(": ")
+        n = self._counts[message] = self._counts.get(message, 0) + 1
+        if n <= MAX_REPEATED_WARNINGS:
+            super().append(text)
+            return
+        if n == MAX_REPEATED_WARNINGS + 1:
+            self._summary[message] = (len(self), position)
+            super().append("")
+        index, first = self._summary[message]
+        self[index] = f"{first}: {message} (and {n - MAX_REPEATED_WARNINGS - 1} more like this left out)" \
+            if n > MAX_REPEATED_WARNINGS + 1 else f"{first}: {message}"
+
+
 class _Parser:
     def __init__(self, text: str, filename: str) -> None:
         self.s = Scanner(text, filename)
-        self.warnings: list[str] = []
+        self.warnings: list[str] = _Warnings()
         self.properties: dict[str, _Property] = {}
         self.fallback: str | None = None
         self.use_passes: list[str] = []
@@ -541,8 +556,11 @@ class _Parser:
             raise self.s.error(f"unexpected {tail.describe()} after the end of the shader", tail)
         return name, head
 
-    def parse_container(self, open_tok: Token, owner: str, outer_state: dict[str, Any], in_category: bool) -> None:
-        """The body of ``Shader`` or ``Category``."""
+    def parse_container(self, open_tok: Token, owner: str, outer_state: dict[str, Any], in_category: bool,
+                        depth: int = 0) -> None:
+        """The body of ``Shader`` or ``Category`` (``depth``: how many Category blocks enclose it)."""
+        if depth > MAX_NESTING:
+            raise self.s.error(f"Category blocks nested more than {MAX_NESTING} deep", open_tok)
         state = _State()
         while True:
             tok = self.s.next()
@@ -573,7 +591,8 @@ class _Parser:
                     self.warn("only the first SubShader is imported; this one is ignored", tok)
                     self.skip_block(self.open_block(tok), "SubShader")
             elif word == "category":
-                self.parse_container(self.open_block(tok), "Category", state.merged_over(outer_state), True)
+                self.parse_container(self.open_block(tok), "Category", state.merged_over(outer_state), True,
+                                     depth + 1)
             elif word == "fallback":
                 arg = self.s.next()
                 if arg.kind == "string":
@@ -801,7 +820,7 @@ class _Parser:
         raw, tok, is_ref = self.value(what)
         if is_ref:
             return self.by_number(table, raw, tok, what), tok
-        words = words or {m.value.lower(): m for m in cls}
+        words = words or _enum_words(cls)
         member = words.get(str(raw).lower())
         if member is None:
             choices = ", ".join(dict.fromkeys(m.value for m in words.values()))
@@ -939,6 +958,12 @@ _STENCIL_FACE_COMMANDS = frozenset(
 )
 
 
+@functools.cache
+def _enum_words(cls) -> dict[str, Any]:
+    """Lower-case value → member of a vocabulary enum (built once per enum: parsing is per token)."""
+    return {m.value.lower(): m for m in cls}
+
+
 def _parse_color_mask_word(word: str) -> frozenset[str]:
     text = word.strip().upper()
     if text == "0":
@@ -953,9 +978,10 @@ def _parse_color_mask_word(word: str) -> frozenset[str]:
 _CG_COMMENT_RE = re.compile(r"//[^\n]*|/\*.*?\*/", re.DOTALL)
 _CLIP_RE = re.compile(r"\bclip\s*\(")
 _CLIP_PROP_RE = re.compile(r"\bclip\s*\(([^;]*?)-\s*(_[A-Za-z0-9_]+)\s*\)\s*;")
+# One literal component: a CG float literal (optional f/h suffix). Expressions such as 1-0.5 do not match.
+_CG_LITERAL = r"([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)[fFhH]?"
 _RETURN_CONST_RE = re.compile(
-    r"\breturn\s+(?:float|half|fixed)4\s*\(\s*([-+0-9.eE]+)\s*,\s*([-+0-9.eE]+)\s*,\s*([-+0-9.eE]+)\s*,"
-    r"\s*([-+0-9.eE]+)\s*\)\s*;"
+    r"\breturn\s+(?:float|half|fixed)4\s*\(\s*" + r"\s*,\s*".join([_CG_LITERAL] * 4) + r"\s*\)\s*;"
 )
 
 
@@ -1027,6 +1053,7 @@ def parse_shaderlab(text: str, filename: str = "<string>") -> ShaderLabResult:
     if (material["lighting"] is Lighting.Unlit and color_prop is None and tex_prop is None
             and "_Color" not in all_code and "tex2D" not in all_code):
         constants = {tuple(float(x) for x in m.groups()) for m in _RETURN_CONST_RE.finditer(all_code)}
+        constants = {c for c in constants if all(math.isfinite(x) for x in c)}
         if len(constants) == 1:
             constant_color = constants.pop()
             material["color"] = constant_color
