@@ -56,7 +56,10 @@ class UnityPassesRenderEngine(bpy.types.RenderEngine):
             draw = blender.build_draw_scene(scene, depsgraph)
             if (draw.camera.width, draw.camera.height) != (width, height):
                 raise SceneError(f"render size {width}x{height} differs from the camera's "
-                                 f"{draw.camera.width}x{draw.camera.height} (border/crop rendering is not supported)")
+                                 f"{draw.camera.width}x{draw.camera.height}")
+            # A Render Region: the whole frame is rendered, the region handed over (Blender
+            # crops it or places it in the full-size image itself).
+            region = blender.border_region(scene, width, height)
             self.update_stats("", f"Unity Passes: {len(draw.renderers)} renderers")
             frame = pipeline.render_scene(draw, progress=self._progress, should_cancel=self.test_break)
         except RenderCancelled:
@@ -78,20 +81,33 @@ class UnityPassesRenderEngine(bpy.types.RenderEngine):
         if self.test_break():
             self.report({"ERROR"}, "Unity Passes: render cancelled")
             return
+        try:
+            self._write_result(depsgraph, blender.apply_border(frame, region, crop=True), width, height)
+        except Exception as exc:  # noqa: BLE001 - an error report stops Blender from saving the image
+            self.report({"ERROR"}, f"Unity Passes: internal error: {type(exc).__name__}: {exc}")
+            return
+        self.update_progress(1.0)
+
+    def _write_result(self, depsgraph, frame, width: int, height: int) -> None:
         arrays = result_arrays(frame)
         view_layer = depsgraph.view_layer
         self.add_pass(ALPHA_PASS, 1, "A")
         if not view_layer.use_pass_z:
             self.add_pass(DEPTH_PASS, 1, "Z")
         result = self.begin_result(0, 0, width, height)
+        cancel = True
         try:
+            got = (result.resolution_x, result.resolution_y)
+            h, w = frame.color.shape[:2]
+            if got != (w, h):
+                raise SceneError(f"Blender's render result is {got[0]}x{got[1]}, the frame {w}x{h}")
             layer = result.layers[0]
             for p in layer.passes:
                 if p.name in arrays:
                     p.rect = arrays[p.name]
+            cancel = False
         finally:
-            self.end_result(result)
-        self.update_progress(1.0)
+            self.end_result(result, cancel=cancel)
 
     def _progress(self, fraction: float) -> None:
         self.update_progress(float(fraction))

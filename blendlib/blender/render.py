@@ -70,16 +70,26 @@ def render_final(scene: Any = None, progress: Callable[[float], None] | None = N
     modifiers evaluate with their viewport settings there. This runs ``bpy.ops.render.render``
     with a capture engine instead, so modifier render levels and render visibility apply
     exactly as for F12 and ``blender -b -E UNITY_PASSES``. The scene's render engine is set
-    for the call and restored; no image is written. ``frame``: the frame to set first.
+    for the call and restored; no image is written. ``frame``: the frame to set first (the
+    scene's current frame is restored afterwards). A Render Region (``use_border``) gives what
+    F12 writes: the region only with Crop, else the full size with only the region filled.
     Raises like :func:`render`.
     """
     import bpy
 
+    from .extract import render_size
+
     scene = scene or bpy.context.scene
     if scene.camera is None:  # checked here: the operator would fail with its own wording
         raise SceneError(f"scene {scene.name!r} has no camera")
+    width, height = render_size(scene)
+    if width < 1 or height < 1:  # Blender's own "Image too small" would come as a second line
+        raise SceneError(f"scene {scene.name!r}: the render size is {width}x{height} pixels "
+                         "(resolution x percentage); it must be at least 1x1")
+    region = border_region(scene, width, height)
     engine = _capture_engine_class()
     previous = scene.render.engine
+    previous_frame = (scene.frame_current, scene.frame_subframe)
     _capture.clear()
     _capture.update(progress=progress, should_cancel=should_cancel)
     scene.render.engine = engine.bl_idname
@@ -87,16 +97,64 @@ def render_final(scene: Any = None, progress: Callable[[float], None] | None = N
         with bpy.context.temp_override(scene=scene):
             if frame is not None:
                 scene.frame_set(frame)
-            bpy.ops.render.render(scene=scene.name)
+            try:
+                bpy.ops.render.render(scene=scene.name)
+            except RuntimeError as exc:
+                lines = str(exc).strip().splitlines()
+                reason = lines[-1].removeprefix("Error: ").strip() if lines else "unknown error"
+                raise SceneError(f"scene {scene.name!r}: Blender cannot render it ({reason})") from None
     finally:
         scene.render.engine = previous
+        if frame is not None and (scene.frame_current, scene.frame_subframe) != previous_frame:
+            scene.frame_set(previous_frame[0], subframe=previous_frame[1])
     if "error" in _capture:
-        raise _capture.pop("error")
+        error = _capture.pop("error")
+        _capture.clear()
+        raise error
     if "frame" not in _capture:
         raise SceneError(f"scene {scene.name!r}: Blender did not render it (no view layer enabled for rendering?)")
     result = _capture.pop("frame")
     _capture.clear()
-    return result
+    return apply_border(result, region, bool(scene.render.use_crop_to_border))
+
+
+def border_region(scene: Any, width: int, height: int) -> tuple[int, int, int, int] | None:
+    """The Render Region of ``scene`` in pixels of a ``width`` x ``height`` frame, as Blender computes
+    it (border × size in float32, truncated): (x0, x1, y0, y1) with y counted from the bottom row,
+    or None when the region is off (``use_border`` False) or covers the whole frame."""
+    r = scene.render
+    if not r.use_border:
+        return None
+    f32 = np.float32
+    x0, x1 = (int(f32(v) * f32(width)) for v in (r.border_min_x, r.border_max_x))
+    y0, y1 = (int(f32(v) * f32(height)) for v in (r.border_min_y, r.border_max_y))
+    x0, x1 = max(0, min(x0, width)), max(0, min(x1, width))
+    y0, y1 = max(0, min(y0, height)), max(0, min(y1, height))
+    if x1 - x0 < 1 or y1 - y0 < 1:
+        raise SceneError(f"scene {scene.name!r}: the Render Region is smaller than one pixel "
+                         f"({x1 - x0}x{y1 - y0} of {width}x{height})")
+    if (x0, x1, y0, y1) == (0, width, 0, height):
+        return None
+    return x0, x1, y0, y1
+
+
+def apply_border(frame: pipeline.Frame, region: tuple[int, int, int, int] | None, crop: bool) -> pipeline.Frame:
+    """The frame as a render with a Render Region writes it: ``crop`` gives the region only; without
+    crop the full size, the region filled and the rest transparent black (colour 0, depth 1 = far,
+    stencil 0), as Blender does. ``region`` from :func:`border_region` (None: the frame as is)."""
+    if region is None:
+        return frame
+    x0, x1, y0, y1 = region
+    h = frame.color.shape[0]
+    rows = slice(h - y1, h - y0)  # row 0 is the top; the region's y counts from the bottom
+    cols = slice(x0, x1)
+    if crop:
+        arrays = [np.ascontiguousarray(a[rows, cols]) for a in (frame.color, frame.depth, frame.stencil)]
+    else:
+        arrays = [np.zeros_like(frame.color), np.ones_like(frame.depth), np.zeros_like(frame.stencil)]
+        for out, a in zip(arrays, (frame.color, frame.depth, frame.stencil), strict=True):
+            out[rows, cols] = a[rows, cols]
+    return pipeline.Frame(arrays[0], arrays[1], arrays[2], warnings=list(frame.warnings), encoded=frame.encoded)
 
 
 def linear_rgba(frame: pipeline.Frame, encoded: bool | None = None, opaque: bool = False) -> np.ndarray:
