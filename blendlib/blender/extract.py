@@ -21,6 +21,8 @@ MESH_LIKE = {"MESH", "CURVE", "SURFACE", "META", "FONT"}
 
 
 MAGENTA = (1.0, 0.0, 1.0, 1.0)
+#: Objects whose matrix_world holds a larger entry are not drawn (with a warning).
+MAX_TRANSFORM = 1e30
 
 
 def render_size(scene: Any) -> tuple[int, int]:
@@ -125,8 +127,9 @@ class _Extractor:
         positions = arrays["positions"]
         slots = obj_eval.material_slots
         mats = [s.material for s in slots] or list(mesh.materials)
-        if len(positions):
-            lo, hi = positions.min(axis=0).astype(np.float64), positions.max(axis=0).astype(np.float64)
+        finite = positions[np.isfinite(positions).all(axis=1)]  # NaN/inf vertices: the core skips their triangles
+        if len(finite):
+            lo, hi = finite.min(axis=0).astype(np.float64), finite.max(axis=0).astype(np.float64)
             corners = np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
             world = corners @ matrix_world.T
             center = (world[:, :3].min(axis=0) + world[:, :3].max(axis=0)) * 0.5
@@ -301,7 +304,17 @@ def build_draw_scene(scene: Any = None, depsgraph: Any = None) -> DrawScene:
         raise SceneError(f"scene {scene.name!r} has no camera")
     if cam_obj.type != "CAMERA":
         raise SceneError(f"scene {scene.name!r}: active camera {cam_obj.name!r} is not a camera object")
+    cam_data = cam_obj.data
+    if cam_data.type == "PANO":
+        raise SceneError(f"camera {cam_obj.name!r}: panoramic cameras are not supported (use Perspective or "
+                         "Orthographic)")
+    if not cam_data.clip_start < cam_data.clip_end:
+        raise SceneError(f"camera {cam_obj.name!r}: Clip Start {cam_data.clip_start:g} must be less than "
+                         f"Clip End {cam_data.clip_end:g}")
     width, height = render_size(scene)
+    if width < 1 or height < 1:
+        raise SceneError(f"scene {scene.name!r}: the render size is {width}x{height} pixels "
+                         "(resolution x percentage); it must be at least 1x1")
     camera = _camera(cam_obj.evaluated_get(depsgraph), depsgraph, scene, width, height)
 
     ex = _Extractor(depsgraph, warnings)
@@ -311,6 +324,11 @@ def build_draw_scene(scene: Any = None, depsgraph: Any = None) -> DrawScene:
 
     def add(obj: Any, name: str, matrix: Any) -> None:
         mw = _matrix(matrix)
+        if obj.type in MESH_LIKE and not (np.all(np.isfinite(mw)) and np.abs(mw).max() < MAX_TRANSFORM):
+            # Blender stores an "infinite" scale as FLT_MAX: nothing sensible can be drawn from it.
+            warnings.append(f"object {name!r}: its transform is not finite (an infinite scale or location, "
+                            f"beyond {MAX_TRANSFORM:g}); not drawn")
+            return
         if obj.type == "LIGHT" and obj.data.type == "SUN":
             energy = float(obj.data.energy)
             suns.append((energy * max(float(c) for c in obj.data.color), name, obj, mw))
@@ -401,7 +419,12 @@ def _camera(cam_eval: Any, depsgraph: Any, scene: Any, width: int, height: int) 
     r = scene.render
     proj = cam_eval.calc_matrix_camera(depsgraph, x=width, y=height,
                                        scale_x=float(r.pixel_aspect_x), scale_y=float(r.pixel_aspect_y))
-    view = _matrix(cam_eval.matrix_world.inverted())
+    try:
+        view = _matrix(cam_eval.matrix_world.inverted())
+    except ValueError:
+        raise SceneError(f"camera {cam_eval.name!r}: its transform cannot be inverted (a scale of 0?)") from None
+    if not np.all(np.isfinite(view)):
+        raise SceneError(f"camera {cam_eval.name!r}: its transform is not finite")
     return Camera(view_matrix=view, projection=_matrix(proj), width=int(width), height=int(height),
                   orthographic=cam_eval.data.type == "ORTHO")
 

@@ -69,6 +69,8 @@ def check_output(path: Path, option: str) -> None:
         raise CliError(str(exc)) from None
     if option != "-o" and path.suffix.lower() != ".npy":
         raise CliError(f"{path}: {option} writes a .npy file")
+    if path.is_dir():
+        raise CliError(f"{path}: is a directory; {option} needs a file name")
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():
         raise CliError(f"{path}: output directory {str(folder)!r} does not exist")

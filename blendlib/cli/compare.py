@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
 from ..formats import images
@@ -18,6 +19,17 @@ example:
 
 
 
+def tolerance_value(text: str) -> float:
+    """``--tolerance``: a finite number >= 0 (argparse type)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value >= 0):
+        raise argparse.ArgumentTypeError(f"tolerance must be a finite number >= 0, got {text!r}")
+    return value
+
+
 def add_parser(sub) -> None:
     c = sub.add_parser("compare", help="compare two images (PNG/EXR/NPY)",
                        description="Compare two images of the same size over their common channels.",
@@ -25,7 +37,7 @@ def add_parser(sub) -> None:
     c.add_argument("a", metavar="A", help="first image (.png, .exr or .npy)")
     c.add_argument("b", metavar="B", help="second image (.png, .exr or .npy)")
     c.add_argument("--diff", metavar="OUT.png", help="write a heat map of the per-pixel difference")
-    c.add_argument("--tolerance", type=float, default=0.0,
+    c.add_argument("--tolerance", type=tolerance_value, default=0.0,
                    help="a pixel counts as differing when a channel differs by more than this (default 0)")
     c.set_defaults(func=run)
 

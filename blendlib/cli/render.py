@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
+import signal
 from pathlib import Path
 
 from ..formats import images
@@ -28,9 +30,64 @@ def add_parser(sub) -> None:
     r.add_argument("file", metavar="FILE.blend", help="the .blend file (it is only read, never saved)")
     r.add_argument("-o", "--output", required=True, metavar="OUT", help="output image: .png, .exr or .npy")
     r.add_argument("--depth", metavar="DEPTH.npy", help="also write the depth buffer (H, W) float32, 0..1 window depth")
-    r.add_argument("--frame", type=int, metavar="N", help="frame number to render (default: the file's current frame)")
+    r.add_argument("--frame", type=frame_number, metavar="N",
+                   help="frame number to render (default: the file's current frame)")
     r.add_argument("--scene", metavar="NAME", help="scene to render (default: the file's active scene)")
     r.set_defaults(func=run)
+
+
+#: Blender's frame range (MAXFRAME); frame_set clamps to it.
+MAX_FRAME = 1048574
+
+
+def frame_number(text: str) -> int:
+    """``--frame``: an integer (argparse type)."""
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"frame must be an integer, got {text!r}") from None
+
+
+def check_distinct(paths: dict[str, Path]) -> None:
+    """One-line error when two of the named files (inputs and outputs) are the same file."""
+    seen: dict[Path, str] = {}
+    for option, path in paths.items():
+        key = path.resolve()
+        if key in seen:
+            raise CliError(f"{path}: {option} is the same file as {seen[key]}; choose another output")
+        seen[key] = option
+
+
+@contextlib.contextmanager
+def sigint_cancels():
+    """Ctrl+C during the render: Blender's render operator swallows KeyboardInterrupt, so SIGINT
+    sets a flag that the render polls (``should_cancel``); KeyboardInterrupt is raised after it."""
+    interrupted: list[bool] = []
+
+    def on_sigint(signum, frame):
+        interrupted.append(True)
+
+    try:
+        previous = signal.signal(signal.SIGINT, on_sigint)
+    except ValueError:  # not the main thread: no signal handling to change
+        yield lambda: False
+        return
+    try:
+        yield lambda: bool(interrupted)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    if interrupted:
+        raise KeyboardInterrupt
+
+
+def _save(path: Path, array) -> None:
+    """Write an output; errors name the user's path, not the temporary file."""
+    try:
+        images.save(path, array)
+    except images.ImageIOError as exc:
+        raise CliError(str(exc)) from None
+    except OSError as exc:
+        raise CliError(f"{path}: cannot write ({exc.strerror or exc})") from None
 
 
 def run(args: argparse.Namespace) -> int:
@@ -38,33 +95,40 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.output)
     check_blend(blend)
     check_output(out, "-o")
+    paths = {"FILE.blend": blend, "-o": out}
     if args.depth:
         check_output(Path(args.depth), "--depth")
+        paths["--depth"] = Path(args.depth)
+    check_distinct(paths)
+    if args.frame is not None and abs(args.frame) > MAX_FRAME:
+        clamped = max(-MAX_FRAME, min(MAX_FRAME, args.frame))
+        warn(f"--frame {args.frame} is outside Blender's frame range; rendering frame {clamped}")
+        args.frame = clamped
     require_bpy()
     from .. import blender
     from ..core.pipeline import RenderCancelled
     from ..core.scene import SceneError
 
-    scene = open_scene(blend, args.scene)
-    try:
-        with redirect_fds(2):  # F12's render-mode depsgraph (modifier render levels)
-            frame = blender.render_final(scene, frame=args.frame)
-    except SceneError as exc:
-        raise CliError(str(exc)) from None
-    except RenderCancelled:
-        raise CliError("render cancelled") from None
+    with sigint_cancels() as interrupted:
+        scene = open_scene(blend, args.scene)
+        try:
+            with redirect_fds(2):  # F12's render-mode depsgraph (modifier render levels)
+                frame = blender.render_final(scene, frame=args.frame, should_cancel=interrupted)
+        except SceneError as exc:
+            raise CliError(str(exc)) from None
+        except RenderCancelled:
+            frame = None  # interrupted: KeyboardInterrupt on leaving the block
+    if frame is None:
+        raise CliError("render cancelled")
     for warning in frame.warnings:
         warn(warning)
-    try:
-        images.save(out, frame.color)
-    except (images.ImageIOError, OSError) as exc:
-        raise CliError(str(exc)) from None
+    _save(out, frame.color)
     if args.depth:
         try:
-            images.save(args.depth, frame.depth)
-        except (images.ImageIOError, OSError) as exc:
+            _save(Path(args.depth), frame.depth)
+        except BaseException:
             out.unlink(missing_ok=True)  # all or nothing
-            raise CliError(str(exc)) from None
+            raise
     print(out)
     if args.depth:
         print(args.depth)

@@ -176,7 +176,8 @@ def _to_window(clip: np.ndarray, camera: Camera) -> tuple[np.ndarray, ...]:
         zw = z * iw * 0.5 + 0.5
         fx = np.floor(xw * SUBPIXEL + 0.5)
         fy = np.floor(yw * SUBPIXEL + 0.5)
-    finite = np.isfinite(fx) & np.isfinite(fy) & np.isfinite(zw) & np.isfinite(iw)
+    # Beyond 2**62 (far outside the guard band: such vertices are clipped) int64 cannot hold it.
+    finite = (np.abs(fx) < 2.0**62) & (np.abs(fy) < 2.0**62) & np.isfinite(zw) & np.isfinite(iw)
     fx = np.where(finite, fx, 0.0)
     fy = np.where(finite, fy, 0.0)
     return fx.astype(np.int64), fy.astype(np.int64), zw, iw, finite

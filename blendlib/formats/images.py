@@ -100,7 +100,10 @@ def load(path: str | os.PathLike) -> np.ndarray:
             raise ImageIOError(f"{path}: not a readable .npy file ({exc})") from None
         if a.ndim not in (2, 3):
             raise ImageIOError(f"{path}: expected a 2-D or 3-D array, got shape {a.shape}")
-        return a.astype(np.float32, copy=False)
+        if a.dtype.kind not in "biuf":
+            raise ImageIOError(f"{path}: the array holds {a.dtype} values; expected real numbers (float or integer)")
+        with np.errstate(over="ignore"):  # beyond float32: inf, a difference like any other
+            return a.astype(np.float32, copy=False)
     data = path.read_bytes()
     try:
         return decode_png(data) if ext == ".png" else decode_exr(data)
@@ -401,12 +404,13 @@ def compare(a: np.ndarray, b: np.ndarray, diff_path: str | os.PathLike | None = 
     if a.shape[:2] != b.shape[:2]:
         raise ImageIOError(f"image sizes differ: {a.shape[1]}x{a.shape[0]} vs {b.shape[1]}x{b.shape[0]}")
     c = min(a.shape[2], b.shape[2])
-    diff = np.abs(a[..., :c] - b[..., :c])
-    diff = np.where(np.isnan(diff), np.inf, diff)
-    per_pixel = diff.max(axis=2) if diff.size else np.zeros(a.shape[:2])
-    max_abs = float(diff.max()) if diff.size else 0.0
-    mean_abs = float(diff.mean()) if diff.size else 0.0
-    mse = float((diff * diff).mean()) if diff.size else 0.0
+    with np.errstate(invalid="ignore", over="ignore"):  # inf - inf and overflow are differences too
+        diff = np.abs(a[..., :c] - b[..., :c])
+        diff = np.where(np.isnan(diff), np.inf, diff)
+        per_pixel = diff.max(axis=2) if diff.size else np.zeros(a.shape[:2])
+        max_abs = float(diff.max()) if diff.size else 0.0
+        mean_abs = float(diff.mean()) if diff.size else 0.0
+        mse = float((diff * diff).mean()) if diff.size else 0.0
     psnr = math.inf if mse == 0 else (10.0 * math.log10(1.0 / mse) if math.isfinite(mse) else 0.0)
     differing = float((per_pixel > tolerance).mean()) if per_pixel.size else 0.0
     if diff_path is not None:
