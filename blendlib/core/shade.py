@@ -56,15 +56,72 @@ def frame_lights(scene: DrawScene) -> Lights:
     return Lights(ambient=ambient, light=light, direction=direction)
 
 
-def texture_texels(texture: Texture, color_space: ColorSpace) -> np.ndarray:
-    """Texels converted to shading space before filtering: (h, w, 4) float64 (row 0 = v 0)."""
-    texels = np.asarray(texture.pixels, dtype=np.float64).copy()
-    rgb = texels[..., :3]
+class Texels:
+    """Texels in shading space, stored compactly; :meth:`fetch` gives exactly the float64 values
+    that converting every texel would (docs/pipeline.md §7: conversion before filtering).
+
+    - Byte images (at most 256 distinct float32 values, e.g. Blender's k/255): (h*w, 4) uint8
+      codes and a float64 lookup table per channel kind (RGB converted, alpha as is): 1 byte a channel.
+    - Other images that need no conversion: the float32 values (float64 of a float32 is exact).
+    - Other images that need a conversion: float64 (as before).
+    """
+
+    #: Rows converted per step (bounds the temporaries of an 8192² texture to a few MB).
+    ROWS = 256
+
+    def __init__(self, pixels: np.ndarray, convert) -> None:
+        h, w = pixels.shape[:2]
+        self.shape = (h, w, 4)
+        self.codes = self.lut_rgb = self.lut_alpha = self.values = None
+        codes = np.empty((h, w, 4), np.uint8)
+        lut32 = np.zeros(256, np.float32)
+        exact = True
+        for lo in range(0, h, self.ROWS):  # codes = round(v * 255); exact when the table gives v back
+            block = pixels[lo:lo + self.ROWS]
+            with np.errstate(invalid="ignore", over="ignore"):
+                c = np.rint(np.clip(block, 0.0, 1.0) * np.float32(255.0))
+            c = np.nan_to_num(c).astype(np.uint8)
+            lut32[c.ravel()] = block.ravel()
+            codes[lo:lo + self.ROWS] = c
+        for lo in range(0, h, self.ROWS):
+            block = pixels[lo:lo + self.ROWS]
+            if not np.array_equal(lut32[codes[lo:lo + self.ROWS]], block):  # NaN never equals: not exact
+                exact = False
+                break
+        if exact:
+            self.codes = codes.reshape(h * w, 4)
+            raw = lut32.astype(np.float64)
+            self.lut_rgb = convert(raw) if convert is not None else raw
+            self.lut_alpha = raw
+            return
+        del codes
+        if convert is None:
+            self.values = pixels.reshape(h * w, 4)
+            return
+        texels = pixels.astype(np.float64)
+        texels[..., :3] = convert(texels[..., :3])
+        self.values = texels.reshape(h * w, 4)
+
+    def fetch(self, index: np.ndarray) -> np.ndarray:
+        """Texels at flat indices ``index`` (N,) int64 (row * w + column) → (N, 4) float64."""
+        if self.codes is None:
+            return self.values[index].astype(np.float64, copy=False)
+        c = self.codes[index]
+        out = np.empty((len(index), 4), np.float64)
+        out[:, :3] = self.lut_rgb[c[:, :3]]
+        out[:, 3] = self.lut_alpha[c[:, 3]]
+        return out
+
+
+def texture_texels(texture: Texture, color_space: ColorSpace) -> Texels:
+    """Texels converted to shading space before filtering (row 0 = v 0), stored compactly (:class:`Texels`)."""
+    pixels = np.asarray(texture.pixels, dtype=np.float32)
+    convert = None
     if texture.encoding == "sRGB" and color_space is ColorSpace.Linear:
-        texels[..., :3] = colorspace.decode_array(rgb)
+        convert = colorspace.decode_array
     elif texture.encoding == "Linear" and color_space is ColorSpace.Gamma:
-        texels[..., :3] = colorspace.encode_array(rgb)
-    return texels
+        convert = colorspace.encode_array
+    return Texels(pixels, convert)
 
 
 def _wrap(i: np.ndarray, size: int, wrap: TextureWrap) -> np.ndarray:
@@ -74,17 +131,17 @@ def _wrap(i: np.ndarray, size: int, wrap: TextureWrap) -> np.ndarray:
     return np.minimum(np.maximum(i, 0.0), float(size - 1)).astype(np.int64)
 
 
-def sample(texels: np.ndarray, uv: np.ndarray, filt: TextureFilter, wrap: TextureWrap) -> np.ndarray:
-    """Sample (h, w, 4) float64 texels at uv (N, 2) float64 → (N, 4) float64 (§7; non-finite uv → texel (0, 0))."""
+def sample(texels: Texels, uv: np.ndarray, filt: TextureFilter, wrap: TextureWrap) -> np.ndarray:
+    """Sample texels at uv (N, 2) float64 → (N, 4) float64 (§7; non-finite uv → texel (0, 0))."""
     h, w = texels.shape[:2]
-    flat = texels.reshape(h * w, 4)
+    fetch = texels.fetch
     u, v = uv[:, 0], uv[:, 1]
     finite = np.isfinite(u) & np.isfinite(v)
     with np.errstate(invalid="ignore", over="ignore"):
         if filt is TextureFilter.Point:
             i = np.where(finite, np.floor(u * w), 0.0)
             j = np.where(finite, np.floor(v * h), 0.0)
-            return flat[_wrap(j, h, wrap) * w + _wrap(i, w, wrap)]
+            return fetch(_wrap(j, h, wrap) * w + _wrap(i, w, wrap))
         fu = u * w - 0.5
         fv = v * h - 0.5
         i0 = np.where(finite, np.floor(fu), 0.0)
@@ -93,8 +150,8 @@ def sample(texels: np.ndarray, uv: np.ndarray, filt: TextureFilter, wrap: Textur
         av = np.where(finite, fv - j0, 0.0)[:, None]
     i1, j1 = _wrap(i0 + 1.0, w, wrap), _wrap(j0 + 1.0, h, wrap)
     i0, j0 = _wrap(i0, w, wrap), _wrap(j0, h, wrap)
-    lo = flat[j0 * w + i0] * (1.0 - au) + flat[j0 * w + i1] * au
-    hi = flat[j1 * w + i0] * (1.0 - au) + flat[j1 * w + i1] * au
+    lo = fetch(j0 * w + i0) * (1.0 - au) + fetch(j0 * w + i1) * au
+    hi = fetch(j1 * w + i0) * (1.0 - au) + fetch(j1 * w + i1) * au
     return lo * (1.0 - av) + hi * av
 
 
@@ -109,7 +166,7 @@ def shade(
     """Fragment colours (N, 4) float64 in shading space, straight alpha.
 
     ``uv`` (N, 2) float64 interpolated mesh UVs; ``normal`` (N, 3) float64
-    interpolated (unnormalised) world normals; ``texels`` from :func:`texture_texels`.
+    interpolated (unnormalised) world normals; ``texels`` (:class:`Texels`) from :func:`texture_texels`.
     """
     n = uv.shape[0]
     color = gamma_color_to_shading(material.color[:3], color_space) + (float(material.color[3]),)
