@@ -14,6 +14,7 @@ import bpy
 import numpy as np
 
 from blendlib import blender
+from blendlib.blender.render import one_warning_per_cause
 from blendlib.core import pipeline
 from blendlib.core.pipeline import RenderCancelled
 from blendlib.core.scene import SceneError
@@ -76,7 +77,7 @@ class UnityPassesRenderEngine(bpy.types.RenderEngine):
         except Exception as exc:  # noqa: BLE001 - a report, not a traceback in the UI
             self.report({"ERROR"}, f"Unity Passes: internal error: {type(exc).__name__}: {exc}")
             return
-        for warning in frame.warnings:
+        for warning in one_warning_per_cause(frame.warnings):
             self.report({"WARNING"}, f"Unity Passes: {warning}")
         if self.test_break():
             self.report({"ERROR"}, "Unity Passes: render cancelled")

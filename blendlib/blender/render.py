@@ -27,7 +27,19 @@ def render(scene: Any = None, depsgraph: Any = None, progress: Callable[[float],
     frame = pipeline.render_scene(draw, progress=progress, should_cancel=should_cancel)
     extra = [w for w in draw.warnings if w not in frame.warnings]
     frame.warnings[:0] = extra
+    frame.warnings[:] = one_warning_per_cause(frame.warnings)
     return frame
+
+
+def one_warning_per_cause(warnings: list[str]) -> list[str]:
+    """The warnings without repeats: an image the extraction could not read (its line names the file)
+    is not reported again by the core's "file missing" line; identical lines are listed once."""
+    unread = {w.split(": cannot read ", 1)[0] for w in warnings if w.startswith("image ") and ": cannot read " in w}
+    out: dict[str, None] = {}
+    for w in warnings:
+        if not (w.endswith(": file missing, drawn magenta") and w.rsplit(": ", 1)[0] in unread):
+            out[w] = None
+    return list(out)
 
 
 _CAPTURE_ENGINE_ID = "UNITY_PASSES_CAPTURE"

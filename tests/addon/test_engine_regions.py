@@ -122,3 +122,16 @@ def test_render_final_restores_the_current_frame():
     scene.frame_set(3)
     blender.render_final(scene, frame=7)
     assert scene.frame_current == 3
+
+
+def test_a_missing_image_is_warned_once(tmp_path):
+    scene = scene_with_cubes()
+    image = bpy.data.images.new("Missing", 4, 4)
+    image.source = "FILE"
+    image.filepath = str(tmp_path / "does_not_exist.png")
+    bpy.data.materials["Red"].unity.main_tex = image
+    frame = blender.render(scene)
+    about = [w for w in frame.warnings if "Missing" in w]
+    assert about == [f"image 'Missing': cannot read {image.filepath}; using magenta"]
+    final = blender.render_final(scene)
+    assert [w for w in final.warnings if "Missing" in w] == about
