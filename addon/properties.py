@@ -85,11 +85,11 @@ class UnityPassSettings(bpy.types.PropertyGroup):
 
 
 class UnityMaterialSettings(bpy.types.PropertyGroup):
-    """Material.unity: the Unity material (SPEC §3)."""
+    """Material.unity: the Unity material (README "Data model")."""
 
 
 class UnitySceneSettings(bpy.types.PropertyGroup):
-    """Scene.unity: Unity camera / player settings (SPEC §3)."""
+    """Scene.unity: Unity camera / player settings (README "Data model")."""
 
 
 UnityPassSettings.__annotations__ = {f.name: make_property(f) for f in PASS_FIELDS}

@@ -208,7 +208,7 @@ def float32_text(x: float) -> str:
 
 @dataclass(frozen=True)
 class Pass:
-    """One ``Pass { ... }``: the fixed-function state of one draw call (SPEC §3)."""
+    """One ``Pass { ... }``: the fixed-function state of one draw call."""
 
     name: str = "Pass"
     cull: Cull = Cull.Back
@@ -325,7 +325,7 @@ class Texture:
 
 @dataclass(frozen=True)
 class Material:
-    """The Unity material of SPEC §3 (``Material.unity``), resolved for rendering.
+    """The Unity material (``Material.unity``, README "Data model"), resolved for rendering.
 
     ``color`` is ``_Color`` as authored (COLOR_GAMMA: sRGB-encoded values).
     ``passes`` are drawn in order; an empty tuple means one default pass.
@@ -363,7 +363,8 @@ def queue_text(queue: Queue, offset: int) -> str:
 
 
 def pass_to_dict(p: Pass) -> dict[str, Any]:
-    """JSON-ready dict with SPEC §3 names; enums as identifiers, color_mask as a sorted RGBA list."""
+    """JSON-ready dict with the pass property names of ``Material.unity``; enums as identifiers,
+    color_mask as a sorted RGBA list."""
     out: dict[str, Any] = {}
     for f in fields(p):
         value = getattr(p, f.name)
