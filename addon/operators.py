@@ -71,7 +71,7 @@ class UNITY_OT_pass_add(_MaterialOperator, bpy.types.Operator):
     def execute(self, context):
         unity = context.material.unity
         item = unity.passes.add()
-        item.name = f"Pass {len(unity.passes)}"
+        write_pass(item, Pass(name=f"Pass {len(unity.passes)}"))
         target = min(unity.active_pass_index + 1, len(unity.passes) - 1) if len(unity.passes) > 1 else 0
         unity.passes.move(len(unity.passes) - 1, target)
         unity.active_pass_index = target
