@@ -119,8 +119,8 @@ def register() -> None:
 
 
 def unregister() -> None:
-    while migrate_on_load in bpy.app.handlers.load_post:
-        bpy.app.handlers.load_post.remove(migrate_on_load)
+    for handler in [h for h in bpy.app.handlers.load_post if _is_migration_handler(h)]:
+        bpy.app.handlers.load_post.remove(handler)  # also one left by a reloaded copy of this module
     for owner in (bpy.types.Scene, bpy.types.Material):
         if hasattr(owner, "unity"):
             del owner.unity
@@ -140,3 +140,7 @@ def migrate_on_load(*_args) -> None:
     except AttributeError:
         return
     migrate_data(data)
+
+
+def _is_migration_handler(handler) -> bool:
+    return getattr(handler, "__module__", None) == __name__ and getattr(handler, "__name__", None) == "migrate_on_load"
