@@ -104,38 +104,11 @@ ALPHA_BLEND = dict(blend=True, zwrite=False, src_blend="SrcAlpha", dst_blend="On
 
 
 def _unity_settings(mat, *, queue: str, color, passes: list[dict], lighting: str = "Lambert") -> None:
-    """Give ``mat`` Unity settings (SPEC §3): through the add-on's ``Material.unity`` when it is
-    registered, else as the stored ID properties that the bridge reads (same names and storage)."""
-    group = getattr(mat, "unity", None)
-    if group is not None and hasattr(group, "bl_rna"):
-        group.enabled = True
-        group.queue = queue
-        group.color = color
-        group.lighting = lighting
-        group.passes.clear()
-        for values in passes:
-            item = group.passes.add()
-            for key, value in values.items():
-                setattr(item, key, set(value) if key == "color_mask" else value)
-        return
-    from blendlib.blender import FLAG_BITS, MATERIAL_FIELDS, PASS_FIELDS
+    """Give ``mat`` Unity settings (``Material.unity``) through the schema's writer, which stores
+    the same values whether or not the add-on is registered."""
+    from blendlib.blender import write_material
 
-    def stored(fields, values):
-        out = {}
-        for f in fields:
-            if f.name not in values:
-                continue
-            v = values[f.name]
-            if f.kind == "enum":
-                v = [m.value for m in f.enum].index(v)
-            elif f.kind == "flags":
-                v = sum(FLAG_BITS[c] for c in v)
-            out[f.name] = v
-        return out
-
-    data = stored(MATERIAL_FIELDS, dict(enabled=True, queue=queue, color=tuple(color), lighting=lighting))
-    data["passes"] = [stored(PASS_FIELDS, p) for p in passes]
-    mat.bl_system_properties_get(do_create=True)["unity"] = data
+    write_material(mat, enabled=True, queue=queue, color=tuple(color), lighting=lighting, passes=passes)
 
 
 def _principled(mat, color, alpha: float, blended: bool, backface_culling: bool) -> None:

@@ -15,7 +15,7 @@ import numpy as np
 from ..core import colorspace
 from ..core.scene import Camera, DrawScene, Light, Mesh, Renderer, SceneError
 from ..core.vocabulary import ColorSpace, Lighting, Material, Pass, Queue, SortMode, Texture, TextureFilter, TextureWrap
-from .schema import MATERIAL_FIELDS, pass_from_values, read_group, scene_settings, unity_props
+from .schema import material_values, pass_from_values, scene_settings
 
 MESH_LIKE = {"MESH", "CURVE", "SURFACE", "META", "FONT"}
 
@@ -34,8 +34,7 @@ def _matrix(m: Any) -> np.ndarray:
 
 
 class _Extractor:
-    def __init__(self, depsgraph: Any, warnings: list[str]):
-        self.dg = depsgraph
+    def __init__(self, warnings: list[str]):
         self.warnings = warnings
         self.materials: dict[int, Material] = {}
         self.textures: dict[int, Texture] = {}
@@ -88,7 +87,7 @@ class _Extractor:
         return self.materials[key]
 
     def _convert_material(self, mat: Any, with_texture: bool = True) -> Material:
-        values = read_group(unity_props(mat), MATERIAL_FIELDS)
+        values = material_values(mat)
         texture = self.texture if with_texture else (lambda image: None)
         if not values["enabled"]:
             color, image = principled_inputs(mat)
@@ -163,12 +162,12 @@ class _Extractor:
 
 
 def material_from_blender(mat: Any, with_texture: bool = False) -> Material:
-    """The Unity material of a ``bpy.types.Material`` as it renders (SPEC §3), with or without its image.
+    """The Unity material of a ``bpy.types.Material`` as it renders, with or without its image.
 
     Reads ``mat.unity`` when the add-on is registered, else the stored properties; a
     disabled material gives the default opaque material from its Principled BSDF.
     """
-    return _Extractor(None, [])._convert_material(mat, with_texture=with_texture)
+    return _Extractor([])._convert_material(mat, with_texture=with_texture)
 
 
 def mesh_arrays(mesh: Any) -> dict[str, np.ndarray | None]:
@@ -304,7 +303,7 @@ def build_draw_scene(scene: Any = None, depsgraph: Any = None) -> DrawScene:
     width, height = render_size(scene)
     camera = _camera(cam_obj.evaluated_get(depsgraph), depsgraph, scene, width, height)
 
-    ex = _Extractor(depsgraph, warnings)
+    ex = _Extractor(warnings)
     renderers: list[Renderer] = []
     suns: list[tuple[float, str, Any, np.ndarray]] = []
     visible = render_visible_objects(view_layer) if check_visibility else set()

@@ -45,7 +45,7 @@ class Renderer:
     """One Unity renderer: one object's triangles that use one material slot.
 
     ``matrix_world`` (4, 4) float64 object → world. ``bounds_center`` (3,) float64:
-    centre of the object's world-space bounding box (the sort point of SPEC §4).
+    centre of the object's world-space bounding box (the sort point of docs/pipeline.md §0).
     ``name`` is the object name and ``slot`` the material slot index (sort ties).
     """
 
@@ -88,7 +88,7 @@ class Camera:
 
 @dataclass(frozen=True)
 class Light:
-    """The main directional light (SPEC §4): the render-visible Sun with the largest energy × max(colour).
+    """The main directional light (docs/pipeline.md §7): the render-visible Sun with the largest energy × max(colour).
 
     ``direction`` (3,) unit vector from the surface towards the light (the lamp's
     local +Z in world space). ``color`` is Blender's linear lamp colour; ``energy``

@@ -1,4 +1,5 @@
-"""The add-on: registration, SPEC §3 properties, save/reload, presets, operators, the render engine."""
+"""The add-on: registration, the Material.unity/Scene.unity properties, save/reload, presets, operators,
+the render engine."""
 
 from __future__ import annotations
 

@@ -192,7 +192,7 @@ def test_disabled_material_uses_principled_inputs_encoded():
 
 def test_texture_encodings_and_missing_file(tmp_path):
     empty_scene()
-    ex = extract._Extractor(None, warnings := [])
+    ex = extract._Extractor(warnings := [])
     byte = bpy.data.images.new("Byte", 3, 2)
     px = np.random.default_rng(0).random(24).astype(np.float32)
     byte.pixels.foreach_set(px)

@@ -1,4 +1,4 @@
-"""The real-GPU reference (SPEC §7, reference 2): a draw scene rendered through OpenGL.
+"""The real-GPU reference (README "How correctness is checked"): a draw scene rendered through OpenGL.
 
 The same draw list as the core, drawn with OpenGL's own fixed-function state on
 Mesa's llvmpipe through a headless EGL context (moderngl). Everything the core does

@@ -1,6 +1,6 @@
 """The scalar reference renderer: docs/pipeline.md in plain Python, one fragment at a time.
 
-This is the specification written as code (SPEC §7, reference 1). Every value is a
+This is the specification written as code (README "How correctness is checked", reference 1). Every value is a
 Python float (IEEE float64) or int; each sum is written in the evaluation order the
 page prescribes, ``(a + b) + c``, so the vectorised core must match it bit for bit.
 numpy is used only to read the input arrays (converted to Python numbers first) and
