@@ -6,6 +6,8 @@ Passes of the render result:
   transform (no look, no dither) turns them back into exactly the stored 8-bit values.
 - ``UnityAlpha``: the frame's own alpha channel (e.g. the clear colour's alpha).
 - ``Depth``: the depth buffer as OpenGL window depth 0..1 (not Blender's camera distance).
+
+The viewport's Rendered shading (``view_update`` / ``view_draw``) lives in :mod:`addon.viewport`.
 """
 
 from __future__ import annotations
@@ -17,6 +19,8 @@ from blendlib import blender
 from blendlib.core import pipeline
 from blendlib.core.pipeline import RenderCancelled
 from blendlib.core.scene import SceneError
+
+from . import viewport
 
 ALPHA_PASS = "UnityAlpha"
 DEPTH_PASS = "Depth"
@@ -95,6 +99,29 @@ class UnityPassesRenderEngine(bpy.types.RenderEngine):
 
     def _progress(self, fraction: float) -> None:
         self.update_progress(float(fraction))
+
+    # -- viewport (Rendered shading): see addon/viewport.py ----------------------------------------
+    def _viewport(self) -> viewport.ViewportSession:
+        session = getattr(self, "_viewport_session", None)
+        if session is None:
+            session = viewport.ViewportSession(viewport.redraw_callback(self))
+            self._viewport_session = session
+        return session
+
+    def view_update(self, context, depsgraph):
+        self._viewport().update(depsgraph)
+
+    def view_draw(self, context, depsgraph):
+        self._viewport().draw(self, context, depsgraph)
+
+    def __del__(self):
+        # Blender frees the engine when the viewport leaves Rendered shading: stop its worker.
+        try:
+            session = self.__dict__.get("_viewport_session")
+        except ReferenceError:
+            return
+        if session is not None:
+            session.close()
 
 
 def _compat_panels():

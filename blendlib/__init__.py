@@ -3,7 +3,7 @@
 Layers, one folder each: :mod:`blendlib.core` (the bpy-free renderer: a
 :class:`DrawScene` in, a :class:`Frame` of numpy buffers out), :mod:`blendlib.formats`
 (ShaderLab and image files, bpy-free), :mod:`blendlib.blender` (the only layer that
-touches bpy) and :mod:`blendlib.cli`. :func:`render` and :func:`write_image` import the
+touches bpy) and :mod:`blendlib.cli`. :func:`render`, :func:`render_view` and :func:`write_image` import the
 Blender layer lazily so that ``import blendlib`` works without bpy.
 """
 
@@ -15,7 +15,7 @@ from .core.vocabulary import Material, Pass, Texture
 
 __all__ = [
     "Camera", "DrawScene", "Frame", "Light", "Material", "Mesh", "Pass", "Renderer",
-    "SceneError", "Texture", "render", "render_scene", "write_image",
+    "SceneError", "Texture", "render", "render_scene", "render_view", "write_image",
 ]
 
 
@@ -28,6 +28,18 @@ def render(scene=None, **kwargs) -> Frame:
     from . import blender
 
     return blender.render(scene, **kwargs)
+
+
+def render_view(scene, view_matrix, projection_matrix, width: int, height: int, **kwargs) -> Frame:
+    """Render a ``bpy.types.Scene`` (None: the context scene) through a view's 4x4 matrices.
+
+    The Frame a camera with ``view_matrix`` (world → view) and ``projection_matrix`` (view →
+    clip) would give at ``width`` x ``height``: what the viewport's Rendered shading shows.
+    Matrices are ``mathutils.Matrix`` or anything numpy accepts. The scene is left unchanged.
+    """
+    from .blender import viewport
+
+    return viewport.render_view(scene, view_matrix, projection_matrix, width, height, **kwargs)
 
 
 def write_image(frame: Frame, name: str, **kwargs):

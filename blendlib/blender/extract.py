@@ -274,12 +274,16 @@ def render_visible_objects(view_layer: Any) -> set[int]:
     return found
 
 
-def build_draw_scene(scene: Any = None, depsgraph: Any = None) -> DrawScene:
+def build_draw_scene(scene: Any = None, depsgraph: Any = None, *, camera: Camera | None = None,
+                     visibility: str = "render") -> DrawScene:
     """A :class:`DrawScene` of a ``bpy.types.Scene`` (default: the context scene).
 
     ``depsgraph``: an evaluated depsgraph of the scene (the render engine passes its
     render depsgraph); default ``bpy.context.evaluated_depsgraph_get()`` for the
-    context scene. Raises :class:`SceneError` when the scene has no camera.
+    context scene. ``camera``: use this camera instead of the scene's (the viewport's
+    own view; the scene needs no camera then). ``visibility``: ``"render"`` (objects as a
+    render shows them) or ``"viewport"`` (as the depsgraph's viewport shows them).
+    Raises :class:`SceneError` when the scene has no camera and none is given.
     """
     import bpy
 
@@ -291,17 +295,20 @@ def build_draw_scene(scene: Any = None, depsgraph: Any = None) -> DrawScene:
     if depsgraph is None:
         depsgraph = _depsgraph_for(scene)
     view_layer = depsgraph.view_layer
-    check_visibility = depsgraph.mode != "RENDER"
+    if visibility not in ("render", "viewport"):
+        raise ValueError(f"visibility must be 'render' or 'viewport', got {visibility!r}")
+    check_visibility = depsgraph.mode != "RENDER" and visibility == "render"
     warnings: list[str] = []
     settings = scene_settings(scene)
 
-    cam_obj = scene.camera
-    if cam_obj is None:
-        raise SceneError(f"scene {scene.name!r} has no camera")
-    if cam_obj.type != "CAMERA":
-        raise SceneError(f"scene {scene.name!r}: active camera {cam_obj.name!r} is not a camera object")
-    width, height = render_size(scene)
-    camera = _camera(cam_obj.evaluated_get(depsgraph), depsgraph, scene, width, height)
+    if camera is None:
+        cam_obj = scene.camera
+        if cam_obj is None:
+            raise SceneError(f"scene {scene.name!r} has no camera")
+        if cam_obj.type != "CAMERA":
+            raise SceneError(f"scene {scene.name!r}: active camera {cam_obj.name!r} is not a camera object")
+        width, height = render_size(scene)
+        camera = _camera(cam_obj.evaluated_get(depsgraph), depsgraph, scene, width, height)
 
     ex = _Extractor(warnings)
     renderers: list[Renderer] = []
