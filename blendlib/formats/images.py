@@ -215,13 +215,14 @@ def _read_png(path: Path) -> np.ndarray:
                 rawmode = image.tile[0].args if image.tile else None
                 key = image.info.get("transparency")
                 if rawmode in _PNG16_RAW:
-                    high = _decoded(image).astype(np.uint16)
                     other, channels = _PNG16_RAW[rawmode]
-                    with _open_png(path, image_module) as again:
-                        low = _decoded(again, other).astype(np.uint16)
-                    if channels == 2:  # (Y hi, Y lo, A hi, A lo) in one decode
-                        words = (low[..., 0::2] << 8) | low[..., 1::2]
-                    else:
+                    if channels == 2:  # grey+alpha: (Y hi, Y lo, A hi, A lo) in one decode
+                        every = _decoded(image, other).astype(np.uint16)
+                        words = (every[..., 0::2] << 8) | every[..., 1::2]
+                    else:  # the high bytes as Pillow reads them, then the low bytes
+                        high = _decoded(image).astype(np.uint16)
+                        with _open_png(path, image_module) as again:
+                            low = _decoded(again, other).astype(np.uint16)
                         words = (high[..., :channels] << 8) | low[..., :channels]
                     pix = words.astype(np.float32) / np.float32(65535.0)
                 elif image.mode == "P":

@@ -309,6 +309,11 @@ def test_blender_multilayer_exr_reads_the_combined_pass(tmp_path):
         assert layer == "ViewLayer.Combined"
         np.testing.assert_array_equal(got, plain)
     assert images.compare(images.load(red), images.load(green)).max_abs > 0.5
+    from tests.support.blender_fixtures import run_cli
+
+    cli = run_cli("compare", str(red), str(green))
+    assert cli.returncode == 0 and "PSNR: inf" not in cli.stdout and "max abs diff: 0\n" not in cli.stdout, cli
+    assert run_cli("compare", str(red), str(one_part)).stdout.splitlines()[1] == "max abs diff: 0"
 
 
 def test_exr_channel_naming_picks_combined_or_refuses(tmp_path):
@@ -333,6 +338,12 @@ def test_exr_channel_naming_picks_combined_or_refuses(tmp_path):
             images.load(path)
         assert str(info.value).startswith(f"{path}: ") and "\n" not in str(info.value)
         assert channels[0] in str(info.value)  # the message lists what the file has
+    from tests.support.blender_fixtures import run_cli
+
+    cli = run_cli("compare", str(tmp_path / "lower.exr"), str(tmp_path / "depth.exr"))
+    assert cli.returncode == 1 and cli.stdout == ""
+    assert cli.stderr.splitlines() == [f"error: {tmp_path / 'lower.exr'}: EXR has no colour channels (R, G, B or Y, "
+                                       "as 'R' or 'Layer.Pass.R'); it has: a, b, g, r"]
 
 
 def test_corrupt_exr_is_one_line_error_and_prints_nothing(tmp_path, capfd):
@@ -359,3 +370,19 @@ def test_corrupt_exr_is_one_line_error_and_prints_nothing(tmp_path, capfd):
         assert message.startswith(f"{path}: ") and "\n" not in message, (name, message)
         assert "OpenEXR file" in message or "no colour channels" in message, (name, message)
     assert capfd.readouterr() == ("", "")  # the library's own error printing is captured
+
+
+def test_npy_of_strings_complex_or_objects_is_one_line_error(tmp_path, recwarn):
+    arrays = {"str": np.array([["a", "b"], ["c", "d"]]), "complex": np.ones((2, 2), np.complex64),
+              "datetime": np.zeros((2, 2), "datetime64[s]")}
+    for name, array in arrays.items():
+        np.save(tmp_path / f"{name}.npy", array)
+    np.save(tmp_path / "object.npy", np.array([[None, 1]], dtype=object), allow_pickle=True)
+    for name in [*arrays, "object"]:
+        path = tmp_path / f"{name}.npy"
+        with pytest.raises(images.ImageIOError) as info:
+            images.load(path)
+        assert str(info.value).startswith(f"{path}: ") and "\n" not in str(info.value)
+    assert not [w for w in recwarn.list if issubclass(w.category, np.ComplexWarning)]
+    np.save(tmp_path / "bool.npy", np.array([[True, False]]))
+    assert images.load(tmp_path / "bool.npy").tolist() == [[1.0, 0.0]]
