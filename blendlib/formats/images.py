@@ -308,7 +308,10 @@ def _captured_output():
     turns that into one ImageIOError line. Redirects file descriptors 1 and 2 and
     ``sys.stdout``/``sys.stderr`` for the duration: not for use while other threads print.
     """
-    libc = ctypes.CDLL(None)
+    try:
+        libc = ctypes.CDLL(None)  # the C library of this process (not on Windows)
+    except (OSError, TypeError):
+        libc = None
     sys.stdout.flush()
     sys.stderr.flush()
     saved = [os.dup(1), os.dup(2)]
@@ -321,7 +324,8 @@ def _captured_output():
             with contextlib.redirect_stdout(python_text), contextlib.redirect_stderr(python_text):
                 yield text
         finally:
-            libc.fflush(None)  # C stdio (and C++ streams synced with it) buffer when not a terminal
+            if libc is not None:
+                libc.fflush(None)  # C stdio (and C++ streams synced with it) buffer when not a terminal
             os.dup2(saved[0], 1)
             os.dup2(saved[1], 2)
             for fd in saved:
