@@ -1,7 +1,7 @@
 """Build every example scene of ``blend_files/`` from scratch, deterministically.
 
-    .venv/bin/python scripts/make_blend_files.py            # all scenes
-    .venv/bin/python scripts/make_blend_files.py alpha_test # only some
+    .venv/bin/python -m scripts.make_blend_files            # all scenes (from the repository root)
+    .venv/bin/python -m scripts.make_blend_files alpha_test # only some
 
 Each ``.blend`` is one experiment of the tutorials ("Unity Shader 入门精要" chapter 8
 and the Cg wikibook's blending chapter): open it in Blender, press F12 with the
@@ -20,17 +20,14 @@ import math
 import sys
 from pathlib import Path
 
+import bpy
 import numpy as np
+from mathutils import Euler, Vector
+
+from blendlib import blender
+from blendlib.core import colorspace
 
 ROOT = Path(__file__).resolve().parent.parent
-if str(ROOT) not in sys.path:
-    sys.path.insert(0, str(ROOT))
-
-import bpy  # noqa: E402
-from mathutils import Euler, Vector  # noqa: E402
-
-from blendlib import blender  # noqa: E402
-from blendlib.core import colorspace  # noqa: E402
 
 OUT = ROOT / "blend_files"
 RES = (640, 360)

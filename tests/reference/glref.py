@@ -28,7 +28,7 @@ GL_FRAMEBUFFER_SRGB for Linear LDR, RGBA32F for HDR) and a DEPTH24_STENCIL8
 renderbuffer. moderngl only provides the context, programs, buffers and textures.
 
 This module is free of bpy; moderngl is imported lazily (``pip install
-unity-passes-for-blender[reference]``).
+blendlib[reference]``).
 """
 
 from __future__ import annotations
