@@ -241,7 +241,8 @@ class _Collector(FrameObserver):
         pieces = [p for b in blocks for p in self.blocks[b]]
         for b in blocks:
             self.blocks[b] = []
-        return tuple(np.concatenate([p[k] for p in pieces]) for k in range(5))
+        pix, depth, call, key, written = (np.concatenate([p[k] for p in pieces]) for k in range(5))
+        return pix.astype(np.int64), depth.astype(np.int64), call, key, written
 
 
 def _ranks(sorted_pix: np.ndarray) -> np.ndarray:
@@ -269,11 +270,19 @@ class _Step2:
             self.luts[index] = blend_lut(self.buf, self.passes[index], palette)
         return self.luts[index]
 
-    def apply_band(self, pix, depth, call, key) -> None:
+    def apply_band(self, pix, depth, call, key, written) -> np.ndarray:
+        """Apply a band (arrays in draw order, ``pix``/``depth`` int64); returns the pixels (sorted,
+        unique) where the written fragments were not applied far to near (candidates for inversions)."""
         lo = int(pix.min())
-        sort_key = ((pix.astype(np.int64) - lo) << 24) | (DEPTH_MAX - depth.astype(np.int64))
+        sort_key = ((pix - lo) << 24) | (DEPTH_MAX - depth)
         order = np.argsort(sort_key, kind="stable")  # far first; ties keep draw then primitive order
         del sort_key
+        # In sorted order, a written fragment that arrived before its farther predecessor = an inversion.
+        w = order[written[order]]
+        wp = pix[w]
+        descent = (wp[1:] == wp[:-1]) & (w[1:] < w[:-1])
+        suspects = np.unique(wp[1:][descent])
+        del w, wp, descent
         rank = _ranks(pix[order])
         layers = int(rank.max()) + 1
         bounds = np.concatenate([[0], np.cumsum(np.bincount(rank, minlength=layers))])
@@ -283,6 +292,7 @@ class _Step2:
         for k in range(layers):
             sel = by_rank[bounds[k]:bounds[k + 1]]
             self.apply_layer(pix[sel], depth[sel], call[sel], key[sel])
+        return suspects
 
     def apply_layer(self, pix, depth, call, key) -> None:
         first, last = int(call.min()), int(call.max())
@@ -308,8 +318,7 @@ class _Step2:
                     rgba[plain] = self.table[-1 - k[plain].astype(np.int64)]
             else:
                 rgba = self.table[-1 - k.astype(np.int64)]
-            apply_layer(self.buf, self.passes[index], pix[sel].astype(np.int64), depth[sel].astype(np.int64),
-                        rgba, ids, lut)
+            apply_layer(self.buf, self.passes[index], pix[sel], depth[sel], rgba, ids, lut)
 
 
 
@@ -419,9 +428,18 @@ def analyze(
             if should_cancel is not None and should_cancel():
                 raise RenderCancelled("render cancelled")
             pix, depth, call, key, wrote = collector.take_band(blocks)
-            step2.apply_band(pix, depth, call, key)
+            suspects = step2.apply_band(pix, depth, call, key, wrote)
             del key
-            keys = _band_inversions(pix, depth, call, wrote, renderer_of_call, nrend)
+            if suspects.size:
+                lo = int(suspects[0])
+                marked = np.zeros(int(suspects[-1]) - lo + 1, dtype=bool)
+                marked[suspects - lo] = True
+                inside = (pix >= lo) & (pix <= int(suspects[-1]))
+                inside[inside] = marked[pix[inside] - lo]
+                wrote &= inside
+                keys = _band_inversions(pix, depth, call, wrote, renderer_of_call, nrend)
+            else:
+                keys = np.zeros(0, dtype=np.int64)
             del pix, depth, call, wrote
             if keys.size:
                 pixel = keys // (nrend * nrend)
