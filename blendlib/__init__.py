@@ -15,7 +15,7 @@ from .core.vocabulary import Material, Pass, Texture
 
 __all__ = [
     "Camera", "DrawScene", "Frame", "Light", "Material", "Mesh", "Pass", "Renderer",
-    "SceneError", "Texture", "render", "render_scene", "write_image",
+    "SceneError", "Texture", "analyze", "render", "render_scene", "write_image",
 ]
 
 
@@ -28,6 +28,20 @@ def render(scene=None, **kwargs) -> Frame:
     from . import blender
 
     return blender.render(scene, **kwargs)
+
+
+def analyze(scene=None, **kwargs):
+    """The sorted reference, sort error, inversions, overdraw and advice of a ``bpy.types.Scene``
+    (default: the context scene) as F12 renders it: a :class:`blendlib.explain.sorted_reference.Analysis`.
+    A :class:`DrawScene` is analysed directly. Keyword arguments go to
+    :func:`blendlib.explain.sorted_reference.analyze` (``advice``, ``max_advice``, ``progress``, ...)."""
+    from .explain.sorted_reference import analyze as analyze_draw_scene
+
+    if not isinstance(scene, DrawScene):
+        from . import blender
+
+        scene = blender.draw_scene_final(scene)
+    return analyze_draw_scene(scene, **kwargs)
 
 
 def write_image(frame: Frame, name: str, **kwargs):
