@@ -109,7 +109,8 @@ def advise(scene: DrawScene, analysis, limit: int = 5, workers: int | None = Non
                           "inversions_after": pairs, "differing_after": differing,
                           "text": (f"{_label(inv.front)} overlaps itself on {inv.pixels} pixels: a depth prepass "
                                    f"(preset '{PREPASS_PRESET}') leaves {pairs} inverted but shows only the front "
-                                   f"layer ({differing} pixels still differ from the sorted reference); or split "
+                                   f"layer (then {differing} pixels of the frame differ from the sorted reference, "
+                                   f"{before_differing} before); or split "
                                    "the mesh into parts that sort by distance, or order its triangles back to "
                                    "front (Mesh > Sort Elements)")})
             continue
