@@ -47,10 +47,10 @@ def main(argv: list[str]) -> int:
     args = parser.parse_args(argv)
 
     import bpy
+    from make_gallery import text_image
 
     import blendlib
     from blendlib.formats import heatmap, images
-    from make_gallery import text_image
 
     tw, th = TILE
     width = GAP + len(COLUMNS) * (tw + GAP)
