@@ -31,11 +31,12 @@ def register() -> None:
         unregister()
     import bpy
 
-    from . import engine, operators, properties, shaderlab_ops, ui
+    from . import engine, operators, properties, shaderlab_ops, sort_analysis, ui
 
     properties.register()  # first: panels and operators use the properties
     for cls in operators.CLASSES + ui.CLASSES:
         bpy.utils.register_class(cls)
+    sort_analysis.register()
     engine.register()
     shaderlab_ops.register()
     _registered = True
@@ -47,10 +48,11 @@ def unregister() -> None:
         return
     import bpy
 
-    from . import engine, operators, properties, shaderlab_ops, ui
+    from . import engine, operators, properties, shaderlab_ops, sort_analysis, ui
 
     shaderlab_ops.unregister()
     engine.unregister()
+    sort_analysis.unregister()
     for cls in reversed(operators.CLASSES + ui.CLASSES):
         if getattr(cls, "is_registered", False):
             bpy.utils.unregister_class(cls)

@@ -6,6 +6,9 @@ Passes of the render result:
   transform (no look, no dither) turns them back into exactly the stored 8-bit values.
 - ``UnityAlpha``: the frame's own alpha channel (e.g. the clear colour's alpha).
 - ``Depth``: the depth buffer as OpenGL window depth 0..1 (not Blender's camera distance).
+- With ``ViewLayer.unity_analysis.use_passes`` (:mod:`addon.sort_analysis`): ``UnitySortedReference``
+  (RGBA, like Combined but with its alpha), ``UnitySortError`` and ``UnityOverdraw`` (X rasterised,
+  Y written, Z 0) of SPEC §9.
 
 The viewport's Rendered shading (``view_update`` / ``view_draw``) lives in :mod:`addon.viewport`.
 """
@@ -20,7 +23,7 @@ from blendlib.core import pipeline
 from blendlib.core.pipeline import RenderCancelled
 from blendlib.core.scene import SceneError
 
-from . import viewport
+from . import sort_analysis, viewport
 
 ALPHA_PASS = "UnityAlpha"
 DEPTH_PASS = "Depth"
@@ -50,6 +53,9 @@ class UnityPassesRenderEngine(bpy.types.RenderEngine):
         self.register_pass(scene, renderlayer, "Combined", 4, "RGBA", "COLOR")
         self.register_pass(scene, renderlayer, ALPHA_PASS, 1, "A", "VALUE")
         self.register_pass(scene, renderlayer, DEPTH_PASS, 1, "Z", "VALUE")
+        if sort_analysis.properties.passes_enabled(renderlayer):
+            for name, channels, ids, kind in sort_analysis.render_passes():
+                self.register_pass(scene, renderlayer, name, channels, ids, kind)
 
     def render(self, depsgraph):
         scene = depsgraph.scene
@@ -62,7 +68,14 @@ class UnityPassesRenderEngine(bpy.types.RenderEngine):
                 raise SceneError(f"render size {width}x{height} differs from the camera's "
                                  f"{draw.camera.width}x{draw.camera.height} (border/crop rendering is not supported)")
             self.update_stats("", f"Unity Passes: {len(draw.renderers)} renderers")
-            frame = pipeline.render_scene(draw, progress=self._progress, should_cancel=self.test_break)
+            analysed = sort_analysis.properties.passes_enabled(depsgraph.view_layer)
+            if analysed:
+                from blendlib.explain.sorted_reference import analyze
+
+                analysis = analyze(draw, advice=False, progress=self._progress, should_cancel=self.test_break)
+                frame = analysis.frame
+            else:
+                frame = pipeline.render_scene(draw, progress=self._progress, should_cancel=self.test_break)
         except RenderCancelled:
             # An error report (not a bare return) also stops write_still / animation from saving
             # an empty frame when the break did not come from Blender's own Esc handling.
@@ -85,6 +98,10 @@ class UnityPassesRenderEngine(bpy.types.RenderEngine):
         arrays = result_arrays(frame)
         view_layer = depsgraph.view_layer
         self.add_pass(ALPHA_PASS, 1, "A")
+        if analysed:
+            arrays.update(sort_analysis.result_arrays(analysis))
+            for name, channels, ids, _ in sort_analysis.render_passes():
+                self.add_pass(name, channels, ids)
         if not view_layer.use_pass_z:
             self.add_pass(DEPTH_PASS, 1, "Z")
         result = self.begin_result(0, 0, width, height)

@@ -15,7 +15,7 @@ from .core.vocabulary import Material, Pass, Texture
 
 __all__ = [
     "Camera", "DrawScene", "Frame", "Light", "Material", "Mesh", "Pass", "Renderer",
-    "SceneError", "Texture", "render", "render_scene", "render_view", "write_image",
+    "SceneError", "Texture", "analyze", "render", "render_scene", "render_view", "write_image",
 ]
 
 
@@ -40,6 +40,20 @@ def render_view(scene, view_matrix, projection_matrix, width: int, height: int, 
     from .blender import viewport
 
     return viewport.render_view(scene, view_matrix, projection_matrix, width, height, **kwargs)
+
+
+def analyze(scene=None, **kwargs):
+    """The sorted reference, sort error, inversions, overdraw and advice of a ``bpy.types.Scene``
+    (default: the context scene) as F12 renders it: a :class:`blendlib.explain.sorted_reference.Analysis`.
+    A :class:`DrawScene` is analysed directly. Keyword arguments go to
+    :func:`blendlib.explain.sorted_reference.analyze` (``advice``, ``max_advice``, ``progress``, ...)."""
+    from .explain.sorted_reference import analyze as analyze_draw_scene
+
+    if not isinstance(scene, DrawScene):
+        from . import blender
+
+        scene = blender.draw_scene_final(scene)
+    return analyze_draw_scene(scene, **kwargs)
 
 
 def write_image(frame: Frame, name: str, **kwargs):

@@ -20,7 +20,7 @@ from .extract import (
 )
 from .files import material_named, open_blend, scene_named
 from .migration import SCHEMA_VERSION
-from .render import linear_rgba, render, render_final, write_image
+from .render import draw_scene_final, linear_rgba, render, render_final, write_image
 from .schema import (
     MATERIAL_FIELDS,
     PASS_FIELDS,
@@ -42,7 +42,8 @@ from .schema import (
 )
 
 __all__ = [
-    "MATERIAL_FIELDS", "PASS_FIELDS", "SCENE_FIELDS", "SCHEMA_VERSION", "Field", "build_draw_scene", "linear_rgba",
+    "MATERIAL_FIELDS", "PASS_FIELDS", "SCENE_FIELDS", "SCHEMA_VERSION", "Field", "build_draw_scene", "draw_scene_final",
+    "linear_rgba",
     "material_fields", "material_from_blender", "material_named", "material_values", "mesh_arrays",
     "migrate_data", "migrate_stored", "open_blend", "pass_from_values", "principled_inputs", "read_group",
     "read_pass", "render", "render_final", "render_size", "render_visible_objects", "scene_named",

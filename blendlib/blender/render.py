@@ -52,6 +52,9 @@ def _capture_engine_class() -> Any:
 
         def render(self, depsgraph):
             try:
+                if _capture.get("draw_only"):  # the DrawScene of F12's depsgraph, not rendered
+                    _capture["frame"] = build_draw_scene(depsgraph.scene, depsgraph)
+                    return
                 _capture["frame"] = render(depsgraph.scene, depsgraph, progress=_capture.get("progress"),
                                            should_cancel=_capture.get("should_cancel"))
             except Exception as exc:  # noqa: BLE001 - handed back to render_final's caller
@@ -62,8 +65,15 @@ def _capture_engine_class() -> Any:
     return UnityPassesCaptureEngine
 
 
+def draw_scene_final(scene: Any = None, frame: int | None = None) -> Any:
+    """The :class:`blendlib.core.scene.DrawScene` F12 would render (render-mode depsgraph), for tools
+    that render it themselves (the sorted reference). Raises like :func:`render_final`."""
+    return render_final(scene, frame=frame, _draw_only=True)
+
+
 def render_final(scene: Any = None, progress: Callable[[float], None] | None = None,
-                 should_cancel: Callable[[], bool] | None = None, frame: int | None = None) -> pipeline.Frame:
+                 should_cancel: Callable[[], bool] | None = None, frame: int | None = None,
+                 _draw_only: bool = False) -> pipeline.Frame:
     """Render as F12 does: through Blender's render-mode depsgraph.
 
     :func:`render` uses the viewport depsgraph (Python cannot make a render-mode one), so
@@ -81,7 +91,7 @@ def render_final(scene: Any = None, progress: Callable[[float], None] | None = N
     engine = _capture_engine_class()
     previous = scene.render.engine
     _capture.clear()
-    _capture.update(progress=progress, should_cancel=should_cancel)
+    _capture.update(progress=progress, should_cancel=should_cancel, draw_only=_draw_only)
     scene.render.engine = engine.bl_idname
     try:
         with bpy.context.temp_override(scene=scene):

@@ -346,6 +346,7 @@ class Buffers:
         self.color = [[list(stored) for _ in range(self.W)] for _ in range(self.H)]
         self.depth = [[DMAX] * self.W for _ in range(self.H)]
         self.stencil = [[0] * self.W for _ in range(self.H)]
+        self.collect: list | None = None  # sorted reference: fragments kept instead of merged
 
     def store(self, rgba: list) -> list:
         """Shading-space rgba → the stored representation (§8 'write')."""
@@ -566,7 +567,15 @@ def fragment(px, py, bw, win, zws, bias, use_offset, uv, nws, p, shader: Shader,
     rgba = shader.shade(uvf, nwf)
     if p.alpha_test and rgba[3] - shader.cutoff < 0:
         return
-    # §8 output merger
+    if buf.collect is not None:  # sorted reference, step 2: kept for the per-pixel sort
+        if p.color_mask:
+            buf.collect.append((py, px, d, len(buf.collect), rgba, p))
+        return
+    merge_fragment(px, py, d, rgba, p, buf)
+
+
+def merge_fragment(px: int, py: int, d: int, rgba: list, p, buf: Buffers) -> None:
+    """§8 output merger for one fragment."""
     s_old = buf.stencil[py][px]
     if p.stencil:
         ref, rm, wm = p.stencil_ref, p.stencil_read_mask, p.stencil_write_mask
@@ -586,3 +595,40 @@ def fragment(px, py, bw, win, zws, bias, use_offset, uv, nws, p, shader: Shader,
     if p.zwrite:
         buf.depth[py][px] = d
     buf.write_color(px, py, p, rgba)
+
+
+# ---------------------------------------------------------------- SPEC §9 sorted reference
+
+
+def render_sorted_reference(scene: DrawScene):
+    """SPEC §9's sorted reference, one fragment at a time; returns ``(color, depth, stencil)``.
+
+    Queues up to 2500 draw as usual; every fragment of queues 2501..3999 that survives culling
+    and the alpha test (passes with ColorMask 0 left out: they write nothing) is kept, then
+    the kept fragments are merged pixel by pixel far to near (larger depth code first; ties in
+    draw order, then primitive order) with their pass state and no depth writes; Overlay
+    (4000 and up) draws last as usual.
+    """
+    from dataclasses import replace
+
+    validate_scene(scene)
+    buf = Buffers(scene)
+    cam = scene.camera
+    V, P = to_list(cam.view_matrix), to_list(cam.projection)
+    budget = [math.inf]
+    renderers = draw_list(scene)
+    sorted_range = [r for r in renderers if LAST_OPAQUE_QUEUE < r.material.render_queue < 4000]
+    for r in renderers:
+        if r.material.render_queue <= LAST_OPAQUE_QUEUE:
+            draw_renderer(scene, r, V, P, buf, None, budget)
+    buf.collect = []
+    for r in sorted_range:
+        draw_renderer(scene, r, V, P, buf, None, budget)
+    kept, buf.collect = buf.collect, None
+    kept.sort(key=lambda f: (f[0], f[1], -f[2], f[3]))  # pixel, far first, then arrival order
+    for py, px, d, _, rgba, p in kept:
+        merge_fragment(px, py, d, rgba, replace(p, zwrite=False), buf)
+    for r in renderers:
+        if r.material.render_queue >= 4000:
+            draw_renderer(scene, r, V, P, buf, None, budget)
+    return buf.arrays()
