@@ -237,6 +237,11 @@ class Pass:
         return " ".join(words)
 
 
+def pass_state_text(p: Pass) -> str:
+    """A pass's state on one line, as the panel's pass preview shows it (:meth:`Pass.shaderlab`)."""
+    return p.shaderlab()
+
+
 @dataclass(frozen=True, eq=False)
 class Texture:
     """An image for ``_MainTex``.
