@@ -15,7 +15,7 @@ from .core.vocabulary import Material, Pass, Texture
 
 __all__ = [
     "Camera", "DrawScene", "Frame", "Light", "Material", "Mesh", "Pass", "Renderer",
-    "SceneError", "Texture", "render", "render_scene", "write_image",
+    "SceneError", "Texture", "draw_list", "pixel_history", "render", "render_scene", "write_image",
 ]
 
 
@@ -24,10 +24,29 @@ def render(scene=None, **kwargs) -> Frame:
 
     Returns a :class:`Frame` whose ``color`` (H, W, 4) float32 holds the stored frame
     values and ``depth`` (H, W) float32 the window depth; row 0 is the top.
+    ``until_draw=K``: the frame after draw call K (1-based; 0 = the cleared frame).
     """
     from . import blender
 
     return blender.render(scene, **kwargs)
+
+
+def draw_list(scene=None, **kwargs):
+    """The draw calls of a ``bpy.types.Scene`` (default: the context scene) in order, each a
+    :class:`blendlib.explain.framedebug.DrawStats` (``.call``, ``.triangles``, ``.fragments``,
+    ``.written``; ``.to_json()`` gives the SPEC §8 item). Costs one render."""
+    from .blender import framedebug
+
+    return framedebug.draw_list(scene, **kwargs)
+
+
+def pixel_history(scene, x: int, y: int, **kwargs):
+    """The history of pixel (``x`` from the left, ``y`` from the top) of a ``bpy.types.Scene``
+    (None: the context scene): a :class:`blendlib.explain.framedebug.PixelHistory` of every
+    fragment rasterised there (``.to_json()`` gives the SPEC §8 object). Costs one render."""
+    from .blender import framedebug
+
+    return framedebug.pixel_history(scene, x, y, **kwargs)
 
 
 def write_image(frame: Frame, name: str, **kwargs):

@@ -18,7 +18,7 @@ from .extract import (
     world_ambient,
 )
 from .files import material_named, open_blend, scene_named
-from .render import linear_rgba, render, render_final, write_image
+from .render import draw_scene_final, linear_rgba, render, render_final, write_image
 from .schema import (
     FLAG_BITS,
     MATERIAL_FIELDS,
@@ -32,7 +32,8 @@ from .schema import (
 )
 
 __all__ = [
-    "FLAG_BITS", "MATERIAL_FIELDS", "PASS_FIELDS", "SCENE_FIELDS", "Field", "build_draw_scene", "linear_rgba",
+    "FLAG_BITS", "MATERIAL_FIELDS", "PASS_FIELDS", "SCENE_FIELDS", "Field", "build_draw_scene", "draw_scene_final",
+    "linear_rgba",
     "material_from_blender", "material_named", "mesh_arrays", "open_blend", "pass_from_values", "principled_inputs",
     "read_group",
     "render", "render_final", "render_size", "render_visible_objects", "scene_settings", "scene_named",

@@ -30,6 +30,8 @@ def add_parser(sub) -> None:
     r.add_argument("--depth", metavar="DEPTH.npy", help="also write the depth buffer (H, W) float32, 0..1 window depth")
     r.add_argument("--frame", type=int, metavar="N", help="frame number to render (default: the file's current frame)")
     r.add_argument("--scene", metavar="NAME", help="scene to render (default: the file's active scene)")
+    r.add_argument("--until-draw", type=int, metavar="K",
+                   help="stop after draw call K (1-based, as 'drawlist' numbers them; 0 = the cleared frame)")
     r.set_defaults(func=run)
 
 
@@ -37,6 +39,8 @@ def run(args: argparse.Namespace) -> int:
     blend = Path(args.file)
     out = Path(args.output)
     check_blend(blend)
+    if getattr(args, "until_draw", None) is not None and args.until_draw < 0:
+        raise CliError(f"--until-draw must be 0 or more (got {args.until_draw})")
     check_output(out, "-o")
     if args.depth:
         check_output(Path(args.depth), "--depth")
@@ -48,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
     scene = open_scene(blend, args.scene)
     try:
         with redirect_fds(2):  # F12's render-mode depsgraph (modifier render levels)
-            frame = blender.render_final(scene, frame=args.frame)
+            frame = blender.render_final(scene, frame=args.frame, until_draw=getattr(args, "until_draw", None))
     except SceneError as exc:
         raise CliError(str(exc)) from None
     except RenderCancelled:
