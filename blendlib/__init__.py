@@ -15,7 +15,8 @@ from .core.vocabulary import Material, Pass, Texture
 
 __all__ = [
     "Camera", "DrawScene", "Frame", "Light", "Material", "Mesh", "Pass", "Renderer",
-    "SceneError", "Texture", "analyze", "render", "render_scene", "render_view", "write_image",
+    "SceneError", "Texture", "analyze", "draw_list", "pixel_history", "render", "render_scene", "render_view",
+    "write_image",
 ]
 
 
@@ -24,6 +25,7 @@ def render(scene=None, **kwargs) -> Frame:
 
     Returns a :class:`Frame` whose ``color`` (H, W, 4) float32 holds the stored frame
     values and ``depth`` (H, W) float32 the window depth; row 0 is the top.
+    ``until_draw=K``: the frame after draw call K (1-based; 0 = the cleared frame).
     """
     from . import blender
 
@@ -54,6 +56,24 @@ def analyze(scene=None, **kwargs):
 
         scene = blender.draw_scene_final(scene)
     return analyze_draw_scene(scene, **kwargs)
+
+
+def draw_list(scene=None, **kwargs):
+    """The draw calls of a ``bpy.types.Scene`` (default: the context scene) in order, each a
+    :class:`blendlib.explain.framedebug.DrawStats` (``.call``, ``.triangles``, ``.fragments``,
+    ``.written``; ``.to_json()`` gives the SPEC §8 item). Costs one render."""
+    from .blender import framedebug
+
+    return framedebug.draw_list(scene, **kwargs)
+
+
+def pixel_history(scene, x: int, y: int, **kwargs):
+    """The history of pixel (``x`` from the left, ``y`` from the top) of a ``bpy.types.Scene``
+    (None: the context scene): a :class:`blendlib.explain.framedebug.PixelHistory` of every
+    fragment rasterised there (``.to_json()`` gives the SPEC §8 object). Costs one render."""
+    from .blender import framedebug
+
+    return framedebug.pixel_history(scene, x, y, **kwargs)
 
 
 def write_image(frame: Frame, name: str, **kwargs):

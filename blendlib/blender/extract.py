@@ -142,8 +142,10 @@ class _Extractor:
         for slot in used.tolist():
             if tri_mat is None:
                 sel = slice(None)
+                loop_tris = None
             else:
                 sel = np.flatnonzero(tri_mat == slot)
+                loop_tris = sel.astype(np.int32)
             mat = mats[slot] if slot < len(mats) else None
             if mat is None and len(arrays["triangles"]):
                 if mats:
@@ -155,6 +157,8 @@ class _Extractor:
                 triangles=arrays["triangles"][sel],
                 normals=arrays["normals"][sel],
                 uvs=None if uvs is None else uvs[sel],
+                polygons=arrays["polygons"][sel],
+                loop_triangles=loop_tris,
             )
             out.append(Renderer(name=name, slot=int(slot), mesh=sub, matrix_world=matrix_world,
                                 material=self.material(mat), bounds_center=center))
@@ -175,7 +179,7 @@ def mesh_arrays(mesh: Any) -> dict[str, np.ndarray | None]:
 
     ``positions`` (V, 3) float32, ``triangles`` (T, 3) int32 vertex indices in loop-triangle
     order, ``normals`` (T, 3, 3) float32 corner normals, ``uvs`` (T, 3, 2) float32 of the
-    active UV map or None, ``material_index`` (T,) int32.
+    active UV map or None, ``material_index`` (T,) int32, ``polygons`` (T,) int32 face index.
     """
     mesh.calc_loop_triangles()
     t = len(mesh.loop_triangles)
@@ -203,15 +207,16 @@ def mesh_arrays(mesh: Any) -> dict[str, np.ndarray | None]:
         layer.uv.foreach_get("vector", uv_c)
         uvs = np.take(uv_c.reshape(n_loops, 2), tri_loops, axis=0).reshape(t, 3, 2)
     material_index = np.zeros(t, np.int32)
+    tri_poly = np.empty(t, np.int32)
+    if t:
+        mesh.loop_triangle_polygons.foreach_get("value", tri_poly)
     attr = mesh.attributes.get("material_index")
     if attr is not None and t and attr.domain == "FACE" and attr.data_type == "INT":
         poly_mat = np.empty(len(mesh.polygons), np.int32)
         attr.data.foreach_get("value", poly_mat)
-        tri_poly = np.empty(t, np.int32)
-        mesh.loop_triangle_polygons.foreach_get("value", tri_poly)
         material_index = np.take(poly_mat, tri_poly)
     return {"positions": positions, "triangles": triangles, "normals": normals, "uvs": uvs,
-            "material_index": material_index}
+            "material_index": material_index, "polygons": tri_poly}
 
 
 def principled_inputs(mat: Any) -> tuple[tuple[float, float, float, float], Any]:

@@ -17,14 +17,15 @@ from .extract import build_draw_scene
 
 
 def render(scene: Any = None, depsgraph: Any = None, progress: Callable[[float], None] | None = None,
-           should_cancel: Callable[[], bool] | None = None) -> pipeline.Frame:
+           should_cancel: Callable[[], bool] | None = None, until_draw: int | None = None) -> pipeline.Frame:
     """Render a Blender scene with the Unity pipeline; see :func:`blendlib.render`.
 
+    ``until_draw`` K: the frame after draw call K (SPEC §8; 0 = the cleared frame).
     The Frame's ``warnings`` hold the extraction warnings followed by the core's.
     Raises :class:`SceneError` (no camera, bad input) or :class:`pipeline.RenderCancelled`.
     """
     draw = build_draw_scene(scene, depsgraph)
-    frame = pipeline.render_scene(draw, progress=progress, should_cancel=should_cancel)
+    frame = pipeline.render_scene(draw, progress=progress, should_cancel=should_cancel, until_draw=until_draw)
     extra = [w for w in draw.warnings if w not in frame.warnings]
     frame.warnings[:0] = extra
     return frame
@@ -52,11 +53,13 @@ def _capture_engine_class() -> Any:
 
         def render(self, depsgraph):
             try:
-                if _capture.get("draw_only"):  # the DrawScene of F12's depsgraph, not rendered
-                    _capture["frame"] = build_draw_scene(depsgraph.scene, depsgraph)
+                job = _capture.get("job")
+                if job is not None:  # e.g. build the draw scene only (draw_scene_final)
+                    _capture["frame"] = job(depsgraph)
                     return
                 _capture["frame"] = render(depsgraph.scene, depsgraph, progress=_capture.get("progress"),
-                                           should_cancel=_capture.get("should_cancel"))
+                                           should_cancel=_capture.get("should_cancel"),
+                                           until_draw=_capture.get("until_draw"))
             except Exception as exc:  # noqa: BLE001 - handed back to render_final's caller
                 _capture["error"] = exc
 
@@ -65,23 +68,17 @@ def _capture_engine_class() -> Any:
     return UnityPassesCaptureEngine
 
 
-def draw_scene_final(scene: Any = None, frame: int | None = None) -> Any:
-    """The :class:`blendlib.core.scene.DrawScene` F12 would render (render-mode depsgraph), for tools
-    that render it themselves (the sorted reference). Raises like :func:`render_final`."""
-    return render_final(scene, frame=frame, _draw_only=True)
-
-
 def render_final(scene: Any = None, progress: Callable[[float], None] | None = None,
                  should_cancel: Callable[[], bool] | None = None, frame: int | None = None,
-                 _draw_only: bool = False) -> pipeline.Frame:
+                 until_draw: int | None = None, _job: Callable[[Any], Any] | None = None) -> pipeline.Frame:
     """Render as F12 does: through Blender's render-mode depsgraph.
 
     :func:`render` uses the viewport depsgraph (Python cannot make a render-mode one), so
     modifiers evaluate with their viewport settings there. This runs ``bpy.ops.render.render``
     with a capture engine instead, so modifier render levels and render visibility apply
     exactly as for F12 and ``blender -b -E UNITY_PASSES``. The scene's render engine is set
-    for the call and restored; no image is written. ``frame``: the frame to set first.
-    Raises like :func:`render`.
+    for the call and restored; no image is written. ``frame``: the frame to set first;
+    ``until_draw``: stop after that draw call (SPEC §8). Raises like :func:`render`.
     """
     import bpy
 
@@ -91,7 +88,9 @@ def render_final(scene: Any = None, progress: Callable[[float], None] | None = N
     engine = _capture_engine_class()
     previous = scene.render.engine
     _capture.clear()
-    _capture.update(progress=progress, should_cancel=should_cancel, draw_only=_draw_only)
+    if until_draw is not None and int(until_draw) < 0:
+        raise SceneError(f"until_draw must be 0 or more (got {until_draw})")
+    _capture.update(progress=progress, should_cancel=should_cancel, until_draw=until_draw, job=_job)
     scene.render.engine = engine.bl_idname
     try:
         with bpy.context.temp_override(scene=scene):
@@ -107,6 +106,14 @@ def render_final(scene: Any = None, progress: Callable[[float], None] | None = N
     result = _capture.pop("frame")
     _capture.clear()
     return result
+
+
+def draw_scene_final(scene: Any = None, frame: int | None = None) -> Any:
+    """The :class:`DrawScene` of ``scene`` as F12 evaluates it (render-mode depsgraph, see
+    :func:`render_final`), without rendering: what the draw list and pixel history explain."""
+    from .extract import build_draw_scene as build
+
+    return render_final(scene, frame=frame, _job=lambda depsgraph: build(depsgraph.scene, depsgraph))
 
 
 def linear_rgba(frame: pipeline.Frame, encoded: bool | None = None, opaque: bool = False) -> np.ndarray:

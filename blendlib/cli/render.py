@@ -42,6 +42,8 @@ def add_parser(sub) -> None:
                    help="render frames A..B (inclusive) every STEP; '#' in OUT becomes the frame number")
     r.add_argument("--skip-existing", action="store_true",
                    help="do not render frames whose output file already exists")
+    r.add_argument("--until-draw", type=int, metavar="K",
+                   help="stop after draw call K (1-based, as 'drawlist' numbers them; 0 = the cleared frame)")
     r.set_defaults(func=run)
 
 
@@ -49,6 +51,8 @@ def run(args: argparse.Namespace) -> int:
     blend = Path(args.file)
     out = Path(args.output)
     check_blend(blend)
+    if getattr(args, "until_draw", None) is not None and args.until_draw < 0:
+        raise CliError(f"--until-draw must be 0 or more (got {args.until_draw})")
     check_output(out, "-o")
     if args.depth:
         check_output(Path(args.depth), "--depth")
@@ -62,7 +66,8 @@ def run(args: argparse.Namespace) -> int:
     scene = open_scene(blend, args.scene)
     try:
         with Progress(100, "%") as bar, redirect_fds(2):  # F12's render-mode depsgraph (modifier render levels)
-            frame = blender.render_final(scene, frame=args.frame, progress=lambda f: bar.set(100 * f))
+            frame = blender.render_final(scene, frame=args.frame, progress=lambda f: bar.set(100 * f),
+                                         until_draw=args.until_draw)
     except SceneError as exc:
         raise CliError(str(exc)) from None
     except RenderCancelled:

@@ -298,6 +298,8 @@ def pass_state_text(p: Pass) -> str:
     return " ".join(words)
 
 
+
+
 @dataclass(frozen=True, eq=False)
 class Texture:
     """An image for ``_MainTex``.

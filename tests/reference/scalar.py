@@ -402,11 +402,38 @@ class Buffers:
 # ---------------------------------------------------------------- the frame
 
 
-def render_reference(scene: DrawScene, warnings: list | None = None, max_calls: int | None = None):
+class FragmentLog:
+    """What :func:`render_reference` did, for the frame debugger's tests.
+
+    ``fragments``: one tuple per rasterised fragment, in the order applied:
+    ``(draw, x, y, triangle, depth_code, rgba, result)`` with ``draw`` the 1-based draw call,
+    ``y`` the window row (0 = bottom), ``triangle`` the index in the renderer's mesh, ``rgba``
+    the shader's output (shading space) and ``result`` one of ``written``, ``alpha_test``,
+    ``stencil``, ``depth``. ``triangles``: per draw call, the source triangles drawn (some
+    clipped piece neither culled nor of zero area).
+    """
+
+    def __init__(self) -> None:
+        self.fragments: list[tuple] = []
+        self.triangles: dict[int, int] = {}
+
+    def counts(self) -> dict[int, tuple[int, int]]:
+        """Per draw call: (fragments rasterised, fragments written)."""
+        out: dict[int, list[int]] = {}
+        for draw, *_, result in self.fragments:
+            c = out.setdefault(draw, [0, 0])
+            c[0] += 1
+            c[1] += result == "written"
+        return {k: (v[0], v[1]) for k, v in out.items()}
+
+
+def render_reference(scene: DrawScene, warnings: list | None = None, max_calls: int | None = None,
+                     log: FragmentLog | None = None):
     """Render ``scene`` fragment by fragment; returns ``(color, depth, stencil)`` (row 0 = top).
 
     Warnings (skipped triangles, empty meshes) are appended to ``warnings`` when given;
-    ``max_calls`` stops after that many draw calls (for locating a disagreement).
+    ``max_calls`` stops after that many draw calls (for locating a disagreement);
+    ``log`` (a :class:`FragmentLog`) receives every fragment and the triangles per draw.
     """
     found = validate_scene(scene)
     if warnings is not None:
@@ -414,13 +441,13 @@ def render_reference(scene: DrawScene, warnings: list | None = None, max_calls: 
     buf = Buffers(scene)
     cam = scene.camera
     V, P = to_list(cam.view_matrix), to_list(cam.projection)
-    budget = [math.inf if max_calls is None else max_calls]
+    budget = [math.inf if max_calls is None else max_calls, 0]  # draws left, draws done
     for r in draw_list(scene):
-        draw_renderer(scene, r, V, P, buf, warnings, budget)
+        draw_renderer(scene, r, V, P, buf, warnings, budget, log)
     return buf.arrays()
 
 
-def draw_renderer(scene, r, V, P, buf: Buffers, warnings, budget) -> None:
+def draw_renderer(scene, r, V, P, buf: Buffers, warnings, budget, log: FragmentLog | None = None) -> None:
     M = to_list(r.matrix_world)
     MVP = matmul4(P, matmul4(V, M))
     m = [row[:3] for row in M[:3]]
@@ -457,7 +484,7 @@ def draw_renderer(scene, r, V, P, buf: Buffers, warnings, budget) -> None:
         uv = uvs[t] if uvs is not None else [[0.0, 0.0]] * 3
         unit = ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0])
         verts = [clips[k] + list(unit[k]) for k in range(3)]
-        prims.append((clip_triangle(verts), uv, nws))
+        prims.append((t, clip_triangle(verts), uv, nws))
     if skipped and warnings is not None:
         warnings.append(f"object {r.name!r} slot {r.slot}: {skipped} non-finite triangle(s) skipped")
 
@@ -466,12 +493,23 @@ def draw_renderer(scene, r, V, P, buf: Buffers, warnings, budget) -> None:
         if budget[0] <= 0:
             return
         budget[0] -= 1
-        for tris, uv, nws in prims:
+        budget[1] += 1
+        where = None if log is None else [budget[1], 0]
+        drawn = 0
+        for t, tris, uv, nws in prims:
+            if where is not None:
+                where[1] = t
+            hit = False
             for tri in tris:
-                raster_triangle(tri, uv, nws, mirrored, p, shader, buf)
+                hit = raster_triangle(tri, uv, nws, mirrored, p, shader, buf, log, where) or hit
+            drawn += hit
+        if log is not None:
+            log.triangles[budget[1]] = drawn
 
 
-def raster_triangle(tri, uv, nws, mirrored: bool, p, shader: Shader, buf: Buffers) -> None:
+def raster_triangle(tri, uv, nws, mirrored: bool, p, shader: Shader, buf: Buffers,
+                    log: FragmentLog | None = None, where: list | None = None) -> bool:
+    """Rasterise one (clipped) triangle; returns whether it was drawn (not culled, not zero-area)."""
     W, H = buf.W, buf.H
     # §3 viewport and snapping
     win = []
@@ -487,10 +525,10 @@ def raster_triangle(tri, uv, nws, mirrored: bool, p, shader: Shader, buf: Buffer
     # §4 setup and culling
     area2 = (X1 - X0) * (Y2 - Y0) - (X2 - X0) * (Y1 - Y0)
     if area2 == 0:
-        return
+        return False
     front = (area2 > 0) != mirrored
     if (p.cull is Cull.Back and not front) or (p.cull is Cull.Front and front):
-        return
+        return False
     order = (0, 1, 2) if area2 > 0 else (0, 2, 1)
     a, b, c = (win[k] for k in order)
     Xa, Ya, Xb, Yb, Xc, Yc = a[0], a[1], b[0], b[1], c[0], c[1]
@@ -537,7 +575,8 @@ def raster_triangle(tri, uv, nws, mirrored: bool, p, shader: Shader, buf: Buffer
                 bw = (ba, bb, bc)
             else:  # order (v0, v2, v1): a = v0, b = v2, c = v1
                 bw = (ba, bc, bb)
-            fragment(px, py, bw, win, zws, bias, use_offset, uv, nws, p, shader, buf)
+            fragment(px, py, bw, win, zws, bias, use_offset, uv, nws, p, shader, buf, log, where)
+    return True
 
 
 def lerp3(o: list, corners: list, n: int) -> list:
@@ -547,7 +586,8 @@ def lerp3(o: list, corners: list, n: int) -> list:
     return [(o[0] * corners[0][c] + o[1] * corners[1][c]) + o[2] * corners[2][c] for c in range(n)]
 
 
-def fragment(px, py, bw, win, zws, bias, use_offset, uv, nws, p, shader: Shader, buf: Buffers) -> None:
+def fragment(px, py, bw, win, zws, bias, use_offset, uv, nws, p, shader: Shader, buf: Buffers,
+             log: FragmentLog | None = None, where: list | None = None) -> None:
     b0, b1, b2 = bw
     # §5 depth
     z = (b0 * zws[0] + b1 * zws[1]) + b2 * zws[2]
@@ -566,16 +606,20 @@ def fragment(px, py, bw, win, zws, bias, use_offset, uv, nws, p, shader: Shader,
     # §7 shading and alpha test
     rgba = shader.shade(uvf, nwf)
     if p.alpha_test and rgba[3] - shader.cutoff < 0:
-        return
-    if buf.collect is not None:  # sorted reference, step 2: kept for the per-pixel sort
+        result = "alpha_test"
+    elif buf.collect is not None:  # sorted reference, step 2: kept for the per-pixel sort
         if p.color_mask:
             buf.collect.append((py, px, d, len(buf.collect), rgba, p))
         return
-    merge_fragment(px, py, d, rgba, p, buf)
+    else:
+        result = merge_fragment(px, py, d, rgba, p, buf)
+    if log is not None:
+        log.fragments.append((where[0], px, py, where[1], d, rgba, result))
 
 
-def merge_fragment(px: int, py: int, d: int, rgba: list, p, buf: Buffers) -> None:
-    """§8 output merger for one fragment."""
+def merge_fragment(px: int, py: int, d: int, rgba: list, p, buf: Buffers) -> str:
+    """§8 output merger for one fragment at window pixel (px, py) with depth code ``d``;
+    returns ``written`` or the test that discarded it (``stencil``, ``depth``)."""
     s_old = buf.stencil[py][px]
     if p.stencil:
         ref, rm, wm = p.stencil_ref, p.stencil_read_mask, p.stencil_write_mask
@@ -585,16 +629,17 @@ def merge_fragment(px: int, py: int, d: int, rgba: list, p, buf: Buffers) -> Non
 
         if not compare(p.stencil_comp, ref & rm, s_old & rm):
             apply(p.stencil_fail)
-            return
+            return "stencil"
     if not compare(p.ztest, d, buf.depth[py][px]):
         if p.stencil:
             apply(p.stencil_zfail)
-        return
+        return "depth"
     if p.stencil:
         apply(p.stencil_pass)
     if p.zwrite:
         buf.depth[py][px] = d
     buf.write_color(px, py, p, rgba)
+    return "written"
 
 
 # ---------------------------------------------------------------- SPEC §9 sorted reference
@@ -615,7 +660,7 @@ def render_sorted_reference(scene: DrawScene):
     buf = Buffers(scene)
     cam = scene.camera
     V, P = to_list(cam.view_matrix), to_list(cam.projection)
-    budget = [math.inf]
+    budget = [math.inf, 0]
     renderers = draw_list(scene)
     sorted_range = [r for r in renderers if LAST_OPAQUE_QUEUE < r.material.render_queue < 4000]
     for r in renderers:
