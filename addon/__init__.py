@@ -1,8 +1,9 @@
 """Unity Passes for Blender: the add-on.
 
 Registers ``Material.unity`` / ``Scene.unity``, the "Unity Material" and "Unity
-Camera" panels, the pass operators and presets, and the "Unity Passes" render
-engine (``UNITY_PASSES``). The renderer is the bpy-free :mod:`blendlib` package:
+Camera" panels, the pass operators and presets, the "Unity Passes" render
+engine (``UNITY_PASSES``) and the "Unity Frame Debugger" (:mod:`.frame_debugger`).
+The renderer is the bpy-free :mod:`blendlib` package:
 on ``sys.path`` when run from the repository, installed from the wheel bundled
 in the extension zip otherwise (``scripts/build_extension.py``).
 
@@ -31,13 +32,15 @@ def register() -> None:
         unregister()
     import bpy
 
-    from . import engine, operators, properties, shaderlab_ops, ui
+    from . import engine, frame_debugger, operators, properties, shaderlab_ops, sort_analysis, ui
 
     properties.register()  # first: panels and operators use the properties
     for cls in operators.CLASSES + ui.CLASSES:
         bpy.utils.register_class(cls)
+    sort_analysis.register()
     engine.register()
     shaderlab_ops.register()
+    frame_debugger.register()
     _registered = True
 
 
@@ -47,10 +50,12 @@ def unregister() -> None:
         return
     import bpy
 
-    from . import engine, operators, properties, shaderlab_ops, ui
+    from . import engine, frame_debugger, operators, properties, shaderlab_ops, sort_analysis, ui
 
+    frame_debugger.unregister()
     shaderlab_ops.unregister()
     engine.unregister()
+    sort_analysis.unregister()
     for cls in reversed(operators.CLASSES + ui.CLASSES):
         if getattr(cls, "is_registered", False):
             bpy.utils.unregister_class(cls)

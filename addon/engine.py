@@ -6,6 +6,11 @@ Passes of the render result:
   transform (no look, no dither) turns them back into exactly the stored 8-bit values.
 - ``UnityAlpha``: the frame's own alpha channel (e.g. the clear colour's alpha).
 - ``Depth``: the depth buffer as OpenGL window depth 0..1 (not Blender's camera distance).
+- With ``ViewLayer.unity_analysis.use_passes`` (:mod:`addon.sort_analysis`): ``UnitySortedReference``
+  (RGBA, like Combined but with its alpha), ``UnitySortError`` and ``UnityOverdraw`` (X rasterised,
+  Y written, Z 0) of SPEC §9.
+
+The viewport's Rendered shading (``view_update`` / ``view_draw``) lives in :mod:`addon.viewport`.
 """
 
 from __future__ import annotations
@@ -18,6 +23,8 @@ from blendlib.blender.render import one_warning_per_cause
 from blendlib.core import pipeline
 from blendlib.core.pipeline import RenderCancelled
 from blendlib.core.scene import SceneError
+
+from . import sort_analysis, viewport
 
 ALPHA_PASS = "UnityAlpha"
 DEPTH_PASS = "Depth"
@@ -34,6 +41,15 @@ def result_arrays(frame) -> dict[str, np.ndarray]:
     }
 
 
+def _region_rows(array: np.ndarray, height: int, width: int, region) -> np.ndarray:
+    """The Render Region's part of a (H*W, C) bottom-first pass array (the array itself without one)."""
+    if region is None:
+        return array
+    x0, x1, y0, y1 = region
+    grid = array.reshape(height, width, -1)[y0:y1, x0:x1]  # bottom first: y counts from the bottom
+    return np.ascontiguousarray(grid).reshape((y1 - y0) * (x1 - x0), -1)
+
+
 class UnityPassesRenderEngine(bpy.types.RenderEngine):
     """Renders what Unity's built-in pipeline draws (render queues, ZWrite/ZTest, Blend, ColorMask, ...)."""
 
@@ -47,6 +63,9 @@ class UnityPassesRenderEngine(bpy.types.RenderEngine):
         self.register_pass(scene, renderlayer, "Combined", 4, "RGBA", "COLOR")
         self.register_pass(scene, renderlayer, ALPHA_PASS, 1, "A", "VALUE")
         self.register_pass(scene, renderlayer, DEPTH_PASS, 1, "Z", "VALUE")
+        if sort_analysis.properties.passes_enabled(renderlayer):
+            for name, channels, ids, kind in sort_analysis.render_passes():
+                self.register_pass(scene, renderlayer, name, channels, ids, kind)
 
     def render(self, depsgraph):
         scene = depsgraph.scene
@@ -62,7 +81,14 @@ class UnityPassesRenderEngine(bpy.types.RenderEngine):
             # crops it or places it in the full-size image itself).
             region = blender.border_region(scene, width, height)
             self.update_stats("", f"Unity Passes: {len(draw.renderers)} renderers")
-            frame = pipeline.render_scene(draw, progress=self._progress, should_cancel=self.test_break)
+            analysed = sort_analysis.properties.passes_enabled(depsgraph.view_layer)
+            if analysed:
+                from blendlib.explain.sorted_reference import analyze
+
+                analysis = analyze(draw, advice=False, progress=self._progress, should_cancel=self.test_break)
+                frame = analysis.frame
+            else:
+                frame = pipeline.render_scene(draw, progress=self._progress, should_cancel=self.test_break)
         except RenderCancelled:
             # An error report (not a bare return) also stops write_still / animation from saving
             # an empty frame when the break did not come from Blender's own Esc handling.
@@ -83,16 +109,26 @@ class UnityPassesRenderEngine(bpy.types.RenderEngine):
             self.report({"ERROR"}, "Unity Passes: render cancelled")
             return
         try:
-            self._write_result(depsgraph, blender.apply_border(frame, region, crop=True), width, height)
+            extra = sort_analysis.result_arrays(analysis) if analysed else None
+            self._write_result(depsgraph, frame, region, extra, width, height)
         except Exception as exc:  # noqa: BLE001 - an error report stops Blender from saving the image
             self.report({"ERROR"}, f"Unity Passes: internal error: {type(exc).__name__}: {exc}")
             return
         self.update_progress(1.0)
 
-    def _write_result(self, depsgraph, frame, width: int, height: int) -> None:
+    def _write_result(self, depsgraph, frame, region, extra: dict | None, width: int, height: int) -> None:
+        """Hand the passes to Blender: the Render Region's part when ``region`` is set (``extra``:
+        more (H*W, C) bottom-first pass arrays of the full frame, e.g. the sort analysis)."""
+        frame_h = frame.color.shape[0]
+        frame = blender.apply_border(frame, region, crop=True)
         arrays = result_arrays(frame)
         view_layer = depsgraph.view_layer
         self.add_pass(ALPHA_PASS, 1, "A")
+        if extra is not None:
+            for name, array in extra.items():
+                arrays[name] = _region_rows(array, frame_h, width, region)
+            for name, channels, ids, _ in sort_analysis.render_passes():
+                self.add_pass(name, channels, ids)
         if not view_layer.use_pass_z:
             self.add_pass(DEPTH_PASS, 1, "Z")
         result = self.begin_result(0, 0, width, height)
@@ -112,6 +148,29 @@ class UnityPassesRenderEngine(bpy.types.RenderEngine):
 
     def _progress(self, fraction: float) -> None:
         self.update_progress(float(fraction))
+
+    # -- viewport (Rendered shading): see addon/viewport.py ----------------------------------------
+    def _viewport(self) -> viewport.ViewportSession:
+        session = getattr(self, "_viewport_session", None)
+        if session is None:
+            session = viewport.ViewportSession(viewport.redraw_callback(self))
+            self._viewport_session = session
+        return session
+
+    def view_update(self, context, depsgraph):
+        self._viewport().update(depsgraph)
+
+    def view_draw(self, context, depsgraph):
+        self._viewport().draw(self, context, depsgraph)
+
+    def __del__(self):
+        # Blender frees the engine when the viewport leaves Rendered shading: stop its worker.
+        try:
+            session = self.__dict__.get("_viewport_session")
+        except ReferenceError:
+            return
+        if session is not None:
+            session.close()
 
 
 def _compat_panels():

@@ -2,46 +2,30 @@
 
 from __future__ import annotations
 
-from enum import Enum
-
 import bpy
 
-from blendlib.blender import PASS_FIELDS, pass_from_values, principled_inputs, read_group
+from blendlib.blender import principled_inputs, read_pass, write_material, write_pass
 from blendlib.core.vocabulary import PASS_PRESETS, Pass, preset
 
 
 def pass_from_item(item) -> Pass:
     """The :class:`blendlib.core.vocabulary.Pass` of a pass property group."""
-    return pass_from_values(read_group(item, PASS_FIELDS))
+    return read_pass(item)
 
 
 def store_pass(item, p: Pass) -> None:
     """Write every field of ``p`` into a pass property group."""
-    for f in PASS_FIELDS:
-        value = getattr(p, f.name)
-        if isinstance(value, Enum):
-            value = value.value
-        elif f.kind == "flags":
-            value = set(value)
-        setattr(item, f.name, value)
+    write_pass(item, p)
 
 
 def copy_pass(src, dst) -> None:
-    for f in PASS_FIELDS:
-        setattr(dst, f.name, getattr(src, f.name))
+    write_pass(dst, read_pass(src))
 
 
 def apply_preset(mat, name: str) -> None:
     """Set ``mat.unity`` to a preset of :data:`PASS_PRESETS`: enabled, its queue (offset 0) and passes."""
     queue, passes = preset(name)
-    unity = mat.unity
-    unity.enabled = True
-    unity.queue = queue.value
-    unity.queue_offset = 0
-    unity.passes.clear()
-    for p in passes:
-        store_pass(unity.passes.add(), p)
-    unity.active_pass_index = 0
+    write_material(mat, enabled=True, queue=queue, queue_offset=0, passes=passes)
 
 
 def fill_from_principled(mat) -> bool:
@@ -51,8 +35,7 @@ def fill_from_principled(mat) -> bool:
     if tree is None or not any(n.type == "BSDF_PRINCIPLED" for n in tree.nodes):
         return False
     color, image = principled_inputs(mat)
-    mat.unity.color = color
-    mat.unity.main_tex = image
+    write_material(mat, color=color, main_tex=image)
     return True
 
 
@@ -88,7 +71,7 @@ class UNITY_OT_pass_add(_MaterialOperator, bpy.types.Operator):
     def execute(self, context):
         unity = context.material.unity
         item = unity.passes.add()
-        item.name = f"Pass {len(unity.passes)}"
+        write_pass(item, Pass(name=f"Pass {len(unity.passes)}"))
         target = min(unity.active_pass_index + 1, len(unity.passes) - 1) if len(unity.passes) > 1 else 0
         unity.passes.move(len(unity.passes) - 1, target)
         unity.active_pass_index = target

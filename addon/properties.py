@@ -2,14 +2,29 @@
 
 The schema (names, defaults, enum item numbers) lives next to the code that reads
 stored values back without the add-on, so the two can never disagree.
+
+Each group also stores ``schema_version``. Editing any property records the current
+version (:func:`blendlib.blender.stamp_version`), and a ``load_post`` handler migrates
+the settings of files saved by older versions (:mod:`blendlib.blender.migration`) as
+they are loaded; ``register()`` migrates what is already loaded.
 """
 
 from __future__ import annotations
 
 import bpy
+from bpy.app.handlers import persistent
 
-from blendlib.blender import FLAG_BITS, MATERIAL_FIELDS, PASS_FIELDS, SCENE_FIELDS, Field
-from blendlib.core.vocabulary import QUEUE_NUMBERS, Queue
+from blendlib.blender import (
+    MATERIAL_FIELDS,
+    PASS_FIELDS,
+    SCENE_FIELDS,
+    SCHEMA_VERSION,
+    Field,
+    migrate_data,
+    stamp_version,
+)
+from blendlib.blender.migration import FIRST_VERSION, VERSION_KEY
+from blendlib.core.vocabulary import COLOR_MASK_BITS, QUEUE_NUMBERS, Queue
 
 _ITEM_NOTES = {
     **{q.value: f"{q.value} = {QUEUE_NUMBERS[q]}" for q in Queue},
@@ -33,8 +48,15 @@ def enum_items(f: Field) -> list[tuple[str, str, str, int]]:
     return [(ident, ident, _ITEM_NOTES.get(ident, f"{f.label} {ident}"), number) for ident, number in f.items()]
 
 
+def _edited(self, context) -> None:
+    """Update callback of every property: the owner's settings are now of the current version."""
+    stamp_version(self.id_data)
+
+
 def make_property(f: Field, pass_type=None):
     kw = {"name": f.label, "description": f.description}
+    if f.kind != "passes":
+        kw["update"] = _edited
     limits = {k: getattr(f, k) for k in ("min", "max", "soft_min", "soft_max") if getattr(f, k) is not None}
     if f.kind == "bool":
         return bpy.props.BoolProperty(default=f.default, **kw)
@@ -45,7 +67,7 @@ def make_property(f: Field, pass_type=None):
     if f.kind == "enum":
         return bpy.props.EnumProperty(items=enum_items(f), default=f.default, **kw)
     if f.kind == "flags":
-        items = [(c, c, f"Write the {c} channel", bit) for c, bit in FLAG_BITS.items()]
+        items = [(c, c, f"Write the {c} channel", bit) for c, bit in COLOR_MASK_BITS.items()]
         return bpy.props.EnumProperty(items=items, default=set(f.default), options={"ENUM_FLAG"}, **kw)
     if f.kind in ("color", "vector"):
         return bpy.props.FloatVectorProperty(size=f.size, default=f.default, subtype=f.subtype, **limits, **kw)
@@ -63,11 +85,11 @@ class UnityPassSettings(bpy.types.PropertyGroup):
 
 
 class UnityMaterialSettings(bpy.types.PropertyGroup):
-    """Material.unity: the Unity material (SPEC §3)."""
+    """Material.unity: the Unity material (README "Data model")."""
 
 
 class UnitySceneSettings(bpy.types.PropertyGroup):
-    """Scene.unity: Unity camera / player settings (SPEC §3)."""
+    """Scene.unity: Unity camera / player settings (README "Data model")."""
 
 
 UnityPassSettings.__annotations__ = {f.name: make_property(f) for f in PASS_FIELDS}
@@ -75,6 +97,11 @@ UnityMaterialSettings.__annotations__ = {f.name: make_property(f, UnityPassSetti
 UnityMaterialSettings.__annotations__["active_pass_index"] = bpy.props.IntProperty(
     name="Active Pass", description="Pass selected in the list", default=0, min=0)
 UnitySceneSettings.__annotations__ = {f.name: make_property(f) for f in SCENE_FIELDS}
+for _group in (UnityMaterialSettings, UnitySceneSettings):
+    _group.__annotations__[VERSION_KEY] = bpy.props.IntProperty(
+        name="Schema Version", default=FIRST_VERSION, min=FIRST_VERSION, options={"HIDDEN"},
+        description=(f"Version of the stored settings' format (current: {SCHEMA_VERSION}; absent: "
+                     f"{FIRST_VERSION}, saved by add-on 0.1); older settings are migrated when a file loads"))
 
 CLASSES = (UnityPassSettings, UnityMaterialSettings, UnitySceneSettings)
 
@@ -86,12 +113,34 @@ def register() -> None:
         type=UnityMaterialSettings, name="Unity Material", description="Unity built-in pipeline material settings")
     bpy.types.Scene.unity = bpy.props.PointerProperty(
         type=UnitySceneSettings, name="Unity Camera", description="Unity built-in pipeline frame settings")
+    if migrate_on_load not in bpy.app.handlers.load_post:
+        bpy.app.handlers.load_post.append(migrate_on_load)
+    migrate_on_load()
 
 
 def unregister() -> None:
+    for handler in [h for h in bpy.app.handlers.load_post if _is_migration_handler(h)]:
+        bpy.app.handlers.load_post.remove(handler)  # also one left by a reloaded copy of this module
     for owner in (bpy.types.Scene, bpy.types.Material):
         if hasattr(owner, "unity"):
             del owner.unity
     for cls in reversed(CLASSES):
         if getattr(cls, "is_registered", False):
             bpy.utils.unregister_class(cls)
+
+
+@persistent
+def migrate_on_load(*_args) -> None:
+    """``load_post`` handler: bring the Unity settings of every material and scene to the current
+    schema version. While the add-on is enabled at Blender's start-up, ``bpy.data`` is not yet
+    readable; the files loaded afterwards are migrated by this handler."""
+    try:
+        data = bpy.data
+        data.materials  # noqa: B018 - raises AttributeError on the restricted start-up data
+    except AttributeError:
+        return
+    migrate_data(data)
+
+
+def _is_migration_handler(handler) -> bool:
+    return getattr(handler, "__module__", None) == __name__ and getattr(handler, "__name__", None) == "migrate_on_load"

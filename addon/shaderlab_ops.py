@@ -2,10 +2,11 @@
 
 Import parses the whole ``.shader`` text first (:mod:`blendlib.formats.shaderlab`); on a
 parse error it reports one line (``FILE:LINE:COL: message``) and changes nothing.
-On success it replaces the material's Unity settings (``material.unity``, SPEC §3)
-in one step: queue, offset, ``_Color``, ``_AlphaScale``, ``_Cutoff``, lighting and
-the pass list (cleared and rebuilt), and turns ``enabled`` on. If assigning fails
-half-way, the previous settings are restored.
+On success it replaces the material's Unity settings (``material.unity``) through the
+schema's writer (:func:`blendlib.blender.write_material`): queue, offset, ``_Color``,
+``_AlphaScale``, ``_Cutoff``, lighting and the pass list (cleared and rebuilt), and
+turns ``enabled`` on. Every value is checked before any is assigned, so a value the
+settings cannot hold changes nothing.
 
 A ``.shader`` file holds no texture image, tiling/offset or sampler settings (in
 Unity they belong to the material and the texture asset, and switching a
@@ -24,74 +25,22 @@ from bpy.types import Operator
 from bpy_extras.io_utils import ExportHelper, ImportHelper
 
 from blendlib import blender
-from blendlib.core.vocabulary import pass_to_dict, queue_text
+from blendlib.core.vocabulary import queue_text
 from blendlib.formats import shaderlab
 from blendlib.formats.atomic import write_atomic
 
-_TEXTURE_FIELDS = ("main_tex", "main_tex_tiling", "main_tex_offset", "main_tex_filter", "main_tex_wrap")
-_SCALAR_FIELDS = ("enabled", "queue", "queue_offset", "color", "alpha_scale", "cutoff", "lighting")
-_PASS_KEYS = tuple(pass_to_dict(shaderlab.Pass()).keys())
-
-
-def _plain(value):
-    """A result value as a bpy property value (enum members → identifiers, tuples stay)."""
-    if isinstance(value, str):
-        return str(value.value) if hasattr(value, "value") else value
-    return value
-
-
-def result_settings(result: shaderlab.ShaderLabResult, reset_texture: bool = False) -> dict:
-    """The ``material.unity`` assignments of an import: ``{field: value, "passes": [dict, ...]}``."""
-    fields = _SCALAR_FIELDS + (_TEXTURE_FIELDS if reset_texture else ())
-    values = {key: _plain(result.material[key]) for key in fields}
-    values["passes"] = [pass_to_dict(p) for p in result.passes]
-    return values
-
-
-def _read_settings(unity) -> dict:
-    """Everything :func:`_write_settings` may change, for restoring on failure."""
-    values = {key: _copy(getattr(unity, key)) for key in _SCALAR_FIELDS + _TEXTURE_FIELDS}
-    values["passes"] = [{key: _copy(getattr(item, key)) for key in _PASS_KEYS} for item in unity.passes]
-    return values
-
-
-def _copy(value):
-    if isinstance(value, (str, int, float, bool)) or value is None or isinstance(value, bpy.types.ID):
-        return value
-    if isinstance(value, set):
-        return set(value)
-    try:
-        return tuple(value)
-    except TypeError:
-        return value
-
-
-def _write_settings(unity, values: dict) -> None:
-    for key, value in values.items():
-        if key == "passes":
-            continue
-        setattr(unity, key, set(value) if isinstance(value, (set, frozenset)) else value)
-    unity.passes.clear()
-    for data in values["passes"]:
-        item = unity.passes.add()
-        for key, value in data.items():
-            if key == "color_mask":
-                value = set(value)
-            setattr(item, key, value)
-    if hasattr(unity, "active_pass_index"):
-        unity.active_pass_index = 0
+#: Material fields a .shader file does not hold: kept on import unless "Reset Texture Settings".
+TEXTURE_FIELDS = ("main_tex", "main_tex_tiling", "main_tex_offset", "main_tex_filter", "main_tex_wrap")
 
 
 def apply_result(material, result: shaderlab.ShaderLabResult, reset_texture: bool = False) -> None:
-    """Replace ``material.unity`` with an import result, all or nothing."""
-    unity = material.unity
-    new = result_settings(result, reset_texture)
-    old = _read_settings(unity)
-    try:
-        _write_settings(unity, new)
-    except Exception:
-        _write_settings(unity, old)
-        raise
+    """Replace ``material.unity`` with an import result, all or nothing (ValueError: nothing changed)."""
+    values = blender.material_fields(result.material)
+    if reset_texture:
+        values["main_tex"] = None
+    else:
+        values = {k: v for k, v in values.items() if k not in TEXTURE_FIELDS}
+    blender.write_material(material, enabled=True, **values)
 
 
 def _one_line(text: str) -> str:
@@ -129,7 +78,7 @@ class _ImportMixin:
         for warning in result.warnings:
             self.report({"WARNING"}, _one_line(f"{filename}:{warning}"))
         n = len(result.passes)
-        queue = queue_text(result.material["queue"], int(result.material["queue_offset"]))
+        queue = queue_text(result.material.queue, result.material.queue_offset)
         self.report({"INFO"}, f'Imported "{result.name}": {n} pass{"" if n == 1 else "es"}, queue {queue}')
         return {"FINISHED"}
 

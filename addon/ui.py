@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import bpy
 
-from blendlib.core.vocabulary import Queue, queue_text
+from blendlib.core.vocabulary import Queue, pass_state_text, queue_text
 
 from . import shaderlab_ops
 from .operators import (
@@ -23,7 +23,7 @@ ENGINE = "UNITY_PASSES"
 
 def shaderlab_preview(item) -> str:
     try:
-        return pass_from_item(item).shaderlab()
+        return pass_state_text(pass_from_item(item))
     except ValueError as exc:  # e.g. an out-of-range stored value
         return f"invalid pass: {exc}"
 

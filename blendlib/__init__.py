@@ -3,7 +3,7 @@
 Layers, one folder each: :mod:`blendlib.core` (the bpy-free renderer: a
 :class:`DrawScene` in, a :class:`Frame` of numpy buffers out), :mod:`blendlib.formats`
 (ShaderLab and image files, bpy-free), :mod:`blendlib.blender` (the only layer that
-touches bpy) and :mod:`blendlib.cli`. :func:`render` and :func:`write_image` import the
+touches bpy) and :mod:`blendlib.cli`. :func:`render`, :func:`render_view` and :func:`write_image` import the
 Blender layer lazily so that ``import blendlib`` works without bpy.
 """
 
@@ -15,7 +15,8 @@ from .core.vocabulary import Material, Pass, Texture
 
 __all__ = [
     "Camera", "DrawScene", "Frame", "Light", "Material", "Mesh", "Pass", "Renderer",
-    "SceneError", "Texture", "render", "render_scene", "write_image",
+    "SceneError", "Texture", "analyze", "draw_list", "pixel_history", "render", "render_scene", "render_view",
+    "write_image",
 ]
 
 
@@ -24,10 +25,55 @@ def render(scene=None, **kwargs) -> Frame:
 
     Returns a :class:`Frame` whose ``color`` (H, W, 4) float32 holds the stored frame
     values and ``depth`` (H, W) float32 the window depth; row 0 is the top.
+    ``until_draw=K``: the frame after draw call K (1-based; 0 = the cleared frame).
     """
     from . import blender
 
     return blender.render(scene, **kwargs)
+
+
+def render_view(scene, view_matrix, projection_matrix, width: int, height: int, **kwargs) -> Frame:
+    """Render a ``bpy.types.Scene`` (None: the context scene) through a view's 4x4 matrices.
+
+    The Frame a camera with ``view_matrix`` (world → view) and ``projection_matrix`` (view →
+    clip) would give at ``width`` x ``height``: what the viewport's Rendered shading shows.
+    Matrices are ``mathutils.Matrix`` or anything numpy accepts. The scene is left unchanged.
+    """
+    from .blender import viewport
+
+    return viewport.render_view(scene, view_matrix, projection_matrix, width, height, **kwargs)
+
+
+def analyze(scene=None, **kwargs):
+    """The sorted reference, sort error, inversions, overdraw and advice of a ``bpy.types.Scene``
+    (default: the context scene) as F12 renders it: a :class:`blendlib.explain.sorted_reference.Analysis`.
+    A :class:`DrawScene` is analysed directly. Keyword arguments go to
+    :func:`blendlib.explain.sorted_reference.analyze` (``advice``, ``max_advice``, ``progress``, ...)."""
+    from .explain.sorted_reference import analyze as analyze_draw_scene
+
+    if not isinstance(scene, DrawScene):
+        from . import blender
+
+        scene = blender.draw_scene_final(scene)
+    return analyze_draw_scene(scene, **kwargs)
+
+
+def draw_list(scene=None, **kwargs):
+    """The draw calls of a ``bpy.types.Scene`` (default: the context scene) in order, each a
+    :class:`blendlib.explain.framedebug.DrawStats` (``.call``, ``.triangles``, ``.fragments``,
+    ``.written``; ``.to_json()`` gives the SPEC §8 item). Costs one render."""
+    from .blender import framedebug
+
+    return framedebug.draw_list(scene, **kwargs)
+
+
+def pixel_history(scene, x: int, y: int, **kwargs):
+    """The history of pixel (``x`` from the left, ``y`` from the top) of a ``bpy.types.Scene``
+    (None: the context scene): a :class:`blendlib.explain.framedebug.PixelHistory` of every
+    fragment rasterised there (``.to_json()`` gives the SPEC §8 object). Costs one render."""
+    from .blender import framedebug
+
+    return framedebug.pixel_history(scene, x, y, **kwargs)
 
 
 def write_image(frame: Frame, name: str, **kwargs):

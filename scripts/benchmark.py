@@ -1,9 +1,12 @@
 #!/usr/bin/env python3
 """Benchmark: the project's renderer against OpenGL (Mesa llvmpipe), EEVEE and Workbench.
 
-    .venv/bin/python scripts/benchmark.py                      # the full run (docs/benchmark.md)
-    .venv/bin/python scripts/benchmark.py --quick              # small sizes, a smoke run
-    .venv/bin/python scripts/benchmark.py --scenes S1,S4 --repeats 5 --json out.json --plot docs/benchmark.png
+    .venv/bin/python -m scripts.benchmark                      # the full run (docs/benchmark.md)
+    .venv/bin/python -m scripts.benchmark --quick              # small sizes, a smoke run
+    .venv/bin/python -m scripts.benchmark --scenes S1,S4 --repeats 5 --json out.json --plot docs/benchmark.png
+
+Run it from the repository root (``-m``): the workers import ``addon`` and ``tests.reference``
+from there, and ``blendlib`` as installed (editable) in the environment.
 
 Every scene is a real Blender scene built with bpy (or a file of ``blend_files/``), so that
 every backend starts from the same data:
@@ -36,13 +39,11 @@ import math
 import os
 import platform
 import statistics
-import struct
 import subprocess
 import sys
 import tempfile
 import time
 import traceback
-import zlib
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
@@ -104,38 +105,11 @@ ALPHA_BLEND = dict(blend=True, zwrite=False, src_blend="SrcAlpha", dst_blend="On
 
 
 def _unity_settings(mat, *, queue: str, color, passes: list[dict], lighting: str = "Lambert") -> None:
-    """Give ``mat`` Unity settings (SPEC §3): through the add-on's ``Material.unity`` when it is
-    registered, else as the stored ID properties that the bridge reads (same names and storage)."""
-    group = getattr(mat, "unity", None)
-    if group is not None and hasattr(group, "bl_rna"):
-        group.enabled = True
-        group.queue = queue
-        group.color = color
-        group.lighting = lighting
-        group.passes.clear()
-        for values in passes:
-            item = group.passes.add()
-            for key, value in values.items():
-                setattr(item, key, set(value) if key == "color_mask" else value)
-        return
-    from blendlib.blender import FLAG_BITS, MATERIAL_FIELDS, PASS_FIELDS
+    """Give ``mat`` Unity settings (``Material.unity``) through the schema's writer, which stores
+    the same values whether or not the add-on is registered."""
+    from blendlib.blender import write_material
 
-    def stored(fields, values):
-        out = {}
-        for f in fields:
-            if f.name not in values:
-                continue
-            v = values[f.name]
-            if f.kind == "enum":
-                v = [m.value for m in f.enum].index(v)
-            elif f.kind == "flags":
-                v = sum(FLAG_BITS[c] for c in v)
-            out[f.name] = v
-        return out
-
-    data = stored(MATERIAL_FIELDS, dict(enabled=True, queue=queue, color=tuple(color), lighting=lighting))
-    data["passes"] = [stored(PASS_FIELDS, p) for p in passes]
-    mat.bl_system_properties_get(do_create=True)["unity"] = data
+    write_material(mat, enabled=True, queue=queue, color=tuple(color), lighting=lighting, passes=passes)
 
 
 def _principled(mat, color, alpha: float, blended: bool, backface_culling: bool) -> None:
@@ -524,8 +498,6 @@ def worker_main(kind: str) -> int:
     proto = os.fdopen(os.dup(1), "w", buffering=1)
     os.dup2(2, 1)
     sys.stdout = sys.stderr
-    if str(REPO) not in sys.path:
-        sys.path.insert(0, str(REPO))
     try:
         import addon  # noqa: F401  (the add-on registers Material.unity when it is there)
 
@@ -571,11 +543,10 @@ class Worker:
 
     def __init__(self, kind: str, log):
         self.kind = kind
-        env = dict(os.environ)
-        env["PYTHONPATH"] = str(REPO) + os.pathsep + env.get("PYTHONPATH", "")
+        # ``-m`` from the repository root: the worker imports scripts, addon and tests from there.
         self.proc = subprocess.Popen(
-            [sys.executable, str(Path(__file__).resolve()), "--worker", kind],
-            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=log, text=True, bufsize=1, env=env,
+            [sys.executable, "-m", "scripts.benchmark", "--worker", kind], cwd=REPO,
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=log, text=True, bufsize=1,
         )
         hello = self._read()
         self.ok = hello.get("ok", False)
@@ -780,113 +751,15 @@ def targets(results: list[dict], quick: bool) -> list[tuple[str, str, bool | Non
 
 
 # ---------------------------------------------------------------------------------------------
-# The plot: matplotlib when installed, else a small PNG drawn with numpy
+# The plot (matplotlib, Agg)
 # ---------------------------------------------------------------------------------------------
 
-_FONT = {  # 3x5 glyphs, rows top to bottom
-    "0": "111101101101111", "1": "010110010010111", "2": "111001111100111", "3": "111001111001111",
-    "4": "101101111001001", "5": "111100111001111", "6": "111100111101111", "7": "111001001010010",
-    "8": "111101111101111", "9": "111101111001111", "A": "010101111101101", "B": "110101110101110",
-    "C": "011100100100011", "D": "110101101101110", "E": "111100110100111", "F": "111100110100100",
-    "G": "011100101101011", "H": "101101111101101", "I": "111010010010111", "J": "001001001101010",
-    "K": "101101110101101", "L": "100100100100111", "M": "101111111101101", "N": "110101101101101",
-    "O": "010101101101010", "P": "110101110100100", "Q": "010101101110011", "R": "110101110101101",
-    "S": "011100010001110", "T": "111010010010010", "U": "101101101101111", "V": "101101101101010",
-    "W": "101101111111101", "X": "101101010101101", "Y": "101101010010010", "Z": "111001010100111",
-    ".": "000000000000010", ",": "000000000010100", "-": "000000111000000", "/": "001001010100100",
-    "(": "010100100100010", ")": "010001001001010", ":": "000010000010000", " ": "000000000000000",
-    "%": "101001010100101", "_": "000000000000111", "=": "000111000111000", "+": "000010111010000",
-    "x": "000101010101000",
-}
-
-
-def _png_bytes(rgb) -> bytes:
-    import numpy as np
-
-    h, w, _ = rgb.shape
-    raw = b"".join(b"\x00" + np.ascontiguousarray(rgb[y]).tobytes() for y in range(h))
-
-    def chunk(kind, data):
-        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
-
-    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0))
-            + chunk(b"IDAT", zlib.compress(raw, 9)) + chunk(b"IEND", b""))
-
-
-class _Canvas:
-    def __init__(self, w, h):
-        import numpy as np
-
-        self.np = np
-        self.img = np.full((h, w, 3), 255, np.uint8)
-        self.w, self.h = w, h
-
-    def rect(self, x0, y0, x1, y1, color):
-        x0, x1 = sorted((int(x0), int(x1)))
-        y0, y1 = sorted((int(y0), int(y1)))
-        self.img[max(0, y0):min(self.h, y1 + 1), max(0, x0):min(self.w, x1 + 1)] = color
-
-    def line(self, x0, y0, x1, y1, color, width=2):
-        n = int(max(abs(x1 - x0), abs(y1 - y0))) + 1
-        for t in self.np.linspace(0.0, 1.0, n):
-            x, y = x0 + (x1 - x0) * t, y0 + (y1 - y0) * t
-            self.rect(x - width // 2, y - width // 2, x + (width - 1) // 2, y + (width - 1) // 2, color)
-
-    def text(self, x, y, s, color=(0, 0, 0), scale=2, anchor="left"):
-        s = str(s)
-        if anchor != "left":
-            width = len(s) * 4 * scale
-            x -= width if anchor == "right" else width // 2
-        for i, ch in enumerate(s):
-            glyph = _FONT.get(ch, _FONT.get(ch.upper(), _FONT[" "]))
-            for k, bit in enumerate(glyph):
-                if bit == "1":
-                    gx, gy = x + (i * 4 + k % 3) * scale, y + (k // 3) * scale
-                    self.rect(gx, gy, gx + scale - 1, gy + scale - 1, color)
-
-
-SERIES = (("project", "render_s", (31, 119, 180)), ("opengl", "total_s", (255, 127, 14)),
-          ("eevee", "total_s", (44, 160, 44)), ("workbench", "total_s", (148, 103, 189)))
-
-
-def _panel(cv, box, title, xlabel, series):
-    x0, y0, x1, y1 = box
-    pts = [(x, y) for _, _, s in series for x, y in s if x > 0 and y > 0]
-    if not pts:
-        return
-    lx = [math.log10(p[0]) for p in pts]
-    ly = [math.log10(p[1]) for p in pts]
-    xa, xb = math.floor(min(lx)), math.ceil(max(lx))
-    ya, yb = math.floor(min(ly)), math.ceil(max(ly))
-    xb, yb = max(xb, xa + 1), max(yb, ya + 1)
-
-    def px(x, y):
-        return (x0 + (math.log10(x) - xa) / (xb - xa) * (x1 - x0),
-                y1 - (math.log10(y) - ya) / (yb - ya) * (y1 - y0))
-
-    for e in range(xa, xb + 1):
-        gx = x0 + (e - xa) / (xb - xa) * (x1 - x0)
-        cv.line(gx, y0, gx, y1, (225, 225, 225), 1)
-        cv.text(gx, y1 + 8, f"{10 ** (e % 3)}{['', 'K', 'M', 'G'][e // 3]}" if e >= 0 else f"{10.0**e:g}",
-                anchor="center")
-    for e in range(ya, yb + 1):
-        gy = y1 - (e - ya) / (yb - ya) * (y1 - y0)
-        cv.line(x0, gy, x1, gy, (225, 225, 225), 1)
-        cv.text(x0 - 6, gy - 5, f"{10.0**e:g}", anchor="right")
-    cv.rect(x0, y1, x1, y1, (0, 0, 0))
-    cv.rect(x0, y0, x0, y1, (0, 0, 0))
-    cv.text((x0 + x1) // 2, y0 - 26, title, anchor="center")
-    cv.text((x0 + x1) // 2, y1 + 26, xlabel, anchor="center")
-    for _name, color, s in series:
-        s = [p for p in s if p[0] > 0 and p[1] > 0]
-        for (xa_, ya_), (xb_, yb_) in zip(s, s[1:], strict=False):
-            cv.line(*px(xa_, ya_), *px(xb_, yb_), color, 3)
-        for x, y in s:
-            cx, cy = px(x, y)
-            cv.rect(cx - 3, cy - 3, cx + 3, cy + 3, color)
+SERIES = (("project", "render_s", "#1f77b4"), ("opengl", "total_s", "#ff7f0e"),
+          ("eevee", "total_s", "#2ca02c"), ("workbench", "total_s", "#9467bd"))
 
 
 def _scaling_series(results, group, xkey):
+    """``[(backend, colour, [(x, seconds), ...]), ...]`` of one scaling group (points with both > 0)."""
     rs = [r for r in results if r["case"]["group"] == group]
     out = []
     for kind, key, color in SERIES:
@@ -898,81 +771,46 @@ def _scaling_series(results, group, xkey):
 
 
 def write_plot(results: list[dict], path: Path, title: str) -> Path:
+    """Three panels: time vs triangles and time vs covered pixels (log-log, the scaling groups),
+    and every scene's total time per backend (log bars). Written atomically as PNG."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from blendlib.formats.atomic import write_atomic
+
     path.parent.mkdir(parents=True, exist_ok=True)
     tri = _scaling_series(results, "scale-tris", "triangles")
     res = _scaling_series(results, "scale-res", "covered_px")
     bars = [r for r in results if r["case"]["group"] in ("S1", "S2", "S3", "S4")]
-    try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-
-        fig, axes = plt.subplots(1, 3, figsize=(16, 5))
-        for ax, series, xl, t in ((axes[0], tri, "triangles", "time vs triangles (1080p)"),
-                                  (axes[1], res, "covered pixels", "time vs covered pixels (200k tris)")):
-            for name, color, s in series:
-                ax.loglog(*zip(*s, strict=True), "o-", color=[c / 255 for c in color], label=name)
-            ax.set_xlabel(xl)
-            ax.set_ylabel("seconds (median)")
-            ax.set_title(t)
-            ax.grid(True, which="both", alpha=0.3)
-            ax.legend()
-        ax = axes[2]
-        names = [r["case"]["id"] for r in bars]
-        for j, (kind, key, color) in enumerate(SERIES):
-            vals = [(r["median"].get(kind) or {}).get(key if kind != "project" else "total_s") or 0 for r in bars]
-            ax.bar([i + j * 0.2 for i in range(len(bars))], vals, 0.2, color=[c / 255 for c in color], label=kind)
-        ax.set_xticks([i + 0.3 for i in range(len(bars))], names, rotation=30, ha="right")
-        ax.set_yscale("log")
+    fig = Figure(figsize=(16, 5))
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(1, 3)
+    for ax, series, xl, t in ((axes[0], tri, "triangles", "time vs triangles (1080p)"),
+                              (axes[1], res, "covered pixels", "time vs covered pixels (200k tris)")):
+        for name, color, s in series:
+            ax.loglog(*zip(*s, strict=True), "o-", color=color, label=name)
+        ax.set_xlabel(xl)
         ax.set_ylabel("seconds (median)")
-        ax.set_title("scenes")
-        ax.legend()
-        fig.suptitle(title)
-        fig.tight_layout()
-        fig.savefig(path, dpi=80)
-        return path
-    except ImportError:
-        pass
-    W, H = 1500, 560
-    cv = _Canvas(W, H)
-    cv.text(W // 2, 12, title, anchor="center")
-    _panel(cv, (110, 80, 500, 470), "TIME (S) VS TRIANGLES", "TRIANGLES", tri)
-    _panel(cv, (620, 80, 1010, 470), "TIME (S) VS COVERED PIXELS", "COVERED PIXELS", res)
-    # Bars: project total vs the others per scene, log scale.
+        ax.set_title(t)
+        ax.grid(True, which="both", alpha=0.3)
+        if series:
+            ax.legend()
+    ax = axes[2]
+    names = [r["case"]["id"] for r in bars]
+    for j, (kind, _key, color) in enumerate(SERIES):
+        vals = [(r["median"].get(kind) or {}).get("total_s") or 0 for r in bars]
+        ax.bar([i + j * 0.2 for i in range(len(bars))], vals, 0.2, color=color, label=kind)
+    ax.set_xticks([i + 0.3 for i in range(len(bars))], names, rotation=30, ha="right")
+    ax.set_yscale("log")
+    ax.set_ylabel("seconds (median)")
+    ax.set_title("scenes: total time")
     if bars:
-        x0, y0, x1, y1 = 1110, 80, 1480, 470
-        vals = [(r["median"].get(k) or {}).get("total_s") or 0 for r in bars for k, _, _ in SERIES]
-        vals = [v for v in vals if v > 0]
-        if vals:
-            ya, yb = math.floor(math.log10(min(vals))), math.ceil(math.log10(max(vals)))
-            yb = max(yb, ya + 1)
-            for e in range(ya, yb + 1):
-                gy = y1 - (e - ya) / (yb - ya) * (y1 - y0)
-                cv.line(x0, gy, x1, gy, (225, 225, 225), 1)
-                cv.text(x0 - 6, gy - 5, f"{10.0**e:g}", anchor="right")
-            slot = (x1 - x0) / len(bars)
-            bw = max(2, int(slot / (len(SERIES) + 1)))
-            for i, r in enumerate(bars):
-                for j, (kind, _, color) in enumerate(SERIES):
-                    v = (r["median"].get(kind) or {}).get("total_s") or 0
-                    if v > 0:
-                        top = y1 - (math.log10(v) - ya) / (yb - ya) * (y1 - y0)
-                        bx = x0 + i * slot + j * bw + bw // 2
-                        cv.rect(bx, top, bx + bw - 2, y1, color)
-                label = r["case"]["id"].removeprefix("S3:")[: max(2, int(slot // 4))]
-                cv.text(x0 + i * slot + slot / 2, y1 + 8 + (i % 2) * 9, label, scale=1, anchor="center")
-            cv.rect(x0, y1, x1, y1, (0, 0, 0))
-            cv.rect(x0, y0, x0, y1, (0, 0, 0))
-            cv.text((x0 + x1) // 2, y0 - 26, "SCENES: TOTAL TIME (S)", anchor="center")
-    # Legend.
-    lx = 110
-    for kind, _, color in SERIES:
-        cv.rect(lx, 520, lx + 20, 532, color)
-        cv.text(lx + 28, 521, kind.upper())
-        lx += 60 + 10 * len(kind)
-    cv.text(lx + 20, 521, "PROJECT = RENDER_SCENE IN PLOTS 1-2, EXTRACTION + RENDER IN PLOT 3")
-    path.write_bytes(_png_bytes(cv.img))
+        ax.legend()
+    fig.suptitle(title)
+    fig.text(0.5, 0.01, "project = render_scene in the first two plots, extraction + render in the third",
+             ha="center", fontsize=9)
+    fig.tight_layout(rect=(0, 0.03, 1, 1))
+    write_atomic(path, lambda fh: fig.savefig(fh, format="png", dpi=80))
     return path
 
 
@@ -982,7 +820,7 @@ def write_plot(results: list[dict], path: Path, title: str) -> Path:
 
 
 def parse_args(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+    ap = argparse.ArgumentParser(prog="python -m scripts.benchmark", description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true", help="small sizes (a smoke run of a minute or so)")
     ap.add_argument("--scenes", default="S1,S2,S3,S4,scaling",
@@ -1059,7 +897,7 @@ def main(argv=None) -> int:
         "python": platform.python_version(), "numpy": np.__version__, "cpus": os.cpu_count(),
         "machine": platform.machine(), "processor": _cpu_name(), "repeats": args.repeats,
         "quick": bool(args.quick), "addon_registered": addon, "elapsed_s": elapsed,
-        "command": " ".join(["python", "scripts/benchmark.py", *(argv if argv is not None else sys.argv[1:])]),
+        "command": " ".join(["python", "-m", "scripts.benchmark", *(argv if argv is not None else sys.argv[1:])]),
     }
     print()
     print(f"Unity Passes benchmark — {env['processor']}, {env['cpus']} CPUs, numpy {env['numpy']}, "
@@ -1121,8 +959,8 @@ def main(argv=None) -> int:
         write_doc(Path(args.write_doc), results, env, sc, tg, args.plot)
         print(f"results written into {args.write_doc}")
     if args.plot:
-        p = write_plot(results, Path(args.plot), f"UNITY PASSES BENCHMARK, {env['cpus']} CPUS"
-                       + (" (QUICK)" if args.quick else ""))
+        p = write_plot(results, Path(args.plot), f"Unity Passes benchmark, {env['cpus']} CPUs"
+                       + (" (quick sizes)" if args.quick else ""))
         print(f"plot: {p}")
     print(f"\n({elapsed:.0f} s in all; worker log {log_path})")
     failed = any(r["errors"].get("project") for r in results)
@@ -1177,4 +1015,6 @@ def _cpu_name() -> str:
 
 
 if __name__ == "__main__":
+    if not __package__:  # run as a file: the repository root (addon, tests) is not importable
+        sys.exit("error: run the benchmark from the repository root as: python -m scripts.benchmark [options]")
     sys.exit(main())

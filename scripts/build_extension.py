@@ -1,105 +1,113 @@
 #!/usr/bin/env python3
-"""Build the Blender 4.2+ extension zip: ``dist/unity_passes-<version>.zip``.
+"""Build the Blender 4.2+ extension zip: ``dist/blendlib-<version>.zip``.
 
-The zip holds the add-on package (``addon/``: ``__init__.py`` and ``blender_manifest.toml`` at
-the top of the zip) and ``wheels/unity_passes_blendlib-<version>-py3-none-any.whl``, a pure-Python
-wheel of the bpy-free ``blendlib`` package that Blender installs with the extension, so
-``import blendlib`` works where the repository is not on ``sys.path``. numpy ships with Blender.
+The zip holds the add-on (``addon/``, with ``blender_manifest.toml`` at the top of the zip) and
+``wheels/blendlib-<version>-py3-none-any.whl``, the bpy-free ``blendlib`` package, which Blender
+installs with the extension so ``import blendlib`` works where the repository is not on
+``sys.path``. numpy ships with Blender; Pillow and OpenEXR are not needed inside Blender (they
+are the wheel's optional ``files`` extra, which Blender does not install).
 
-    python scripts/build_extension.py            # → dist/unity_passes-0.1.0.zip
-    blender --command extension install-file -r user_default dist/unity_passes-0.1.0.zip
+The tools are the standard ones: ``python -m build`` (sdist, then the wheel from the sdist, with
+the setuptools installed in this environment, on a copy of the sources) and Blender's own
+extension builder,
+``blender_ext.py build``, which ships inside the bpy wheel (``bpy/<version>/scripts/addons_core/
+bl_pkg/cli/blender_ext.py``) and is what ``blender --command extension build`` runs.
+
+    python scripts/build_extension.py            # → dist/blendlib-0.1.0.zip
+    blender --command extension install-file -r user_default dist/blendlib-0.1.0.zip
     (or Edit > Preferences > Get Extensions > Install from Disk...)
-
-No network, no Blender needed to build. Deterministic: fixed timestamps, sorted entries.
 """
 
 from __future__ import annotations
 
 import argparse
-import base64
-import hashlib
+import importlib.util
 import re
+import shutil
+import subprocess
 import sys
-import zipfile
+import tempfile
+import tomllib
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-DIST_NAME = "unity_passes_blendlib"
-STAMP = (2024, 1, 1, 0, 0, 0)
-SKIP_DIRS = {"__pycache__", ".pytest_cache"}
+ADDON = ROOT / "addon"
 
 
-def manifest_version(text: str) -> str:
-    match = re.search(r'^version\s*=\s*"([^"]+)"', text, re.M)
-    if not match:
-        raise SystemExit("error: addon/blender_manifest.toml has no version")
-    return match.group(1)
+class BuildError(Exception):
+    """A build step failed; the message is one line."""
 
 
-def package_files(folder: Path) -> list[Path]:
-    return sorted(p for p in folder.rglob("*")
-                  if p.is_file() and not SKIP_DIRS & set(p.relative_to(folder).parts) and p.suffix != ".pyc")
+def versions() -> tuple[str, str]:
+    """``(extension id, version)`` from ``addon/blender_manifest.toml``; the version must match pyproject's."""
+    manifest = tomllib.loads((ADDON / "blender_manifest.toml").read_text(encoding="utf-8"))
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["project"]
+    if manifest["version"] != project["version"]:
+        raise BuildError(f"addon/blender_manifest.toml version {manifest['version']} differs from "
+                         f"pyproject.toml version {project['version']}")
+    return manifest["id"], manifest["version"]
 
 
-def _write(zf: zipfile.ZipFile, name: str, data: bytes) -> None:
-    info = zipfile.ZipInfo(name, date_time=STAMP)
-    info.compress_type = zipfile.ZIP_DEFLATED
-    info.external_attr = 0o644 << 16
-    zf.writestr(info, data)
+def blender_ext_script() -> Path:
+    """``blender_ext.py`` inside the installed bpy wheel (found without importing bpy)."""
+    spec = importlib.util.find_spec("bpy")
+    if spec is None or not spec.submodule_search_locations:
+        raise BuildError("the bpy package is not installed (pip install -r requirements.txt)")
+    for folder in spec.submodule_search_locations:
+        found = sorted(Path(folder).glob("*/scripts/addons_core/bl_pkg/cli/blender_ext.py"))
+        if found:
+            return found[-1]
+    raise BuildError("blender_ext.py not found in the bpy package")
 
 
-def build_wheel(out_dir: Path, version: str) -> Path:
-    """A py3-none-any wheel of ``blendlib`` (``.py`` files only)."""
-    wheel = out_dir / f"{DIST_NAME}-{version}-py3-none-any.whl"
-    info_dir = f"{DIST_NAME}-{version}.dist-info"
-    entries: list[tuple[str, bytes]] = []
-    for path in package_files(ROOT / "blendlib"):
-        if path.suffix == ".py":
-            entries.append((f"blendlib/{path.relative_to(ROOT / 'blendlib').as_posix()}", path.read_bytes()))
-    entries.append((f"{info_dir}/METADATA", (
-        "Metadata-Version: 2.1\n"
-        f"Name: {DIST_NAME}\n"
-        f"Version: {version}\n"
-        "Summary: Unity built-in pipeline renderer core (bpy-free) for the Unity Passes Blender extension\n"
-        "Requires-Python: >=3.11\n").encode()))
-    entries.append((f"{info_dir}/WHEEL", (
-        b"Wheel-Version: 1.0\nGenerator: unity-passes build_extension.py\n"
-        b"Root-Is-Purelib: true\nTag: py3-none-any\n")))
-    entries.append((f"{info_dir}/top_level.txt", b"blendlib\n"))
-    record = []
-    for name, data in entries:
-        digest = base64.urlsafe_b64encode(hashlib.sha256(data).digest()).rstrip(b"=").decode()
-        record.append(f"{name},sha256={digest},{len(data)}")
-    record.append(f"{info_dir}/RECORD,,")
-    entries.append((f"{info_dir}/RECORD", ("\n".join(record) + "\n").encode()))
-    out_dir.mkdir(parents=True, exist_ok=True)
-    with zipfile.ZipFile(wheel, "w") as zf:
-        for name, data in entries:
-            _write(zf, name, data)
-    return wheel
+def _run(cmd: list[str], what: str) -> None:
+    proc = subprocess.run(cmd, capture_output=True, text=True)
+    if proc.returncode != 0:
+        detail = (proc.stderr.strip() or proc.stdout.strip()).splitlines()
+        raise BuildError(f"{what} failed: {detail[-1] if detail else f'exit status {proc.returncode}'}")
+
+
+def source_copy(folder: Path) -> Path:
+    """What the wheel is built from, copied into ``folder``: setuptools writes its ``build/``
+    and ``*.egg-info`` next to the sources, and the repository stays untouched."""
+    folder.mkdir(parents=True)
+    for name in ("pyproject.toml", "README.md", "LICENSE"):
+        if (ROOT / name).is_file():
+            shutil.copy2(ROOT / name, folder / name)
+    shutil.copytree(ROOT / "blendlib", folder / "blendlib", ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+    return folder
+
+
+def build_wheel(out_dir: Path) -> Path:
+    """The ``blendlib`` wheel, built by ``python -m build`` (an sdist, then the wheel from it)."""
+    source = source_copy(out_dir.parent / "source")
+    _run([sys.executable, "-m", "build", "--no-isolation", "--outdir", str(out_dir), str(source)],
+         "python -m build")
+    wheels = sorted(out_dir.glob("blendlib-*-py3-none-any.whl"))
+    if len(wheels) != 1:
+        raise BuildError(f"python -m build made {len(wheels)} blendlib wheels in {out_dir}")
+    return wheels[0]
 
 
 def build(dist: Path) -> Path:
-    addon = ROOT / "addon"
-    manifest = (addon / "blender_manifest.toml").read_text()
-    version = manifest_version(manifest)
-    wheel_dir = dist / "wheels"
-    wheel = build_wheel(wheel_dir, version)
-    wheel_entry = f"./wheels/{wheel.name}"
-    manifest, count = re.subn(r"^wheels\s*=\s*\[.*?\]", f'wheels = ["{wheel_entry}"]', manifest, flags=re.M | re.S)
-    if count != 1:
-        raise SystemExit("error: addon/blender_manifest.toml needs one 'wheels = [...]' line")
-    target = dist / f"unity_passes-{version}.zip"
-    tmp = target.with_suffix(".zip.part")
-    with zipfile.ZipFile(tmp, "w") as zf:
-        for path in package_files(addon):
-            rel = path.relative_to(addon).as_posix()
-            if rel == "blender_manifest.toml":
-                continue
-            _write(zf, rel, path.read_bytes())
-        _write(zf, "blender_manifest.toml", manifest.encode())
-        _write(zf, wheel_entry[2:], wheel.read_bytes())
-    tmp.replace(target)
+    """Build ``dist/<id>-<version>.zip`` with Blender's extension builder; returns its path."""
+    ext_id, version = versions()
+    dist.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix="blendlib-extension-") as tmp:
+        wheel = build_wheel(Path(tmp) / "wheel")
+        source = Path(tmp) / ext_id
+        shutil.copytree(ADDON, source, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+        (source / "wheels").mkdir()
+        shutil.copy2(wheel, source / "wheels" / wheel.name)
+        manifest_path = source / "blender_manifest.toml"
+        manifest, count = re.subn(r"^wheels\s*=\s*\[.*?\]", f'wheels = ["./wheels/{wheel.name}"]',
+                                  manifest_path.read_text(encoding="utf-8"), flags=re.M | re.S)
+        if count != 1:
+            raise BuildError("addon/blender_manifest.toml needs one 'wheels = [...]' entry")
+        manifest_path.write_text(manifest, encoding="utf-8")
+        target = dist / f"{ext_id}-{version}.zip"
+        _run([sys.executable, str(blender_ext_script()), "build", "--source-dir", str(source),
+              "--output-filepath", str(target)], "blender_ext.py build")
     return target
 
 
@@ -107,7 +115,11 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--dist", type=Path, default=ROOT / "dist", help="output folder (default: dist/)")
     args = parser.parse_args(argv)
-    target = build(args.dist)
+    try:
+        target = build(args.dist)
+    except BuildError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
     print(target)
     return 0
 

@@ -1,7 +1,7 @@
 """Build every example scene of ``blend_files/`` from scratch, deterministically.
 
-    .venv/bin/python scripts/make_blend_files.py            # all scenes
-    .venv/bin/python scripts/make_blend_files.py alpha_test # only some
+    .venv/bin/python -m scripts.make_blend_files            # all scenes (from the repository root)
+    .venv/bin/python -m scripts.make_blend_files alpha_test # only some
 
 Each ``.blend`` is one experiment of the tutorials ("Unity Shader 入门精要" chapter 8
 and the Cg wikibook's blending chapter): open it in Blender, press F12 with the
@@ -20,24 +20,22 @@ import math
 import sys
 from pathlib import Path
 
+import bpy
 import numpy as np
+from mathutils import Euler, Vector
+
+from blendlib import blender
+from blendlib.core import colorspace
 
 ROOT = Path(__file__).resolve().parent.parent
-if str(ROOT) not in sys.path:
-    sys.path.insert(0, str(ROOT))
-
-import bpy  # noqa: E402
-from mathutils import Euler, Vector  # noqa: E402
-
-from blendlib import blender, colorspace  # noqa: E402
 
 OUT = ROOT / "blend_files"
 RES = (640, 360)
 
 # ---------------------------------------------------------------------------
-# The add-on: register it so that Material.unity / Scene.unity exist. Until the
-# add-on is importable, the settings are written as the stored ID properties the
-# add-on reads back (blender.MATERIAL_FIELDS order and integer enum items).
+# The add-on: register it so that the scenes render with the Unity Passes engine.
+# The settings are written through the schema's writers (blendlib.blender), which
+# store the same values whether or not the add-on is registered.
 # ---------------------------------------------------------------------------
 
 ADDON = False
@@ -55,42 +53,6 @@ def register_addon() -> bool:
     else:
         ADDON = hasattr(bpy.types.Material, "unity") and hasattr(bpy.types.Scene, "unity")
     return ADDON
-
-
-def _stored(f: blender.Field, value):
-    if f.kind == "enum":
-        return dict(f.items())[value]
-    if f.kind == "flags":
-        return sum(blender.FLAG_BITS[c] for c in value)
-    if f.kind in ("color", "vector"):
-        return [float(v) for v in value]
-    return value
-
-
-def _set_group(id_block, fields, values: dict) -> None:
-    """Set the ``unity`` group of a material or scene from identifiers."""
-    by_name = {f.name: f for f in fields}
-    if ADDON:
-        group = id_block.unity
-        for key, value in values.items():
-            if key == "passes":
-                group.passes.clear()
-                for p in value:
-                    item = group.passes.add()
-                    for pk, pv in p.items():
-                        setattr(item, pk, set(pv) if pk == "color_mask" else pv)
-            else:
-                setattr(group, key, tuple(value) if isinstance(value, (list, tuple)) else value)
-        return
-    store = id_block.bl_system_properties_get(do_create=True)
-    data = {}
-    pass_fields = {f.name: f for f in blender.PASS_FIELDS}
-    for key, value in values.items():
-        if key == "passes":
-            data[key] = [{pk: _stored(pass_fields[pk], pv) for pk, pv in p.items()} for p in value]
-        else:
-            data[key] = _stored(by_name[key], value)
-    store["unity"] = data
 
 
 # ---------------------------------------------------------------------------
@@ -141,10 +103,7 @@ def new_file(name: str, *, distance: float = 10.0, clear=CLEAR, color_space="Gam
 
 
 def set_scene(scene, **values) -> None:
-    values = dict(values)
-    if "clear_color" in values:
-        values["clear_color"] = tuple(values["clear_color"])
-    _set_group(scene, blender.SCENE_FIELDS, values)
+    blender.write_scene_settings(scene, **values)
 
 
 def save(name: str) -> Path:
@@ -336,19 +295,14 @@ BLEND = dict(blend=True, zwrite=False, src_blend="SrcAlpha", dst_blend="OneMinus
 
 def material(name: str, *, queue="Geometry", offset=0, color=(1, 1, 1, 1), tex=None, lighting="Lambert",
              alpha_scale=1.0, cutoff=0.5, passes=(dict(),), filter="Point", wrap="Repeat"):
-    """A material with ``material.unity`` enabled; ``passes``: dicts of SPEC §3 pass properties."""
+    """A material with ``material.unity`` enabled; ``passes``: dicts of pass properties (``PASS_FIELDS``)."""
     m = bpy.data.materials.new(name)
     m.diffuse_color = tuple(colorspace.decode_fast(np.array(color[:3])).tolist()) + (color[3],)
-    _set_group(m, blender.MATERIAL_FIELDS, dict(
-        enabled=True, queue=queue, queue_offset=offset, color=tuple(color), lighting=lighting,
+    blender.write_material(
+        m, enabled=True, queue=queue, queue_offset=offset, color=tuple(color), lighting=lighting,
         alpha_scale=alpha_scale, cutoff=cutoff, main_tex_filter=filter, main_tex_wrap=wrap,
-        passes=[dict(p) for p in passes],
-    ))
-    if tex is not None:
-        if ADDON:
-            m.unity.main_tex = tex
-        else:
-            m.bl_system_properties_get()["unity"]["main_tex"] = tex
+        passes=[dict(p) for p in passes], main_tex=tex,
+    )
     return m
 
 

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Set up a fresh Debian/Ubuntu machine: system libraries, .venv/ with the pinned packages,
-# then render every example scene to out/*.png. Safe to run again (idempotent).
+# Set up a fresh Debian/Ubuntu machine: system libraries, .venv/ with the pinned packages
+# (requirements.txt) and blendlib installed editable, then render every example scene to
+# out/*.png. Safe to run again (idempotent).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -32,8 +33,9 @@ if [ ! -x .venv/bin/python ]; then
 fi
 .venv/bin/python -m pip install --upgrade pip >/dev/null
 .venv/bin/python -m pip install -r requirements.txt
-# The project itself, editable: scripts and tests import blendlib without path tricks.
-.venv/bin/python -m pip install --no-deps -e .
+# The project itself, editable: scripts and tests import blendlib without path tricks. Built with
+# the pinned setuptools of requirements.txt (no isolated build environment to download).
+.venv/bin/python -m pip install --no-deps --no-build-isolation -e .
 
 # The example scenes as F12 renders them (out/<file>.png), then every scene of every file and the
 # gallery contact sheet (out/gallery.png; docs/gallery.png is the committed copy).

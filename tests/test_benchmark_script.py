@@ -6,21 +6,18 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 REPO = Path(__file__).resolve().parent.parent
-SCRIPT = REPO / "scripts" / "benchmark.py"
 
 pytest.importorskip("bpy")
 
 
 def _load_module():
-    import importlib.util
+    import scripts.benchmark
 
-    spec = importlib.util.spec_from_file_location("benchmark_script", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return scripts.benchmark
 
 
 def test_quick_run_prints_the_table(tmp_path):
@@ -33,7 +30,7 @@ def test_quick_run_prints_the_table(tmp_path):
         backends = "project,opengl,workbench"
     except ImportError:
         pass
-    cmd = [sys.executable, str(SCRIPT), "--quick", "--scenes", "S1,S2,S4", "--backends", backends,
+    cmd = [sys.executable, "-m", "scripts.benchmark", "--quick", "--scenes", "S1,S2,S4", "--backends", backends,
            "--repeats", "1", "--json", str(out_json), "--plot", str(out_png), "--log", str(tmp_path / "w.log")]
     proc = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stdout + proc.stderr + (tmp_path / "w.log").read_text()
@@ -56,7 +53,36 @@ def test_quick_run_prints_the_table(tmp_path):
     # S1 fills about a third of the frame.
     s1 = by_id["S1"]
     assert abs(s1["setup"]["project"]["covered_px"] / (480 * 270) - 1 / 3) < 0.02
-    assert out_png.read_bytes().startswith(b"\x89PNG")
+    from blendlib.formats import images
+
+    plot = images.load(out_png)  # matplotlib's figure: 16 x 5 inches at 80 dpi, not blank
+    assert plot.shape == (400, 1280, 4) and plot[..., :3].std() > 0.05
+
+
+def test_running_the_file_directly_says_how_to_run_it():
+    proc = subprocess.run([sys.executable, str(REPO / "scripts" / "benchmark.py"), "--quick"], cwd=REPO,
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 1 and proc.stderr.strip().endswith("python -m scripts.benchmark [options]")
+
+
+def test_plot_has_the_three_panels(tmp_path):
+    bench = _load_module()
+    results = []
+    for group, xkey, sizes in (("scale-tris", "triangles", (1e3, 1e4, 1e5)), ("scale-res", "covered_px", (1e4, 1e5))):
+        for n in sizes:
+            results.append({"case": {"group": group, "id": f"{group}-{n:g}"}, "setup": {"project": {xkey: n}},
+                            "median": {"project": {"render_s": n * 1e-5, "total_s": n * 2e-5},
+                                       "opengl": {"total_s": n * 1e-6}}})
+    results.append({"case": {"group": "S1", "id": "S1"}, "setup": {"project": {}},
+                    "median": {"project": {"total_s": 0.5}, "eevee": {"total_s": 2.0}}})
+    path = bench.write_plot(results, tmp_path / "p.png", "title")
+    from blendlib.formats import images
+
+    plot = images.load(path)
+    assert plot.shape == (400, 1280, 4)
+    # each third of the figure has drawn (non-white) pixels: two line plots and the bars
+    for third in np.array_split(plot[40:360, :, :3], 3, axis=1):
+        assert (third < 0.9).any(axis=2).mean() > 0.01
 
 
 def test_table_and_slope_helpers():

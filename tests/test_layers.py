@@ -3,6 +3,7 @@
 - only ``blendlib/blender/`` and ``addon/`` import bpy (or Blender's other modules);
 - ``blendlib/core/`` imports nothing of the project outside ``core/``;
 - ``blendlib/formats/`` imports ``core/`` at most, never ``blender/`` or ``cli/``;
+- ``blendlib/explain/`` (the tools that explain a frame) imports ``core/`` only;
 - nothing in ``blendlib/`` imports the tests or the add-on.
 """
 
@@ -61,8 +62,9 @@ RULES = {
     # folder: layers it may import
     "core": {"core"},
     "formats": {"core", "formats"},
-    "blender": {"core", "formats", "blender", "bpy"},
-    "cli": {"core", "formats", "blender", "cli", "blendlib"},
+    "explain": {"core", "explain"},  # frame debugger, pixel history, sorted reference: consumers of core records
+    "blender": {"core", "formats", "explain", "blender", "bpy"},
+    "cli": {"core", "formats", "explain", "blender", "cli", "blendlib"},
 }
 
 

@@ -1,6 +1,7 @@
 """The Blender layer: the only part of :mod:`blendlib` that touches bpy (always inside functions).
 
-- :mod:`.schema`: the one reader/writer of ``Material.unity`` / ``Scene.unity``.
+- :mod:`.schema`: the one reader/writer of ``Material.unity`` / ``Scene.unity``;
+  :mod:`.migration`: their schema versions and the migration of older stored values.
 - :mod:`.extract`: a Blender scene → :class:`blendlib.core.scene.DrawScene`.
 - :mod:`.render`: render a scene (viewport or F12 depsgraph), write a Frame into an Image.
 - :mod:`.files`: open .blend files, find scenes.
@@ -18,24 +19,35 @@ from .extract import (
     world_ambient,
 )
 from .files import material_named, open_blend, scene_named
-from .render import apply_border, border_region, linear_rgba, render, render_final, write_image
+from .migration import SCHEMA_VERSION
+from .render import apply_border, border_region, draw_scene_final, linear_rgba, render, render_final, write_image
 from .schema import (
-    FLAG_BITS,
     MATERIAL_FIELDS,
     PASS_FIELDS,
     SCENE_FIELDS,
     Field,
+    material_fields,
+    material_values,
+    migrate_data,
+    migrate_stored,
     pass_from_values,
     read_group,
+    read_pass,
     scene_settings,
+    stamp_version,
     unity_props,
+    write_material,
+    write_pass,
+    write_scene_settings,
 )
 
 __all__ = [
-    "FLAG_BITS", "MATERIAL_FIELDS", "PASS_FIELDS", "SCENE_FIELDS", "Field", "apply_border", "border_region",
-    "build_draw_scene", "linear_rgba",
-    "material_from_blender", "material_named", "mesh_arrays", "open_blend", "pass_from_values", "principled_inputs",
-    "read_group",
-    "render", "render_final", "render_size", "render_visible_objects", "scene_settings", "scene_named",
-    "unity_props", "world_ambient", "write_image",
+    "MATERIAL_FIELDS", "PASS_FIELDS", "SCENE_FIELDS", "SCHEMA_VERSION", "Field", "apply_border", "border_region",
+    "build_draw_scene", "draw_scene_final",
+    "linear_rgba",
+    "material_fields", "material_from_blender", "material_named", "material_values", "mesh_arrays",
+    "migrate_data", "migrate_stored", "open_blend", "pass_from_values", "principled_inputs", "read_group",
+    "read_pass", "render", "render_final", "render_size", "render_visible_objects", "scene_named",
+    "scene_settings", "stamp_version", "unity_props", "world_ambient", "write_image", "write_material",
+    "write_pass", "write_scene_settings",
 ]

@@ -15,7 +15,7 @@ import numpy as np
 from ..core import colorspace
 from ..core.scene import Camera, DrawScene, Light, Mesh, Renderer, SceneError
 from ..core.vocabulary import ColorSpace, Lighting, Material, Pass, Queue, SortMode, Texture, TextureFilter, TextureWrap
-from .schema import MATERIAL_FIELDS, pass_from_values, read_group, scene_settings, unity_props
+from .schema import material_values, pass_from_values, scene_settings
 
 MESH_LIKE = {"MESH", "CURVE", "SURFACE", "META", "FONT"}
 
@@ -36,8 +36,7 @@ def _matrix(m: Any) -> np.ndarray:
 
 
 class _Extractor:
-    def __init__(self, depsgraph: Any, warnings: list[str]):
-        self.dg = depsgraph
+    def __init__(self, warnings: list[str]):
         self.warnings = warnings
         self.materials: dict[int, Material] = {}
         self.textures: dict[int, Texture] = {}
@@ -90,7 +89,7 @@ class _Extractor:
         return self.materials[key]
 
     def _convert_material(self, mat: Any, with_texture: bool = True) -> Material:
-        values = read_group(unity_props(mat), MATERIAL_FIELDS)
+        values = material_values(mat)
         texture = self.texture if with_texture else (lambda image: None)
         if not values["enabled"]:
             color, image = principled_inputs(mat)
@@ -146,8 +145,10 @@ class _Extractor:
         for slot in used.tolist():
             if tri_mat is None:
                 sel = slice(None)
+                loop_tris = None
             else:
                 sel = np.flatnonzero(tri_mat == slot)
+                loop_tris = sel.astype(np.int32)
             mat = mats[slot] if slot < len(mats) else None
             if mat is None and len(arrays["triangles"]):
                 if mats:
@@ -159,6 +160,8 @@ class _Extractor:
                 triangles=arrays["triangles"][sel],
                 normals=arrays["normals"][sel],
                 uvs=None if uvs is None else uvs[sel],
+                polygons=arrays["polygons"][sel],
+                loop_triangles=loop_tris,
             )
             out.append(Renderer(name=name, slot=int(slot), mesh=sub, matrix_world=matrix_world,
                                 material=self.material(mat), bounds_center=center))
@@ -166,12 +169,12 @@ class _Extractor:
 
 
 def material_from_blender(mat: Any, with_texture: bool = False) -> Material:
-    """The Unity material of a ``bpy.types.Material`` as it renders (SPEC §3), with or without its image.
+    """The Unity material of a ``bpy.types.Material`` as it renders, with or without its image.
 
     Reads ``mat.unity`` when the add-on is registered, else the stored properties; a
     disabled material gives the default opaque material from its Principled BSDF.
     """
-    return _Extractor(None, [])._convert_material(mat, with_texture=with_texture)
+    return _Extractor([])._convert_material(mat, with_texture=with_texture)
 
 
 def mesh_arrays(mesh: Any) -> dict[str, np.ndarray | None]:
@@ -179,7 +182,7 @@ def mesh_arrays(mesh: Any) -> dict[str, np.ndarray | None]:
 
     ``positions`` (V, 3) float32, ``triangles`` (T, 3) int32 vertex indices in loop-triangle
     order, ``normals`` (T, 3, 3) float32 corner normals, ``uvs`` (T, 3, 2) float32 of the
-    active UV map or None, ``material_index`` (T,) int32.
+    active UV map or None, ``material_index`` (T,) int32, ``polygons`` (T,) int32 face index.
     """
     mesh.calc_loop_triangles()
     t = len(mesh.loop_triangles)
@@ -207,15 +210,16 @@ def mesh_arrays(mesh: Any) -> dict[str, np.ndarray | None]:
         layer.uv.foreach_get("vector", uv_c)
         uvs = np.take(uv_c.reshape(n_loops, 2), tri_loops, axis=0).reshape(t, 3, 2)
     material_index = np.zeros(t, np.int32)
+    tri_poly = np.empty(t, np.int32)
+    if t:
+        mesh.loop_triangle_polygons.foreach_get("value", tri_poly)
     attr = mesh.attributes.get("material_index")
     if attr is not None and t and attr.domain == "FACE" and attr.data_type == "INT":
         poly_mat = np.empty(len(mesh.polygons), np.int32)
         attr.data.foreach_get("value", poly_mat)
-        tri_poly = np.empty(t, np.int32)
-        mesh.loop_triangle_polygons.foreach_get("value", tri_poly)
         material_index = np.take(poly_mat, tri_poly)
     return {"positions": positions, "triangles": triangles, "normals": normals, "uvs": uvs,
-            "material_index": material_index}
+            "material_index": material_index, "polygons": tri_poly}
 
 
 def principled_inputs(mat: Any) -> tuple[tuple[float, float, float, float], Any]:
@@ -278,12 +282,16 @@ def render_visible_objects(view_layer: Any) -> set[int]:
     return found
 
 
-def build_draw_scene(scene: Any = None, depsgraph: Any = None) -> DrawScene:
+def build_draw_scene(scene: Any = None, depsgraph: Any = None, *, camera: Camera | None = None,
+                     visibility: str = "render") -> DrawScene:
     """A :class:`DrawScene` of a ``bpy.types.Scene`` (default: the context scene).
 
     ``depsgraph``: an evaluated depsgraph of the scene (the render engine passes its
     render depsgraph); default ``bpy.context.evaluated_depsgraph_get()`` for the
-    context scene. Raises :class:`SceneError` when the scene has no camera.
+    context scene. ``camera``: use this camera instead of the scene's (the viewport's
+    own view; the scene needs no camera then). ``visibility``: ``"render"`` (objects as a
+    render shows them) or ``"viewport"`` (as the depsgraph's viewport shows them).
+    Raises :class:`SceneError` when the scene has no camera and none is given.
     """
     import bpy
 
@@ -295,29 +303,32 @@ def build_draw_scene(scene: Any = None, depsgraph: Any = None) -> DrawScene:
     if depsgraph is None:
         depsgraph = _depsgraph_for(scene)
     view_layer = depsgraph.view_layer
-    check_visibility = depsgraph.mode != "RENDER"
+    if visibility not in ("render", "viewport"):
+        raise ValueError(f"visibility must be 'render' or 'viewport', got {visibility!r}")
+    check_visibility = depsgraph.mode != "RENDER" and visibility == "render"
     warnings: list[str] = []
     settings = scene_settings(scene)
 
-    cam_obj = scene.camera
-    if cam_obj is None:
-        raise SceneError(f"scene {scene.name!r} has no camera")
-    if cam_obj.type != "CAMERA":
-        raise SceneError(f"scene {scene.name!r}: active camera {cam_obj.name!r} is not a camera object")
-    cam_data = cam_obj.data
-    if cam_data.type == "PANO":
-        raise SceneError(f"camera {cam_obj.name!r}: panoramic cameras are not supported (use Perspective or "
-                         "Orthographic)")
-    if not cam_data.clip_start < cam_data.clip_end:
-        raise SceneError(f"camera {cam_obj.name!r}: Clip Start {cam_data.clip_start:g} must be less than "
-                         f"Clip End {cam_data.clip_end:g}")
-    width, height = render_size(scene)
-    if width < 1 or height < 1:
-        raise SceneError(f"scene {scene.name!r}: the render size is {width}x{height} pixels "
-                         "(resolution x percentage); it must be at least 1x1")
-    camera = _camera(cam_obj.evaluated_get(depsgraph), depsgraph, scene, width, height)
+    if camera is None:
+        cam_obj = scene.camera
+        if cam_obj is None:
+            raise SceneError(f"scene {scene.name!r} has no camera")
+        if cam_obj.type != "CAMERA":
+            raise SceneError(f"scene {scene.name!r}: active camera {cam_obj.name!r} is not a camera object")
+        cam_data = cam_obj.data
+        if cam_data.type == "PANO":
+            raise SceneError(f"camera {cam_obj.name!r}: panoramic cameras are not supported (use Perspective or "
+                             "Orthographic)")
+        if not cam_data.clip_start < cam_data.clip_end:
+            raise SceneError(f"camera {cam_obj.name!r}: Clip Start {cam_data.clip_start:g} must be less than "
+                             f"Clip End {cam_data.clip_end:g}")
+        width, height = render_size(scene)
+        if width < 1 or height < 1:
+            raise SceneError(f"scene {scene.name!r}: the render size is {width}x{height} pixels "
+                             "(resolution x percentage); it must be at least 1x1")
+        camera = _camera(cam_obj.evaluated_get(depsgraph), depsgraph, scene, width, height)
 
-    ex = _Extractor(depsgraph, warnings)
+    ex = _Extractor(warnings)
     renderers: list[Renderer] = []
     suns: list[tuple[float, str, Any, np.ndarray]] = []
     visible = render_visible_objects(view_layer) if check_visibility else set()

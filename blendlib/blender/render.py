@@ -17,14 +17,15 @@ from .extract import build_draw_scene
 
 
 def render(scene: Any = None, depsgraph: Any = None, progress: Callable[[float], None] | None = None,
-           should_cancel: Callable[[], bool] | None = None) -> pipeline.Frame:
+           should_cancel: Callable[[], bool] | None = None, until_draw: int | None = None) -> pipeline.Frame:
     """Render a Blender scene with the Unity pipeline; see :func:`blendlib.render`.
 
+    ``until_draw`` K: the frame after draw call K (SPEC §8; 0 = the cleared frame).
     The Frame's ``warnings`` hold the extraction warnings followed by the core's.
     Raises :class:`SceneError` (no camera, bad input) or :class:`pipeline.RenderCancelled`.
     """
     draw = build_draw_scene(scene, depsgraph)
-    frame = pipeline.render_scene(draw, progress=progress, should_cancel=should_cancel)
+    frame = pipeline.render_scene(draw, progress=progress, should_cancel=should_cancel, until_draw=until_draw)
     extra = [w for w in draw.warnings if w not in frame.warnings]
     frame.warnings[:0] = extra
     frame.warnings[:] = one_warning_per_cause(frame.warnings)
@@ -64,8 +65,13 @@ def _capture_engine_class() -> Any:
 
         def render(self, depsgraph):
             try:
+                job = _capture.get("job")
+                if job is not None:  # e.g. build the draw scene only (draw_scene_final)
+                    _capture["frame"] = job(depsgraph)
+                    return
                 _capture["frame"] = render(depsgraph.scene, depsgraph, progress=_capture.get("progress"),
-                                           should_cancel=_capture.get("should_cancel"))
+                                           should_cancel=_capture.get("should_cancel"),
+                                           until_draw=_capture.get("until_draw"))
             except Exception as exc:  # noqa: BLE001 - handed back to render_final's caller
                 _capture["error"] = exc
 
@@ -75,7 +81,8 @@ def _capture_engine_class() -> Any:
 
 
 def render_final(scene: Any = None, progress: Callable[[float], None] | None = None,
-                 should_cancel: Callable[[], bool] | None = None, frame: int | None = None) -> pipeline.Frame:
+                 should_cancel: Callable[[], bool] | None = None, frame: int | None = None,
+                 until_draw: int | None = None, _job: Callable[[Any], Any] | None = None) -> pipeline.Frame:
     """Render as F12 does: through Blender's render-mode depsgraph.
 
     :func:`render` uses the viewport depsgraph (Python cannot make a render-mode one), so
@@ -83,9 +90,9 @@ def render_final(scene: Any = None, progress: Callable[[float], None] | None = N
     with a capture engine instead, so modifier render levels and render visibility apply
     exactly as for F12 and ``blender -b -E UNITY_PASSES``. The scene's render engine is set
     for the call and restored; no image is written. ``frame``: the frame to set first (the
-    scene's current frame is restored afterwards). A Render Region (``use_border``) gives what
-    F12 writes: the region only with Crop, else the full size with only the region filled.
-    Raises like :func:`render`.
+    scene's current frame is restored afterwards); ``until_draw``: stop after that draw call
+    (SPEC §8). A Render Region (``use_border``) gives what F12 writes: the region only with
+    Crop, else the full size with only the region filled. Raises like :func:`render`.
     """
     import bpy
 
@@ -103,7 +110,9 @@ def render_final(scene: Any = None, progress: Callable[[float], None] | None = N
     previous = scene.render.engine
     previous_frame = (scene.frame_current, scene.frame_subframe)
     _capture.clear()
-    _capture.update(progress=progress, should_cancel=should_cancel)
+    if until_draw is not None and int(until_draw) < 0:
+        raise SceneError(f"until_draw must be 0 or more (got {until_draw})")
+    _capture.update(progress=progress, should_cancel=should_cancel, until_draw=until_draw, job=_job)
     scene.render.engine = engine.bl_idname
     try:
         with bpy.context.temp_override(scene=scene):
@@ -127,6 +136,8 @@ def render_final(scene: Any = None, progress: Callable[[float], None] | None = N
         raise SceneError(f"scene {scene.name!r}: Blender did not render it (no view layer enabled for rendering?)")
     result = _capture.pop("frame")
     _capture.clear()
+    if not isinstance(result, pipeline.Frame):  # a _job's result (draw_scene_final): not an image
+        return result
     return apply_border(result, region, bool(scene.render.use_crop_to_border))
 
 
@@ -167,6 +178,14 @@ def apply_border(frame: pipeline.Frame, region: tuple[int, int, int, int] | None
         for out, a in zip(arrays, (frame.color, frame.depth, frame.stencil), strict=True):
             out[rows, cols] = a[rows, cols]
     return pipeline.Frame(arrays[0], arrays[1], arrays[2], warnings=list(frame.warnings), encoded=frame.encoded)
+
+
+def draw_scene_final(scene: Any = None, frame: int | None = None) -> Any:
+    """The :class:`DrawScene` of ``scene`` as F12 evaluates it (render-mode depsgraph, see
+    :func:`render_final`), without rendering: what the draw list and pixel history explain."""
+    from .extract import build_draw_scene as build
+
+    return render_final(scene, frame=frame, _job=lambda depsgraph: build(depsgraph.scene, depsgraph))
 
 
 def linear_rgba(frame: pipeline.Frame, encoded: bool | None = None, opaque: bool = False) -> np.ndarray:

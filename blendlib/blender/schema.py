@@ -1,17 +1,24 @@
 """The one schema of the Unity settings stored in Blender: ``Material.unity`` and ``Scene.unity``.
 
-The add-on builds its bpy properties from the field tables here, and everything that
-reads the stored settings goes through :func:`read_group`, so names, defaults and the
-integers Blender stores for enum items agree everywhere. When the add-on is not
-registered, the settings are read from the stored ID properties
-(``bl_system_properties_get()``); absent values take the defaults of the data model.
+The add-on builds its bpy properties from the field tables here; everything that reads
+the stored settings goes through the readers (:func:`material_values`,
+:func:`scene_settings`, :func:`read_pass`) and everything that writes them through the
+writers (:func:`write_material`, :func:`write_pass`, :func:`write_scene_settings`), so
+names, defaults and the integers Blender stores for enum items agree everywhere.
+
+Readers and writers work whether or not the add-on is registered: unregistered, they
+use the stored ID properties (``bl_system_properties_get()``) with the same integers;
+absent values take the defaults of the data model. Each group stores its schema
+version (:mod:`.migration`): readers migrate values of older versions as they read,
+writers migrate the stored group in place before they write and stamp the version.
 
 This module does not import bpy at module level.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, fields
 from typing import Any
 
 import numpy as np
@@ -24,14 +31,18 @@ from ..core.vocabulary import (
     CompareFunction,
     Cull,
     Lighting,
+    Material,
     Pass,
     Queue,
     SortMode,
     StencilOp,
     TextureFilter,
     TextureWrap,
+    color_mask_bits,
+    color_mask_from_bits,
     pass_from_dict,
 )
+from .migration import SCHEMA_VERSION, VERSION_KEY, migrate_material, migrate_scene, stored_version
 
 
 @dataclass(frozen=True)
@@ -40,9 +51,10 @@ class Field:
 
     ``kind``: ``bool``, ``int``, ``float``, ``enum``, ``flags``, ``color``, ``vector``,
     ``string``, ``image`` or ``passes``. Enum items are stored by Blender as the index
-    of the member in its :mod:`blendlib.shaderlab` enum class (``enum_items`` may
-    list a subset, e.g. ZTest without ``Never``); ``flags`` (ColorMask) as bits
-    R=1, G=2, B=4, A=8.
+    of the member in its :mod:`blendlib.core.vocabulary` enum class (``enum_items`` may
+    list a subset, e.g. ZTest without ``Never``); ``flags`` (ColorMask) as the bits of
+    :data:`blendlib.core.vocabulary.COLOR_MASK_BITS` (Unity's ColorWriteMask: A=1, B=2,
+    G=4, R=8). ``tests/blender/test_schema.py`` pins every number.
     """
 
     name: str
@@ -63,12 +75,6 @@ class Field:
         """``(identifier, number)`` pairs of an enum field, in display order."""
         members = self.enum_items or tuple(self.enum)
         return [(m.value, list(self.enum).index(m)) for m in members]
-
-
-FLAG_BITS = {c: 1 << i for i, c in enumerate(CHANNELS)}
-
-
-_FACTOR_DOC = "Blend factor"
 
 
 PASS_FIELDS: tuple[Field, ...] = (
@@ -154,6 +160,16 @@ SCENE_FIELDS: tuple[Field, ...] = (
 )
 
 
+_BY_NAME = {
+    "material": {f.name: f for f in MATERIAL_FIELDS},
+    "pass": {f.name: f for f in PASS_FIELDS},
+    "scene": {f.name: f for f in SCENE_FIELDS},
+}
+
+
+# Reading
+
+
 def _stored_value(f: Field, raw: Any) -> Any:
     """A stored ID-property value (or an RNA value) → the identifier form used by the core."""
     if f.kind == "enum":
@@ -165,8 +181,7 @@ def _stored_value(f: Field, raw: Any) -> Any:
     if f.kind == "flags":
         if isinstance(raw, (set, frozenset)):
             return frozenset(raw)
-        bits = int(raw)
-        return frozenset(c for c, b in FLAG_BITS.items() if bits & b)
+        return color_mask_from_bits(int(raw) & 15)
     if f.kind in ("color", "vector"):
         return tuple(float(v) for v in raw)
     if f.kind == "bool":
@@ -187,8 +202,10 @@ def _as_float32(value: Any) -> Any:
 
 
 def read_group(source: Any, fields: tuple[Field, ...]) -> dict[str, Any]:
-    """Plain dict of a property group: ``source`` is an RNA PropertyGroup, a stored IDPropertyGroup,
-    a dict, or None (all defaults). Passes come back as a list of dicts."""
+    """Plain dict of a property group of the current schema version: ``source`` is an RNA
+    PropertyGroup, a stored IDPropertyGroup, a dict, or None (all defaults). Passes come back
+    as a list of dicts. Use :func:`material_values` / :func:`scene_settings` for an ID block:
+    they migrate older versions first."""
     out: dict[str, Any] = {}
     for f in fields:
         raw = None
@@ -212,19 +229,50 @@ def read_group(source: Any, fields: tuple[Field, ...]) -> dict[str, Any]:
     return out
 
 
+def _system_store(id_block: Any, create: bool = False) -> Any:
+    """The ID properties that hold registered add-on properties (Blender 5: system properties)."""
+    getter = getattr(id_block, "bl_system_properties_get", None)
+    if getter is not None:
+        return getter(do_create=True) if create else getter()
+    return id_block  # Blender < 5.0 keeps add-on properties with the custom properties
+
+
+def stored_group(id_block: Any) -> Any:
+    """The stored ``unity`` ID property group of a material or scene (None when nothing is stored)."""
+    store = _system_store(id_block)
+    if store is None:
+        return None
+    try:
+        return store.get("unity")
+    except (AttributeError, TypeError):
+        return None
+
+
 def unity_props(id_block: Any) -> Any:
     """``id_block.unity`` when the add-on is registered, else its stored group (or None)."""
     group = getattr(id_block, "unity", None)
     if group is not None and hasattr(group, "bl_rna"):
         return group
-    getter = getattr(id_block, "bl_system_properties_get", None)
-    if getter is not None:
-        store = getter()
-        return None if store is None else store.get("unity")
-    try:  # Blender < 5.0 keeps add-on properties with the custom properties
-        return id_block.get("unity")
-    except (AttributeError, TypeError):
-        return None
+    return stored_group(id_block)
+
+
+def _current_source(id_block: Any, migrate) -> Any:
+    """What to read the settings from: the RNA group or the stored group when they are of the
+    current schema version, else the stored values migrated to it (a dict)."""
+    stored = stored_group(id_block)
+    if stored_version(stored) >= SCHEMA_VERSION or stored is None:
+        return unity_props(id_block)
+    return migrate(stored.to_dict() if hasattr(stored, "to_dict") else dict(stored))
+
+
+def material_values(mat: Any) -> dict[str, Any]:
+    """``Material.unity`` as a dict of identifiers (defaults where absent; passes as dicts)."""
+    return read_group(_current_source(mat, migrate_material), MATERIAL_FIELDS)
+
+
+def scene_settings(scene: Any) -> dict[str, Any]:
+    """``Scene.unity`` as a dict of identifiers (defaults where absent)."""
+    return read_group(_current_source(scene, migrate_scene), SCENE_FIELDS)
 
 
 def pass_from_values(values: dict[str, Any]) -> Pass:
@@ -232,8 +280,198 @@ def pass_from_values(values: dict[str, Any]) -> Pass:
     return pass_from_dict({k: (sorted(v) if k == "color_mask" else v) for k, v in values.items()})
 
 
+def read_pass(item: Any) -> Pass:
+    """The :class:`Pass` of one registered pass property group (an item of ``Material.unity.passes``)."""
+    return pass_from_values(read_group(item, PASS_FIELDS))
 
-def scene_settings(scene: Any) -> dict[str, Any]:
-    """``Scene.unity`` as a dict of identifiers (defaults where absent)."""
-    return read_group(unity_props(scene), SCENE_FIELDS)
 
+# Writing
+
+
+def _encode(f: Field, value: Any, rna: bool) -> Any:
+    """A value (enum member or identifier, channel set, number, Image) → what is assigned: the RNA
+    value when the add-on is registered (``rna``), else the stored ID-property value. ValueError
+    on a value the field cannot hold."""
+    if f.kind == "enum":
+        member = value if isinstance(value, f.enum) else f.enum.parse(str(value))
+        numbers = dict(f.items())
+        if member.value not in numbers:
+            raise ValueError(f"{f.label}: {member.value} is not allowed (choices: {', '.join(numbers)})")
+        return member.value if rna else numbers[member.value]
+    if f.kind == "flags":
+        mask = frozenset(value)
+        if not mask <= frozenset(CHANNELS):
+            raise ValueError(f"{f.label}: {sorted(mask)} is not a subset of RGBA")
+        return set(mask) if rna else color_mask_bits(mask)
+    if f.kind in ("color", "vector"):
+        out = tuple(float(v) for v in value)
+        if len(out) != f.size:
+            raise ValueError(f"{f.label}: expected {f.size} numbers, got {len(out)}")
+        return out if rna else list(_as_float32(out))  # RNA stores float32: so does this
+    if f.kind == "bool":
+        return bool(value)
+    if f.kind == "int":
+        number = int(value)
+        if number != value or (f.min is not None and number < f.min) or (f.max is not None and number > f.max):
+            raise ValueError(f"{f.label}: {value!r} is not an integer in the allowed range")
+        return number
+    if f.kind == "float":
+        return float(value) if rna else _as_float32(float(value))
+    if f.kind == "string":
+        return str(value)
+    if f.kind == "image":
+        if value is not None and not hasattr(value, "bl_rna"):
+            raise ValueError(f"{f.label}: expected a Blender image or None, got {type(value).__name__}")
+        return value
+    raise ValueError(f"cannot write a {f.kind} field")
+
+
+def _encode_pass(p: Pass | Mapping[str, Any], rna: bool) -> dict[str, Any]:
+    if not isinstance(p, Pass):
+        p = pass_from_values(dict(p))
+    return {f.name: _encode(f, getattr(p, f.name), rna) for f in PASS_FIELDS}
+
+
+def _encode_values(kind: str, values: Mapping[str, Any], rna: bool) -> dict[str, Any]:
+    table = _BY_NAME[kind]
+    unknown = sorted(set(values) - set(table))
+    if unknown:
+        raise ValueError(f"unknown {kind} setting(s): {', '.join(unknown)}")
+    out = {}
+    for name, value in values.items():
+        f = table[name]
+        out[name] = [_encode_pass(p, rna) for p in value] if f.kind == "passes" else _encode(f, value, rna)
+    return out
+
+
+def _registered(id_block: Any) -> Any:
+    group = getattr(id_block, "unity", None)
+    return group if group is not None and hasattr(group, "bl_rna") else None
+
+
+def _assign(id_block: Any, kind: str, values: Mapping[str, Any]) -> None:
+    """Validate every value first (nothing is written on a bad one), bring the stored group to
+    the current version, then assign through RNA (registered) or the stored ID properties."""
+    group = _registered(id_block)
+    encoded = _encode_values(kind, values, rna=group is not None)
+    migrate_stored(id_block)
+    if group is not None:
+        for name, value in encoded.items():
+            if name == "passes":
+                group.passes.clear()
+                for item_values in value:
+                    item = group.passes.add()
+                    for key, v in item_values.items():
+                        setattr(item, key, v)
+                if hasattr(group, "active_pass_index"):
+                    group.active_pass_index = 0
+            else:
+                setattr(group, name, value)
+        setattr(group, VERSION_KEY, SCHEMA_VERSION)
+        return
+    store = _system_store(id_block, create=True)
+    if store.get("unity") is None:
+        store["unity"] = {}
+    stored = store["unity"]
+    for name, value in encoded.items():
+        if value is None:  # an empty image pointer: nothing stored
+            if name in stored:
+                del stored[name]
+        else:
+            stored[name] = value
+    stored[VERSION_KEY] = SCHEMA_VERSION
+
+
+def material_fields(material: Material) -> dict[str, Any]:
+    """The ``Material.unity`` values of a :class:`Material`: every schema field it holds except
+    ``main_tex`` (a :class:`~blendlib.core.vocabulary.Texture` is pixels, not a Blender image)."""
+    names = {f.name for f in MATERIAL_FIELDS}
+    return {f.name: getattr(material, f.name) for f in fields(Material)
+            if f.name in names and f.name != "main_tex"}
+
+
+def write_material(mat: Any, material: Material | None = None, **values: Any) -> None:
+    """Write ``Material.unity`` of a ``bpy.types.Material``: the fields of ``material`` (all but
+    ``main_tex``, see :func:`material_fields`), then ``values`` by :data:`MATERIAL_FIELDS` name
+    (enum members or identifiers, channel sets, ``main_tex`` a ``bpy.types.Image`` or None,
+    ``passes`` :class:`Pass` objects or dicts of pass values). Fields not given keep their values.
+
+    ValueError names a bad value; nothing is written then. Writing ``passes`` replaces the
+    whole pass list and selects the first pass.
+    """
+    merged = ({} if material is None else material_fields(material)) | values
+    _assign(mat, "material", merged)
+
+
+def write_pass(item: Any, p: Pass) -> None:
+    """Write every field of ``p`` into one registered pass property group (an item of
+    ``Material.unity.passes``); the owning material's group is brought to the current version."""
+    encoded = _encode_pass(p, rna=True)
+    owner = getattr(item, "id_data", None)
+    if owner is not None:
+        migrate_stored(owner)
+    for key, value in encoded.items():
+        setattr(item, key, value)
+    if owner is not None:
+        stamp_version(owner)
+
+
+def write_scene_settings(scene: Any, **values: Any) -> None:
+    """Write ``Scene.unity`` of a ``bpy.types.Scene`` by :data:`SCENE_FIELDS` name (enum members or
+    identifiers, numbers, colours); fields not given keep their values. ValueError: nothing written."""
+    _assign(scene, "scene", values)
+
+
+# Versions
+
+
+def stamp_version(id_block: Any) -> None:
+    """Record that ``id_block``'s stored Unity settings are of the current schema version (the
+    add-on calls this when a property is edited; the writers do it themselves)."""
+    group = _registered(id_block)
+    if group is not None:
+        if getattr(group, VERSION_KEY, SCHEMA_VERSION) != SCHEMA_VERSION:
+            setattr(group, VERSION_KEY, SCHEMA_VERSION)
+        return
+    stored = stored_group(id_block)
+    if stored is not None:
+        stored[VERSION_KEY] = SCHEMA_VERSION
+
+
+def _apply_changes(target: Any, old: Any, new: Any) -> None:
+    """Write into the stored group ``target`` the leaves where ``new`` differs from ``old``."""
+    for key, value in new.items():
+        before = old.get(key) if isinstance(old, Mapping) else None
+        if isinstance(value, Mapping) and isinstance(before, Mapping):
+            _apply_changes(target[key], before, value)
+        elif isinstance(value, list) and isinstance(before, list) and len(value) == len(before) \
+                and all(isinstance(v, Mapping) for v in value):
+            for i, (b, v) in enumerate(zip(before, value, strict=True)):
+                _apply_changes(target[key][i], b, v)
+        elif value != before:
+            target[key] = value
+
+
+def migrate_stored(id_block: Any) -> bool:
+    """Bring the stored Unity settings of a material or scene to the current schema version, in
+    place. Returns whether anything was migrated. Linked (library) data is left alone: the
+    readers migrate it as they read."""
+    stored = stored_group(id_block)
+    if stored is None or stored_version(stored) >= SCHEMA_VERSION:
+        return False
+    if getattr(id_block, "library", None) is not None:
+        return False
+    migrate = migrate_scene if _is_scene(id_block) else migrate_material
+    old = stored.to_dict() if hasattr(stored, "to_dict") else dict(stored)
+    _apply_changes(stored, old, migrate(old))
+    return True
+
+
+def _is_scene(id_block: Any) -> bool:
+    rna = getattr(id_block, "bl_rna", None)
+    return rna is not None and rna.identifier == "Scene"
+
+
+def migrate_data(data: Any) -> int:
+    """Migrate every material and scene of ``bpy.data`` (or a like object); returns how many changed."""
+    return sum(migrate_stored(block) for block in (*data.materials, *data.scenes))

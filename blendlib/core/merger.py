@@ -11,11 +11,22 @@ one draw call), never over fragments or pixels.
 
 from __future__ import annotations
 
+from enum import IntEnum
+
 import numpy as np
 
 from . import colorspace
 from .vertex import DEPTH_MAX
 from .vocabulary import BlendFactor, BlendOp, ColorSpace, CompareFunction, Pass, StencilOp
+
+
+class Outcome(IntEnum):
+    """What happened to a fragment in the per-fragment pipeline (the test that discarded it)."""
+
+    WRITTEN = 0  # passed every test (ColorMask may still write no channel)
+    ALPHA_TEST = 1
+    STENCIL = 2
+    DEPTH = 3
 
 _COMPARE = {
     CompareFunction.Less: np.less,
@@ -79,6 +90,13 @@ class FrameBuffers:
         self.color[:] = self.encode(clear)
         self.depth = np.full(n, DEPTH_MAX, dtype=np.int64)
         self.stencil = np.zeros(n, dtype=np.uint8)
+
+    def copy(self) -> FrameBuffers:
+        """An independent copy (a snapshot to resume from)."""
+        other = object.__new__(FrameBuffers)
+        other.__dict__.update(self.__dict__)
+        other.color, other.depth, other.stencil = self.color.copy(), self.depth.copy(), self.stencil.copy()
+        return other
 
     def encode(self, rgba: np.ndarray) -> np.ndarray:
         """Shading-space values (N, 4) float64 → what the colour buffer stores."""
@@ -197,16 +215,19 @@ def blend_lut(buf: FrameBuffers, p: Pass, palette: np.ndarray) -> np.ndarray:
 
 def apply_layer(
     buf: FrameBuffers, p: Pass, pix: np.ndarray, depth: np.ndarray, rgba: np.ndarray,
-    ids: np.ndarray | None = None, lut: np.ndarray | None = None,
+    ids: np.ndarray | None = None, lut: np.ndarray | None = None, outcome: np.ndarray | None = None,
 ) -> None:
     """Apply fragments on *distinct* pixels: stencil → depth → stencil op → depth write → blend → mask.
 
     ``pix`` (N,) int64, ``depth`` (N,) int64, ``rgba`` (N, 4) float64 shading-space colours.
     With ``ids`` (N,) int32 and ``lut`` from :func:`blend_lut`, fragments with ``ids >= 0``
     take their stored codes from the table (their ``rgba`` rows are not read).
+    ``outcome`` (N,) int8, optional: receives each fragment's :class:`Outcome`.
     """
     d_old = buf.depth[pix]
     passed = compare(p.ztest, depth, d_old)
+    if outcome is not None:
+        outcome[:] = np.where(passed, Outcome.WRITTEN, Outcome.DEPTH)
     if p.stencil:
         s_old = buf.stencil[pix]
         rm, wm, ref = p.stencil_read_mask, p.stencil_write_mask, p.stencil_ref
@@ -218,6 +239,8 @@ def apply_layer(
         )
         buf.stencil[pix] = ((s_old.astype(np.int64) & (~wm & 255)) | (new & wm)).astype(np.uint8)
         passed = z_pass
+        if outcome is not None:
+            outcome[~s_pass] = Outcome.STENCIL
     if not np.any(passed):
         return
     if not passed.all():
@@ -272,13 +295,14 @@ PEEL_LAYERS = 8
 
 def merge(
     buf: FrameBuffers, p: Pass, pix: np.ndarray, depth: np.ndarray, rgba: np.ndarray,
-    ids: np.ndarray | None = None, palette: np.ndarray | None = None,
+    ids: np.ndarray | None = None, palette: np.ndarray | None = None, outcome: np.ndarray | None = None,
 ) -> int:
     """Apply a chunk of fragments (in draw order) exactly as one-by-one; returns the layer count.
 
     Optional ``ids`` (N,) int32 / ``palette`` (K, 4) float64: fragments with ``ids >= 0``
     have the colour ``palette[ids]`` (constant over their triangle) and blend through a
     lookup table (:func:`blend_lut`); only valid when :func:`lut_eligible`.
+    Optional ``outcome`` (N,) int8 receives each fragment's :class:`Outcome`.
     """
     n = pix.shape[0]
     if n == 0:
@@ -287,9 +311,12 @@ def merge(
 
     def layer(sel) -> None:
         if sel is None:
-            apply_layer(buf, p, pix, depth, rgba, ids, lut)
-        else:
-            apply_layer(buf, p, pix[sel], depth[sel], rgba[sel], None if ids is None else ids[sel], lut)
+            apply_layer(buf, p, pix, depth, rgba, ids, lut, outcome)
+            return
+        codes = None if outcome is None else np.empty(sel.shape[0], dtype=np.int8)
+        apply_layer(buf, p, pix[sel], depth[sel], rgba[sel], None if ids is None else ids[sel], lut, codes)
+        if codes is not None:
+            outcome[sel] = codes
 
     lo = int(pix.min())
     local = pix - lo

@@ -17,10 +17,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import merger, raster, shade, vertex
-from .drawlist import sorted_renderers
+from .drawlist import DrawCall, draw_calls
 from .merger import FrameBuffers, merge
 from .scene import DrawScene, SceneError, validate_scene
-from .vocabulary import ColorSpace, Lighting, Pass
+from .vocabulary import ColorSpace, Lighting, Material, Pass
 
 #: Candidate pixels per chunk: bounds the memory of one chunk's arrays to a few hundred MB.
 CHUNK_CANDIDATES = 1 << 20
@@ -50,15 +50,93 @@ class Frame:
     encoded: bool = True
 
 
-def _shade_chunk(setup, rows, start, stop, width, p: Pass, material, texels, lights, color_space, hdr):
+@dataclass(frozen=True, eq=False)
+class DrawState:
+    """What one draw call needs beyond its triangles, decided once per draw call (the
+    "derived state" of the call): the draw call, its material and pass, the texture's
+    texels in shading space, the frame's lights, colour space, buffer kind and width."""
+
+    call: DrawCall
+    material: Material
+    texels: np.ndarray | None
+    lights: shade.Lights
+    color_space: ColorSpace
+    hdr: bool
+    width: int
+
+    @property
+    def pass_state(self) -> Pass:
+        return self.call.state
+
+
+@dataclass(eq=False)
+class ShadedFragments:
+    """A chunk of one draw call's fragments after shading, in primitive order.
+
+    - ``pix`` (N,) int64: window pixel index ``y * W + x`` with y up (row 0 = bottom).
+    - ``depth`` (N,) int64: 24-bit depth code after Offset.
+    - ``rgba`` (N, 4) float64: shader output in shading space (rows with ``ids >= 0`` unset).
+    - ``ids`` (N,) int32 or None, ``palette`` (K, 4) float64 or None: fragments with
+      ``ids >= 0`` have the colour ``palette[ids]`` (shaded once per triangle).
+    - ``triangle`` (N,) int64: the source mesh triangle (index in the renderer's mesh).
+    - ``alive`` (N,) bool or None: passed the alpha test (None: the pass has no alpha test).
+    """
+
+    pix: np.ndarray
+    depth: np.ndarray
+    rgba: np.ndarray
+    ids: np.ndarray | None
+    palette: np.ndarray | None
+    triangle: np.ndarray
+    alive: np.ndarray | None
+
+    @property
+    def count(self) -> int:
+        return int(self.pix.shape[0])
+
+    def colors(self) -> np.ndarray:
+        """(N, 4) float64 shader colours, table entries filled in."""
+        if self.ids is None:
+            return self.rgba
+        out = self.rgba.copy()
+        tabled = self.ids >= 0
+        out[tabled] = self.palette[self.ids[tabled]]
+        return out
+
+    def select(self, keep: np.ndarray) -> ShadedFragments:
+        """The fragments where ``keep`` (bool (N,) or indices) holds."""
+        return ShadedFragments(
+            self.pix[keep], self.depth[keep], self.rgba[keep], None if self.ids is None else self.ids[keep],
+            self.palette, self.triangle[keep], None if self.alive is None else self.alive[keep])
+
+
+class FrameObserver:
+    """Receives the records of a render as it happens (frame debugger, sorted reference, overdraw).
+
+    :meth:`fragments` is called from band worker threads (each band owns distinct pixels;
+    within a band, chunks come in primitive order): implementations must be thread-safe.
+    The base class ignores everything.
+    """
+
+    def draw_begin(self, call: DrawCall, buffers: FrameBuffers) -> None:
+        """Before draw call ``call`` (``buffers`` as left by the draw calls before it)."""
+
+    def fragments(self, call: DrawCall, frags: ShadedFragments, outcome: np.ndarray) -> None:
+        """Every fragment rasterised in a chunk, with its :class:`merger.Outcome` (N,) int8."""
+
+    def draw_end(self, call: DrawCall, buffers: FrameBuffers, triangles: int) -> None:
+        """After draw call ``call``; ``triangles``: the call's source triangles that reach the
+        rasteriser (neither culled nor degenerate nor entirely clipped away)."""
+
+
+def _shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedFragments | None:
     """Raster + interpolate + shade + alpha test of rows [start, stop), in draw order.
 
-    Returns the arguments of :func:`merger.merge`: (pix, depth, rgba, ids, palette).
-
     Triangles whose inputs to shading are constant (no texture or flat UVs, Unlit or flat
-    normals: §6) are shaded once per triangle; the others once per fragment.
+    normals: docs/pipeline.md §6) are shaded once per triangle; the others once per fragment.
     """
-    frags = raster.rasterize_rows(rows, start, stop, width)
+    p, material, texels = state.pass_state, state.material, state.texels
+    frags = raster.rasterize_rows(rows, start, stop, state.width)
     if frags.count == 0:
         return None
     # Fragments come in triangle order: each source triangle's fragments form one run.
@@ -87,7 +165,7 @@ def _shade_chunk(setup, rows, start, stop, width, p: Pass, material, texels, lig
     def shade_at(uv: np.ndarray | None, normal: np.ndarray | None, n: int) -> np.ndarray:
         uv = np.zeros((n, 2), dtype=np.float64) if uv is None else uv
         normal = np.zeros((n, 3), dtype=np.float64) if normal is None else normal
-        return shade.shade(material, texels, lights, color_space, uv, normal)
+        return shade.shade(material, texels, state.lights, state.color_space, uv, normal)
 
     if np.any(constant):
         const_tris = np.nonzero(flat)[0]
@@ -98,7 +176,7 @@ def _shade_chunk(setup, rows, start, stop, width, p: Pass, material, texels, lig
         ids = slot[run]
         # 8-bit blending of a constant colour is a function of the destination code: tabulate
         # it (256 rows per colour) when that is cheaper than blending every fragment.
-        if not (merger.lut_eligible(p, hdr) and palette.shape[0] * 256 <= np.count_nonzero(constant)):
+        if not (merger.lut_eligible(p, state.hdr) and palette.shape[0] * 256 <= np.count_nonzero(constant)):
             rgba[constant] = palette[ids[constant]]
             ids = palette = None
     if any_varying:
@@ -114,25 +192,34 @@ def _shade_chunk(setup, rows, start, stop, width, p: Pass, material, texels, lig
             rgba = shade_at(uv, normal, w.shape[1])
         else:
             rgba[varying] = shade_at(uv, normal, w.shape[1])
-    pix = frags.pix
+    alive = None
     if p.alpha_test:
         alpha = rgba[:, 3] if ids is None else np.where(ids >= 0, palette[np.maximum(ids, 0), 3], rgba[:, 3])
-        keep = ~(alpha - float(material.cutoff) < 0)
-        pix, depth, rgba = pix[keep], depth[keep], rgba[keep]
-        if ids is not None:
-            ids = ids[keep]
-    return pix, depth, rgba, ids, palette
+        alive = ~(alpha - float(material.cutoff) < 0)
+    return ShadedFragments(frags.pix, depth, rgba, ids, palette, src, alive)
 
 
-def _draw_band(buf, setup, rows, chunk_candidates, tail, stop_flag) -> None:
+def _draw_band(buf, setup, rows, chunk_candidates: int, state: DrawState, stop_flag, observer) -> None:
     """Raster, shade and merge one screen band of a draw call, chunk by chunk in draw order."""
-    p = tail[1]
+    p = state.pass_state
     for a, b in raster.row_chunks(rows, chunk_candidates):
         if stop_flag.is_set():
             return
-        res = _shade_chunk(setup, rows, a, b, *tail)
-        if res is not None:
-            merge(buf, p, *res)
+        shaded = _shade_chunk(setup, rows, a, b, state)
+        if shaded is None:
+            continue
+        merged = shaded if shaded.alive is None else shaded.select(shaded.alive)
+        if observer is None:
+            merge(buf, p, merged.pix, merged.depth, merged.rgba, merged.ids, merged.palette)
+            continue
+        outcome = np.full(shaded.count, merger.Outcome.ALPHA_TEST, dtype=np.int8)
+        written = np.empty(merged.count, dtype=np.int8)
+        merge(buf, p, merged.pix, merged.depth, merged.rgba, merged.ids, merged.palette, outcome=written)
+        if shaded.alive is None:
+            outcome = written
+        else:
+            outcome[shaded.alive] = written
+        observer.fragments(state.call, shaded, outcome)
 
 
 def _wait(futures, should_cancel, stop_flag) -> None:
@@ -155,25 +242,38 @@ def render_scene(
     should_cancel: Callable[[], bool] | None = None,
     workers: int | None = None,
     chunk_candidates: int = CHUNK_CANDIDATES,
+    until_draw: int | None = None,
+    resume: tuple[FrameBuffers, int] | None = None,
+    observer: FrameObserver | None = None,
 ) -> Frame:
     """Render a draw scene exactly as Unity's built-in pipeline would (docs/pipeline.md).
 
     ``progress(fraction)`` is called between draw calls; ``should_cancel()`` is polled
     between draw calls and chunks, and a True answer raises :class:`RenderCancelled`.
-    Raises :class:`blendlib.scene.SceneError` (one line) for input that cannot render.
+    ``until_draw`` K: stop after draw call K (numbered from 1; 0 = the cleared frame).
+    ``resume`` (buffers, K0): start from a copy of ``buffers`` as left after draw call K0
+    (a snapshot taken by an observer's :meth:`FrameObserver.draw_end`), drawing K0+1 on.
+    ``observer``: a :class:`FrameObserver` that receives every draw call and fragment.
+    Raises :class:`blendlib.core.scene.SceneError` (one line) for input that cannot render.
     """
     warnings = list(scene.warnings) + validate_scene(scene)
+    if until_draw is not None and int(until_draw) < 0:
+        raise SceneError(f"until_draw must be 0 or more (got {until_draw})")
     cam = scene.camera
     width, height = int(cam.width), int(cam.height)
     cs = scene.color_space
-    clear = shade.gamma_color_to_shading(scene.clear_color[:3], cs) + (float(scene.clear_color[3]),)
-    buf = FrameBuffers(width, height, scene.hdr, cs, clear)
+    if resume is not None:
+        buf, first = resume[0].copy(), int(resume[1])
+    else:
+        clear = shade.gamma_color_to_shading(scene.clear_color[:3], cs) + (float(scene.clear_color[3]),)
+        buf, first = FrameBuffers(width, height, scene.hdr, cs, clear), 0
     lights = shade.frame_lights(scene)
     try:
-        order = sorted_renderers(scene)
+        calls = draw_calls(scene)
     except ValueError as exc:
         raise SceneError(str(exc)) from None
-    calls = sum(len(r.material.draw_passes) for r in order)
+    last = len(calls) if until_draw is None else min(int(until_draw), len(calls))
+    todo = [c for c in calls if first < c.index <= last]
     texel_cache: dict[int, np.ndarray] = {}
     workers = workers if workers is not None else min(2, os.cpu_count() or 1)
 
@@ -181,51 +281,54 @@ def render_scene(
         if should_cancel is not None and should_cancel():
             raise RenderCancelled("render cancelled")
 
-    done = 0
     degenerate: list[tuple[str, int]] = []  # (object, zero-area triangles): one summary warning
     stop_flag = threading.Event()
     pool = ThreadPoolExecutor(max_workers=workers) if workers > 1 else None
+    setup = setup_of = None
     try:
-        for renderer in order:
+        for done, call in enumerate(todo, start=1):
             cancelled()
-            mesh = renderer.mesh
-            if mesh.triangle_count == 0:
-                done += len(renderer.material.draw_passes)
+            renderer, material = call.renderer, call.renderer.material
+            if observer is not None:
+                observer.draw_begin(call, buf)
+            if renderer.mesh.triangle_count == 0:
+                if observer is not None:
+                    observer.draw_end(call, buf, 0)
                 continue
-            material = renderer.material
-            setup = vertex.setup_triangles(
-                mesh, renderer.matrix_world, cam,
-                need_normals=material.lighting is not Lighting.Unlit, need_uvs=material.main_tex is not None,
-                pool=pool, parts=workers,
-            )
-            label = f"object {renderer.name!r} slot {renderer.slot}"
-            if setup.skipped_nonfinite:
-                warnings.append(f"{label}: skipped {setup.skipped_nonfinite} triangles with non-finite vertices")
-            if setup.degenerate:
-                degenerate.append((renderer.name, setup.degenerate))
+            if setup_of is not renderer:  # one vertex setup per renderer, shared by its passes
+                setup_of = renderer
+                setup = vertex.setup_triangles(
+                    renderer.mesh, renderer.matrix_world, cam,
+                    need_normals=material.lighting is not Lighting.Unlit, need_uvs=material.main_tex is not None,
+                    pool=pool, parts=workers,
+                )
+                label = f"object {renderer.name!r} slot {renderer.slot}"
+                if setup.skipped_nonfinite:
+                    warnings.append(f"{label}: skipped {setup.skipped_nonfinite} triangles with non-finite vertices")
+                if setup.degenerate:
+                    degenerate.append((renderer.name, setup.degenerate))
             texels = None
             if material.main_tex is not None:
                 key = id(material.main_tex)
                 if key not in texel_cache:
                     texel_cache[key] = shade.texture_texels(material.main_tex, cs)
                 texels = texel_cache[key]
-            for p in material.draw_passes:
-                cancelled()
-                selected = vertex.cull_select(setup, p.cull)
-                rows = raster.coverage_rows(setup, selected, width, height, pool=pool, parts=workers)
-                tail = (width, p, material, texels, lights, cs, scene.hdr)
-                bands = rows.split_bands(workers, height) if pool is not None else [rows]
-                if len(bands) == 1:
-                    _draw_band(buf, setup, bands[0], chunk_candidates, tail, stop_flag)
-                else:
-                    futures = [pool.submit(_draw_band, buf, setup, band, chunk_candidates, tail, stop_flag)
-                               for band in bands]
-                    _wait(futures, should_cancel, stop_flag)
-                if stop_flag.is_set():
-                    raise RenderCancelled("render cancelled")
-                done += 1
-                if progress is not None:
-                    progress(done / max(calls, 1))
+            state = DrawState(call, material, texels, lights, cs, scene.hdr, width)
+            selected = vertex.cull_select(setup, call.state.cull)
+            rows = raster.coverage_rows(setup, selected, width, height, pool=pool, parts=workers)
+            bands = rows.split_bands(workers, height) if pool is not None else [rows]
+            if len(bands) == 1:
+                _draw_band(buf, setup, bands[0], chunk_candidates, state, stop_flag, observer)
+            else:
+                futures = [pool.submit(_draw_band, buf, setup, band, chunk_candidates, state, stop_flag, observer)
+                           for band in bands]
+                _wait(futures, should_cancel, stop_flag)
+            if stop_flag.is_set():
+                raise RenderCancelled("render cancelled")
+            if observer is not None:
+                observer.draw_end(call, buf, int(np.unique(setup.src[selected]).size))
+            if progress is not None:
+                progress(done / max(len(todo), 1))
     finally:
         if pool is not None:
             pool.shutdown(wait=True, cancel_futures=True)
@@ -235,7 +338,7 @@ def render_scene(
         shown = ", ".join(repr(n) for n in names[:3]) + (f" and {len(names) - 3} more" if len(names) > 3 else "")
         warnings.append(f"{total} degenerate (zero-area) triangles draw nothing, in {shown}")
     color, depth, stencil = buf.output()
-    textures = (r.material.main_tex for r in order)
+    textures = (c.renderer.material.main_tex for c in calls)
     missing = {t.name for t in textures if t is not None and t.missing}
     warnings.extend(f"image {name!r}: file missing, drawn magenta" for name in sorted(missing))
     encoded = not (scene.hdr and cs is ColorSpace.Linear)

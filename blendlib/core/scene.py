@@ -28,12 +28,20 @@ class Mesh:
       (the draw order of the triangles).
     - ``normals``: (T, 3, 3) float32 object-space normals per triangle corner.
     - ``uvs``: (T, 3, 2) float32 texture coordinates per corner, or None (all zero).
+    - ``polygons``: (T,) integer face index of each triangle (Blender's
+      ``loop_triangle_polygons``), or None (a synthetic mesh: no faces).
+    - ``loop_triangles``: (T,) integer index of each triangle in the evaluated mesh's
+      ``loop_triangles`` (a material slot takes a subset), or None (the triangle's own index).
+
+    ``polygons`` and ``loop_triangles`` only name triangles for the frame debugger.
     """
 
     positions: np.ndarray
     triangles: np.ndarray
     normals: np.ndarray
     uvs: np.ndarray | None = None
+    polygons: np.ndarray | None = None
+    loop_triangles: np.ndarray | None = None
 
     @property
     def triangle_count(self) -> int:
@@ -45,7 +53,7 @@ class Renderer:
     """One Unity renderer: one object's triangles that use one material slot.
 
     ``matrix_world`` (4, 4) float64 object → world. ``bounds_center`` (3,) float64:
-    centre of the object's world-space bounding box (the sort point of SPEC §4).
+    centre of the object's world-space bounding box (the sort point of docs/pipeline.md §0).
     ``name`` is the object name and ``slot`` the material slot index (sort ties).
     """
 
@@ -88,7 +96,7 @@ class Camera:
 
 @dataclass(frozen=True)
 class Light:
-    """The main directional light (SPEC §4): the render-visible Sun with the largest energy × max(colour).
+    """The main directional light (docs/pipeline.md §7): the render-visible Sun with the largest energy × max(colour).
 
     ``direction`` (3,) unit vector from the surface towards the light (the lamp's
     local +Z in world space). ``color`` is Blender's linear lamp colour; ``energy``
@@ -172,6 +180,10 @@ def validate_scene(scene: DrawScene) -> list[str]:
             raise SceneError(f"{label}: normals must be (T, 3, 3), got {np.asarray(mesh.normals).shape}")
         if mesh.uvs is not None and np.asarray(mesh.uvs).shape != (t, 3, 2):
             raise SceneError(f"{label}: uvs must be (T, 3, 2), got {np.asarray(mesh.uvs).shape}")
+        for name in ("polygons", "loop_triangles"):
+            ids = getattr(mesh, name)
+            if ids is not None and np.asarray(ids).shape != (t,):
+                raise SceneError(f"{label}: {name} must be (T,), got {np.asarray(ids).shape}")
         if t == 0:
             warnings.append(f"{label}: empty mesh, nothing drawn")
     return warnings

@@ -2,17 +2,20 @@
 
 Every enum member is named exactly as ShaderLab spells it (``Blend SrcAlpha
 OneMinusSrcAlpha``, ``ZTest LEqual``, ``Cull Off``); its ``value`` is the same
-string, which is also the Blender EnumProperty identifier of shared/SPEC.md §3.
+string, which is also the Blender EnumProperty identifier (README "Data model").
 Field names of :class:`Pass` and :class:`Material` are the Blender property
-names of that section, so the bpy bridge, the ShaderLab importer/exporter and
-the JSON output all map one to one.
+names of ``Material.unity`` (``blendlib/blender/schema.py``), so the Blender
+layer, the ShaderLab importer/exporter and the JSON output all map one to one.
 
 This module knows nothing of Blender and nothing of numpy.
 """
 
 from __future__ import annotations
 
+import math
+import struct
 from dataclasses import dataclass, field, fields, replace
+from decimal import Decimal
 from enum import Enum, StrEnum
 from typing import Any
 
@@ -146,6 +149,24 @@ CHANNELS = ("R", "G", "B", "A")
 ALL_CHANNELS = frozenset(CHANNELS)
 
 
+#: ColorMask channels as bits, numbered as Unity's ``ColorWriteMask`` (A=1, B=2, G=4, R=8). This is
+#: the one bit order: a ShaderLab ``ColorMask [_Prop]`` value holds it, and so does the integer
+#: Blender stores for the add-on's ColorMask (schema version 2; version 1 stored R=1, G=2, B=4, A=8).
+COLOR_MASK_BITS: dict[str, int] = {"R": 8, "G": 4, "B": 2, "A": 1}
+
+
+def color_mask_bits(mask: frozenset[str]) -> int:
+    """The ``ColorWriteMask`` integer of a channel set: {R, G, B, A} → 15, {A} → 1, {R} → 8."""
+    return sum(COLOR_MASK_BITS[c] for c in mask)
+
+
+def color_mask_from_bits(bits: int) -> frozenset[str]:
+    """Inverse of :func:`color_mask_bits`; ValueError outside 0..15."""
+    if bits != int(bits) or not 0 <= bits <= 15:
+        raise ValueError(f"ColorMask bits must be an integer 0..15, got {bits!r}")
+    return frozenset(c for c, bit in COLOR_MASK_BITS.items() if int(bits) & bit)
+
+
 def color_mask_text(mask: frozenset[str]) -> str:
     """ShaderLab spelling of a colour mask: ``"RGBA"``, ``"RB"``, or ``"0"`` for the empty set."""
     text = "".join(c for c in CHANNELS if c in mask)
@@ -158,13 +179,36 @@ def parse_color_mask(text: str) -> frozenset[str]:
     if word == "0":
         return frozenset()
     if not word or any(c not in CHANNELS for c in word) or len(set(word)) != len(word):
-        raise ValueError(f"bad ColorMask {text!r} (expected 0 or a subset of RGBA)")
+        raise ValueError(f"bad ColorMask {text!r} (expected 0 or a subset of RGBA such as RGB or A)")
     return frozenset(word)
+
+
+def float32_text(x: float) -> str:
+    """The shortest positional decimal text that reads back to the same float32 as ``x``.
+
+    Blender stores pass offsets as float32: ``0.1234567`` (not ``0.123457``, which is
+    another float32, nor ``0.12345670163631439``). No exponent, as ShaderLab writes numbers.
+    """
+    x = float(x)
+    try:
+        (f32,) = struct.unpack("<f", struct.pack("<f", x))
+    except OverflowError:
+        f32 = math.inf
+    if not math.isfinite(f32):
+        raise ValueError(f"cannot write {x!r} as a float32 number")
+    if f32 == int(f32) and abs(f32) < 1e15:
+        return str(int(f32))
+    for digits in range(1, 10):  # 9 significant digits always round-trip a float32
+        text = f"{f32:.{digits}g}"
+        if struct.unpack("<f", struct.pack("<f", float(text)))[0] == f32:
+            break
+    out = format(Decimal(text), "f")
+    return out.rstrip("0").rstrip(".") if "." in out else out
 
 
 @dataclass(frozen=True)
 class Pass:
-    """One ``Pass { ... }``: the fixed-function state of one draw call (SPEC §3)."""
+    """One ``Pass { ... }``: the fixed-function state of one draw call."""
 
     name: str = "Pass"
     cull: Cull = Cull.Back
@@ -209,32 +253,51 @@ class Pass:
             return self.src_blend_alpha, self.dst_blend_alpha, self.blend_op_alpha
         return self.src_blend, self.dst_blend, self.blend_op
 
-    def shaderlab(self) -> str:
-        """One-line ShaderLab preview, e.g. ``Cull Off ZWrite Off Blend SrcAlpha OneMinusSrcAlpha``."""
-        words = [f"Cull {self.cull}", f"ZWrite {'On' if self.zwrite else 'Off'}", f"ZTest {self.ztest}"]
-        if not self.blend:
-            words.append("Blend Off")
-        else:
-            blend = f"Blend {self.src_blend} {self.dst_blend}"
-            if self.separate_alpha:
-                blend += f", {self.src_blend_alpha} {self.dst_blend_alpha}"
-            words.append(blend)
-            ops = (self.blend_op, self.blend_op_alpha if self.separate_alpha else self.blend_op)
-            if ops != (BlendOp.Add, BlendOp.Add):
-                words.append(f"BlendOp {ops[0]}" + (f", {ops[1]}" if ops[1] != ops[0] else ""))
-        if self.color_mask != ALL_CHANNELS:
-            words.append(f"ColorMask {color_mask_text(self.color_mask)}")
-        if self.offset_factor or self.offset_units:
-            words.append(f"Offset {self.offset_factor:g}, {self.offset_units:g}")
-        if self.alpha_test:
-            words.append("clip(a - _Cutoff)")
-        if self.stencil:
-            words.append(
-                f"Stencil {{ Ref {self.stencil_ref} ReadMask {self.stencil_read_mask} "
-                f"WriteMask {self.stencil_write_mask} Comp {self.stencil_comp} Pass {self.stencil_pass} "
-                f"Fail {self.stencil_fail} ZFail {self.stencil_zfail} }}"
-            )
-        return " ".join(words)
+
+def pass_state_commands(p: Pass) -> list[str]:
+    """The ShaderLab state commands of a pass, one per item, as the exporter writes them.
+
+    Always ``Cull``, ``ZWrite``, ``ZTest`` and ``Blend``; ``BlendOp``, ``ColorMask``,
+    ``Offset`` (shortest float32 text, :func:`float32_text`) and ``Stencil { ... }``
+    (on one line) only where they differ from the defaults.
+    """
+    commands = [f"Cull {p.cull}", f"ZWrite {'On' if p.zwrite else 'Off'}", f"ZTest {p.ztest}"]
+    if not p.blend:
+        commands.append("Blend Off")
+    else:
+        blend = f"Blend {p.src_blend} {p.dst_blend}"
+        if p.separate_alpha:
+            blend += f", {p.src_blend_alpha} {p.dst_blend_alpha}"
+        commands.append(blend)
+        if p.separate_alpha and p.blend_op_alpha != p.blend_op:
+            commands.append(f"BlendOp {p.blend_op}, {p.blend_op_alpha}")
+        elif p.blend_op != BlendOp.Add:
+            commands.append(f"BlendOp {p.blend_op}")
+    if p.color_mask != ALL_CHANNELS:
+        commands.append(f"ColorMask {color_mask_text(p.color_mask)}")
+    if p.offset_factor or p.offset_units:
+        commands.append(f"Offset {float32_text(p.offset_factor)}, {float32_text(p.offset_units)}")
+    if p.stencil:
+        commands.append(
+            f"Stencil {{ Ref {p.stencil_ref} ReadMask {p.stencil_read_mask} WriteMask {p.stencil_write_mask} "
+            f"Comp {p.stencil_comp} Pass {p.stencil_pass} Fail {p.stencil_fail} ZFail {p.stencil_zfail} }}"
+        )
+    return commands
+
+
+def pass_state_text(p: Pass) -> str:
+    """A pass's state on one line, e.g. ``Cull Off ZWrite Off ZTest LEqual Blend SrcAlpha OneMinusSrcAlpha``.
+
+    The commands of :func:`pass_state_commands`, then ``clip(a - _Cutoff)`` for an
+    alpha-tested pass (its program's test, not a state command). The panel's pass
+    preview, the exporter and the draw list all write a pass with this.
+    """
+    words = pass_state_commands(p)
+    if p.alpha_test:
+        words.append("clip(a - _Cutoff)")
+    return " ".join(words)
+
+
 
 
 @dataclass(frozen=True, eq=False)
@@ -264,7 +327,7 @@ class Texture:
 
 @dataclass(frozen=True)
 class Material:
-    """The Unity material of SPEC §3 (``Material.unity``), resolved for rendering.
+    """The Unity material (``Material.unity``, README "Data model"), resolved for rendering.
 
     ``color`` is ``_Color`` as authored (COLOR_GAMMA: sRGB-encoded values).
     ``passes`` are drawn in order; an empty tuple means one default pass.
@@ -302,7 +365,8 @@ def queue_text(queue: Queue, offset: int) -> str:
 
 
 def pass_to_dict(p: Pass) -> dict[str, Any]:
-    """JSON-ready dict with SPEC §3 names; enums as identifiers, color_mask as a sorted RGBA list."""
+    """JSON-ready dict with the pass property names of ``Material.unity``; enums as identifiers,
+    color_mask as a sorted RGBA list."""
     out: dict[str, Any] = {}
     for f in fields(p):
         value = getattr(p, f.name)

@@ -1,14 +1,19 @@
-"""Image files without Blender: PNG (8-bit), OpenEXR (float), NPY, and buffer comparison.
+"""Image files without Blender: PNG, OpenEXR, NPY, and buffer comparison.
 
 Arrays here are ``(H, W, C)`` with row 0 the *top* of the image (as a
-:class:`blendlib.pipeline.Frame` and as the files store them).
+:class:`blendlib.core.pipeline.Frame` and as the files store them).
 
-- PNG: written as 8-bit RGBA of the values (``floor(clamp(v, 0, 1) * 255 + 0.5)``, no
-  colour conversion); read: 8/16-bit grey, grey+alpha, RGB, RGBA, palette, non-interlaced.
-- EXR: written as uncompressed 32-bit float RGBA scanlines (exact values); read: scanline
-  files with NONE, ZIPS or ZIP compression and HALF/FLOAT/UINT channels (Blender's default
-  EXR codec is ZIP).
+- PNG (Pillow): written as 8-bit RGBA of the values (``floor(clamp(v, 0, 1) * 255 + 0.5)``,
+  no colour conversion); read: every colour type (grey, grey+alpha, RGB, RGBA, palette) at
+  every bit depth, interlaced or not, as the stored values / (2^depth - 1), 16-bit exactly.
+  Palette transparency and tRNS colour keys give alpha; gamma and ICC chunks are ignored.
+- EXR (OpenEXR bindings): written as ZIP-compressed 32-bit float RGBA (exact values); read:
+  scanline or tiled, single- or multi-part, any compression (Blender's ZIP, PIZ, DWAA, ...),
+  HALF/FLOAT/UINT channels. Which channels are the colour: see :func:`exr_colour_layer`.
 - NPY: the exact array.
+
+Pillow and OpenEXR are imported only here, and only when a PNG or EXR file is read or written:
+``import blendlib`` and the Blender add-on work without them (they are the ``files`` extra).
 
 Every writer goes through :func:`save`, which writes a temporary file next to the
 target and renames it, so an error never leaves a half-written file.
@@ -16,12 +21,17 @@ target and renames it, so an error never leaves a half-written file.
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
+import io
 import math
 import os
-import struct
-import zlib
+import sys
+import tempfile
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, BinaryIO
 
 import numpy as np
 
@@ -32,6 +42,22 @@ FORMATS = (".png", ".exr", ".npy")
 
 class ImageIOError(ValueError):
     """A file that cannot be read or written; the message is one line."""
+
+
+def _one_line(exc: BaseException) -> str:
+    text = " ".join(str(exc).split())
+    return text or type(exc).__name__
+
+
+def _library(name: str, ext: str) -> Any:
+    """Import Pillow (``"PIL.Image"``) or ``"OpenEXR"`` on first use; ImageIOError naming the extra."""
+    import importlib
+
+    try:
+        return importlib.import_module(name)
+    except ImportError:
+        dist = "Pillow" if name.startswith("PIL") else "OpenEXR"
+        raise ImageIOError(f"{ext} files need the {dist} package (pip install 'blendlib[files]')") from None
 
 
 # ---------------------------------------------------------------------------
@@ -75,49 +101,62 @@ def save(path: str | os.PathLike, color: np.ndarray) -> Path:
     if not folder.is_dir():
         raise ImageIOError(f"{path}: output directory {str(folder)!r} does not exist")
     if ext == ".npy":
-        data = None
+        array = np.asarray(color)
+        write_atomic(path, lambda fh: np.save(fh, array, allow_pickle=False))
     elif ext == ".png":
-        data = encode_png(color)
+        write_atomic(path, _png_writer(color))
     else:
-        data = encode_exr(color)
-    if data is None:
-        write_atomic(path, lambda fh: np.save(fh, np.asarray(color), allow_pickle=False))
-    else:
-        write_atomic(path, data)
+        write_atomic(path, _exr_writer(color))
     return path
 
 
 def load(path: str | os.PathLike) -> np.ndarray:
-    """Read a PNG (values / 255), EXR or NPY file as a float32 (H, W, C) array, row 0 the top."""
+    """Read a PNG (stored values / (2^depth - 1)), EXR or NPY file as float32 (H, W, C), row 0 the top."""
     path = Path(path)
     ext = file_format(path)
     if not path.is_file():
         raise ImageIOError(f"{path}: no such file")
-    if ext == ".npy":
-        try:
-            a = np.load(path, allow_pickle=False)
-        except (ValueError, OSError) as exc:
-            raise ImageIOError(f"{path}: not a readable .npy file ({exc})") from None
-        if a.ndim not in (2, 3):
-            raise ImageIOError(f"{path}: expected a 2-D or 3-D array, got shape {a.shape}")
-        if a.dtype.kind not in "biuf":
-            raise ImageIOError(f"{path}: the array holds {a.dtype} values; expected real numbers (float or integer)")
-        with np.errstate(over="ignore"):  # beyond float32: inf, a difference like any other
-            return a.astype(np.float32, copy=False)
-    data = path.read_bytes()
     try:
-        return decode_png(data) if ext == ".png" else decode_exr(data)
+        if ext == ".npy":
+            return _read_npy(path)
+        if ext == ".png":
+            return _read_png(path)
+        return _read_exr(path)[0]
     except ImageIOError as exc:
         raise ImageIOError(f"{path}: {exc}") from None
-    except (zlib.error, struct.error, ValueError, IndexError) as exc:
-        raise ImageIOError(f"{path}: corrupt {ext[1:].upper()} file ({exc})") from None
+
+
+def load_exr(path: str | os.PathLike) -> tuple[np.ndarray, str]:
+    """Read an EXR as :func:`load` does, and say which layer was read: ``(array, layer name)``.
+
+    The layer is ``""`` for plain R/G/B/A channels, else e.g. ``"ViewLayer.Combined"``
+    (see :func:`exr_colour_layer`).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ImageIOError(f"{path}: no such file")
+    try:
+        return _read_exr(path)
+    except ImageIOError as exc:
+        raise ImageIOError(f"{path}: {exc}") from None
+
+
+def _read_npy(path: Path) -> np.ndarray:
+    try:
+        a = np.load(path, allow_pickle=False)
+    except (ValueError, OSError, EOFError) as exc:
+        raise ImageIOError(f"not a readable .npy file ({_one_line(exc)})") from None
+    if a.dtype.kind not in "biuf":
+        raise ImageIOError(f"expected a numeric (bool, integer or real) array, got dtype {a.dtype}")
+    if a.ndim not in (2, 3):
+        raise ImageIOError(f"expected a 2-D or 3-D array, got shape {a.shape}")
+    with np.errstate(over="ignore"):  # beyond float32: inf, a difference like any other
+        return a.astype(np.float32, copy=False)
 
 
 # ---------------------------------------------------------------------------
-# PNG
+# PNG (Pillow)
 # ---------------------------------------------------------------------------
-
-_PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
 
 def to_uint8(color: np.ndarray) -> np.ndarray:
@@ -126,225 +165,212 @@ def to_uint8(color: np.ndarray) -> np.ndarray:
     return np.floor(np.clip(v, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
 
 
-def _chunk(kind: bytes, data: bytes) -> bytes:
-    return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
-
-
-def encode_png(color: np.ndarray) -> bytes:
-    """8-bit RGBA PNG bytes of ``color`` (H, W, C) floats in [0, 1] (or uint8), row 0 the top."""
+def _png_writer(color: np.ndarray):
+    """A writer of the 8-bit RGBA PNG of ``color`` (H, W, C) floats in [0, 1] (or uint8 RGBA)."""
     a = np.asarray(color)
-    rgba = as_rgba(a) if a.dtype != np.uint8 else a
-    q = rgba if rgba.dtype == np.uint8 else to_uint8(rgba)
-    if q.ndim != 3 or q.shape[2] != 4:
-        q = to_uint8(as_rgba(q.astype(np.float32) / 255.0))
-    h, w = q.shape[:2]
-    raw = np.zeros((h, 1 + w * 4), np.uint8)  # filter byte 0 per row
-    raw[:, 1:] = q.reshape(h, w * 4)
-    ihdr = struct.pack(">IIBBBBB", w, h, 8, 6, 0, 0, 0)
-    return _PNG_MAGIC + _chunk(b"IHDR", ihdr) + _chunk(b"IDAT", zlib.compress(raw.tobytes(), 6)) + \
-        _chunk(b"IEND", b"")
+    q = a if a.dtype == np.uint8 and a.ndim == 3 and a.shape[2] == 4 else to_uint8(as_rgba(a))
+    image_module = _library("PIL.Image", "PNG")
+    image = image_module.fromarray(np.ascontiguousarray(q), "RGBA")
+
+    def write(fh: BinaryIO) -> None:
+        image.save(fh, format="PNG", compress_level=6)
+
+    return write
 
 
-def _unfilter(rows: np.ndarray, w: int, bpp: int) -> np.ndarray:
-    """Undo PNG row filters: ``rows`` (H, 1 + W*bpp) uint8 with the filter type first → (H, W*bpp).
+# 16-bit colour PNGs: Pillow has no 16-bit multi-channel mode and keeps the high byte of each
+# sample. Its PNG decoder unfilters with the bytes per pixel of the raw mode, so decoding the same
+# file again with a raw mode of the same width that keeps the *other* bytes is exact:
+# RGB(A);16L applied to PNG's big-endian samples keeps the low bytes, and plain RGBA (4 bytes a
+# pixel, every byte kept) reads 16-bit grey+alpha as (Y hi, Y lo, A hi, A lo).
+_PNG16_RAW = {"RGB;16B": ("RGB;16L", 3), "RGBA;16B": ("RGBA;16L", 4), "LA;16B": ("RGBA", 2)}
+# Pillow scales 1/2/4-bit grey to 0..255 but leaves a 2/4-bit image's tRNS grey key at the file's
+# bit depth (a 1-bit key it scales itself).
+_PNG_LOW_DEPTH_SCALE = {"L;2": 85, "L;4": 17}
 
-    Every filter predicts a byte from its left (a), upper (b) and upper-left (c) neighbours
-    of the *decoded* image, so pixel (x, y) depends only on pixels with a smaller x + y.
-    Decoding walks the anti-diagonals x + y = k (W + H - 1 steps), each step vectorised over
-    all rows and channels, whatever filter each row uses.
+
+def _open_png(path: Path, image_module: Any) -> Any:
+    try:
+        return image_module.open(path, formats=["PNG"])
+    except image_module.UnidentifiedImageError:
+        with open(path, "rb") as fh:
+            signed = fh.read(8) == b"\x89PNG\r\n\x1a\n"
+        raise ImageIOError("corrupt PNG file (bad header chunk)" if signed else "not a PNG file") from None
+
+
+def _decoded(image: Any, rawmode: str | None = None) -> np.ndarray:
+    """Decode ``image`` (an opened, not yet loaded PNG), optionally with another raw mode."""
+    if rawmode is not None:
+        image.tile = [tile._replace(args=rawmode) for tile in image.tile]
+    image.load()
+    return np.asarray(image)
+
+
+def _read_png(path: Path) -> np.ndarray:
+    """PNG → (H, W, 4) float32 of the stored values / (2^depth - 1); alpha 1 without one."""
+    image_module = _library("PIL.Image", "PNG")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", image_module.DecompressionBombWarning)
+            with _open_png(path, image_module) as image:
+                rawmode = image.tile[0].args if image.tile else None
+                key = image.info.get("transparency")
+                if rawmode in _PNG16_RAW:
+                    other, channels = _PNG16_RAW[rawmode]
+                    if channels == 2:  # grey+alpha: (Y hi, Y lo, A hi, A lo) in one decode
+                        every = _decoded(image, other).astype(np.uint16)
+                        words = (every[..., 0::2] << 8) | every[..., 1::2]
+                    else:  # the high bytes as Pillow reads them, then the low bytes
+                        high = _decoded(image).astype(np.uint16)
+                        with _open_png(path, image_module) as again:
+                            low = _decoded(again, other).astype(np.uint16)
+                        words = (high[..., :channels] << 8) | low[..., :channels]
+                    pix = words.astype(np.float32) / np.float32(65535.0)
+                elif image.mode == "P":
+                    pix = np.asarray(image.convert("RGBA")).astype(np.float32) / np.float32(255.0)
+                    key = None  # the palette's alpha is in the conversion
+                elif image.mode == "I;16":
+                    words = np.asarray(image).astype(np.uint16)
+                    pix = words.astype(np.float32) / np.float32(65535.0)
+                else:
+                    stored = np.asarray(image.convert("L") if image.mode == "1" else image)  # "1": bool
+                    pix = stored.astype(np.float32) / np.float32(255.0)
+                    words = stored.astype(np.uint16) if key is not None else None
+                    if rawmode in _PNG_LOW_DEPTH_SCALE and key is not None:
+                        key = int(key) * _PNG_LOW_DEPTH_SCALE[rawmode]
+    except ImageIOError:
+        raise
+    except image_module.DecompressionBombError as exc:
+        raise ImageIOError(f"PNG image too large to read ({_one_line(exc)})") from None
+    except Exception as exc:  # Pillow reports corrupt files as OSError, SyntaxError, ValueError, zlib.error...
+        raise ImageIOError(f"corrupt PNG file ({_one_line(exc)})") from None
+    rgba = as_rgba(pix)
+    if key is not None and not isinstance(key, bytes) and pix.ndim in (2, 3):
+        # tRNS colour key of a grey or RGB image: that stored value is fully transparent.
+        values = words if words.ndim == 3 else words[..., None]
+        keys = np.atleast_1d(np.asarray(key, np.int64))
+        if values.shape[2] == keys.size:
+            rgba[..., 3] = np.where(np.all(values == keys, axis=2), np.float32(0), rgba[..., 3])
+    return rgba
+
+
+# ---------------------------------------------------------------------------
+# OpenEXR (OpenEXR bindings)
+# ---------------------------------------------------------------------------
+
+
+def _exr_writer(color: np.ndarray):
+    """A writer of ``color`` (H, W, C) as ZIP-compressed 32-bit float RGBA OpenEXR (exact values)."""
+    rgba = as_rgba(color)
+    exr = _library("OpenEXR", "EXR")
+    channels = {name: np.ascontiguousarray(rgba[..., c]) for c, name in enumerate("RGBA")}
+    header = {"compression": exr.ZIP_COMPRESSION, "type": exr.scanlineimage}
+    file = exr.File(header, channels)
+
+    def write(fh: BinaryIO) -> None:
+        file.write(fh)
+
+    return write
+
+
+def exr_colour_layer(channel_names: list[str]) -> tuple[str, dict[str, str]]:
+    """Which channels of an EXR are its colour: ``(layer, {"R"|"G"|"B"|"A"|"Y": channel name})``.
+
+    A channel ``Layer.Pass.R`` belongs to layer ``Layer.Pass``; a plain ``R`` to the unnamed
+    layer ``""``. A colour layer has R, G and B, or Y (grey); A is optional (missing alpha = 1).
+    In ``channel_names`` order (the file's parts, then each part's channels), the choice is:
+    the unnamed layer; else the first layer whose last name is ``Combined`` (Blender's Combined
+    pass of the first view layer in a multilayer EXR, e.g. ``ViewLayer.Combined.R``); else the
+    first colour layer. Channel names are case-sensitive, as in OpenEXR: a file with only
+    ``r``/``g``/``b`` has no colour layer. No colour layer: ImageIOError listing the channels.
     """
-    h = rows.shape[0]
-    kinds = rows[:, 0].astype(np.int64)
-    if np.any(kinds > 4):
-        raise ImageIOError(f"bad PNG filter type {int(kinds.max())}")
-    filt = rows[:, 1:].reshape(h, w, bpp).astype(np.int64)
-    if np.all(kinds == 0):
-        return filt.astype(np.uint8).reshape(h, w * bpp)
-    # One zero row above and one zero column to the left stand for "outside the image".
-    out = np.zeros((h + 1, w + 1, bpp), dtype=np.int64)
-    ys_all = np.arange(h)
-    for k in range(w + h - 1):
-        ys = ys_all[max(0, k - w + 1):min(h, k + 1)]
-        xs = k - ys
-        a = out[ys + 1, xs]  # left
-        b = out[ys, xs + 1]  # up
-        c = out[ys, xs]  # up-left
-        kind = kinds[ys][:, None]
-        p = a + b - c
-        pa, pb, pc = np.abs(p - a), np.abs(p - b), np.abs(p - c)
-        paeth = np.where((pa <= pb) & (pa <= pc), a, np.where(pb <= pc, b, c))
-        pred = np.select([kind == 1, kind == 2, kind == 3, kind == 4], [a, b, (a + b) >> 1, paeth], 0)
-        out[ys + 1, xs + 1] = (filt[ys, xs] + pred) & 0xFF
-    return out[1:, 1:].astype(np.uint8).reshape(h, w * bpp)
+    layers: dict[str, dict[str, str]] = {}
+    for name in channel_names:
+        layer, _, suffix = name.rpartition(".")
+        if suffix in ("R", "G", "B", "A", "Y"):
+            layers.setdefault(layer, {}).setdefault(suffix, name)
+    colour = [layer for layer, found in layers.items() if {"R", "G", "B"} <= found.keys() or "Y" in found]
+    if "" in colour:
+        return "", layers[""]
+    combined = [layer for layer in colour if layer.rpartition(".")[2] == "Combined"]
+    for layer in combined + colour:
+        return layer, layers[layer]
+    shown = ", ".join(channel_names[:8]) + (f" and {len(channel_names) - 8} more" if len(channel_names) > 8 else "")
+    raise ImageIOError(f"EXR has no colour channels (R, G, B or Y, as 'R' or 'Layer.Pass.R'); "
+                       f"it has: {shown or 'no channels'}")
 
 
-def decode_png(data: bytes) -> np.ndarray:
-    """PNG bytes → (H, W, 4) float32 of the stored values / (2^depth - 1), row 0 the top."""
-    if not data.startswith(_PNG_MAGIC):
-        raise ImageIOError("not a PNG file")
-    pos, idat, palette, trns, header = 8, [], None, None, None
-    while pos + 8 <= len(data):
-        (length,) = struct.unpack(">I", data[pos:pos + 4])
-        kind = data[pos + 4:pos + 8]
-        body = data[pos + 8:pos + 8 + length]
-        pos += 12 + length
-        if kind == b"IHDR":
-            header = struct.unpack(">IIBBBBB", body)
-        elif kind == b"IDAT":
-            idat.append(body)
-        elif kind == b"PLTE":
-            palette = np.frombuffer(body, np.uint8).reshape(-1, 3)
-        elif kind == b"tRNS":
-            trns = body
-        elif kind == b"IEND":
-            break
-    if header is None:
-        raise ImageIOError("PNG without IHDR")
-    w, h, depth, ctype, _, _, interlace = header
-    channels = {0: 1, 2: 3, 3: 1, 4: 2, 6: 4}.get(ctype)
-    if channels is None or depth not in (8, 16) or (ctype == 3 and depth != 8):
-        raise ImageIOError(f"unsupported PNG (colour type {ctype}, bit depth {depth})")
-    if interlace:
-        raise ImageIOError("interlaced PNG is not supported")
-    bpp = channels * depth // 8
-    stride = w * bpp
-    raw = np.frombuffer(zlib.decompress(b"".join(idat)), np.uint8)
-    if raw.size < h * (stride + 1):
-        raise ImageIOError("truncated PNG image data")
-    rows = raw[: h * (stride + 1)].reshape(h, stride + 1)
-    out = _unfilter(rows, stride // bpp, bpp)
-    if depth == 16:
-        values = out.reshape(h, w * channels, 2).astype(np.uint32)
-        pix = ((values[..., 0] << 8) | values[..., 1]).reshape(h, w, channels).astype(np.float32) / 65535.0
-    else:
-        pix = out.reshape(h, w, channels).astype(np.float32) / 255.0
-    if ctype == 3:
-        if palette is None:
-            raise ImageIOError("palette PNG without PLTE")
-        idx = out.reshape(h, w)
-        rgba = np.ones((h, w, 4), np.float32)
-        rgba[..., :3] = palette[np.minimum(idx, len(palette) - 1)] / 255.0
-        if trns is not None:
-            alpha = np.full(256, 255, np.uint8)
-            alpha[: len(trns)] = np.frombuffer(trns, np.uint8)
-            rgba[..., 3] = alpha[idx] / 255.0
-        return rgba
-    return as_rgba(pix)
+@contextlib.contextmanager
+def _captured_output():
+    """Collect what is printed to stdout and stderr meanwhile into a list (one string).
+
+    The OpenEXR library reports a corrupt file by printing (the C core to the process's
+    stderr, the bindings to Python's ``sys.stdout``) and returning an empty file; the caller
+    turns that into one ImageIOError line. Redirects file descriptors 1 and 2 and
+    ``sys.stdout``/``sys.stderr`` for the duration: not for use while other threads print.
+    """
+    try:
+        libc = ctypes.CDLL(None)  # the C library of this process (not on Windows)
+    except (OSError, TypeError):
+        libc = None
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = [os.dup(1), os.dup(2)]
+    text: list[str] = []
+    python_text = io.StringIO()
+    with tempfile.TemporaryFile() as sink:
+        try:
+            os.dup2(sink.fileno(), 1)
+            os.dup2(sink.fileno(), 2)
+            with contextlib.redirect_stdout(python_text), contextlib.redirect_stderr(python_text):
+                yield text
+        finally:
+            if libc is not None:
+                libc.fflush(None)  # C stdio (and C++ streams synced with it) buffer when not a terminal
+            os.dup2(saved[0], 1)
+            os.dup2(saved[1], 2)
+            for fd in saved:
+                os.close(fd)
+            sink.seek(0)
+            text.append(sink.read().decode("utf-8", "replace") + python_text.getvalue())
 
 
-# ---------------------------------------------------------------------------
-# OpenEXR (scanline)
-# ---------------------------------------------------------------------------
+def _read_exr(path: Path) -> tuple[np.ndarray, str]:
+    """EXR → ((H, W, 4) float32 R, G, B, A of :func:`exr_colour_layer`'s layer, layer name).
 
-_EXR_MAGIC = struct.pack("<i", 20000630)
-_EXR_TYPES = {0: np.dtype("<u4"), 1: np.dtype("<f2"), 2: np.dtype("<f4")}
-_LINES_PER_BLOCK = {0: 1, 2: 1, 3: 16}
-
-
-def _attr(name: str, kind: str, value: bytes) -> bytes:
-    return name.encode() + b"\0" + kind.encode() + b"\0" + struct.pack("<i", len(value)) + value
-
-
-def encode_exr(color: np.ndarray) -> bytes:
-    """Uncompressed 32-bit float RGBA OpenEXR bytes (exact float32 values), row 0 the top."""
-    rgba = as_rgba(color).astype("<f4")
-    h, w = rgba.shape[:2]
-    names = ["A", "B", "G", "R"]  # channel list sorted by name, as OpenEXR requires
-    chlist = b"".join(n.encode() + b"\0" + struct.pack("<iB3xii", 2, 0, 1, 1) for n in names) + b"\0"
-    box = struct.pack("<iiii", 0, 0, w - 1, h - 1)
-    header = (_EXR_MAGIC + struct.pack("<i", 2)
-              + _attr("channels", "chlist", chlist)
-              + _attr("compression", "compression", b"\0")
-              + _attr("dataWindow", "box2i", box)
-              + _attr("displayWindow", "box2i", box)
-              + _attr("lineOrder", "lineOrder", b"\0")
-              + _attr("pixelAspectRatio", "float", struct.pack("<f", 1.0))
-              + _attr("screenWindowCenter", "v2f", struct.pack("<ff", 0.0, 0.0))
-              + _attr("screenWindowWidth", "float", struct.pack("<f", 1.0))
-              + b"\0")
-    line_bytes = w * 4 * 4
-    chunk = 8 + line_bytes
-    first = len(header) + 8 * h
-    offsets = np.arange(h, dtype="<u8") * chunk + first
-    order = [3, 2, 1, 0]  # A, B, G, R
-    planes = np.ascontiguousarray(rgba[..., order].transpose(0, 2, 1))  # (h, 4, w)
-    lines = np.empty((h, chunk), np.uint8)
-    lines[:, :8] = np.stack([np.arange(h, dtype="<i4"), np.full(h, line_bytes, "<i4")], axis=1) \
-        .view(np.uint8).reshape(h, 8)
-    lines[:, 8:] = planes.view(np.uint8).reshape(h, line_bytes)
-    return header + offsets.tobytes() + lines.tobytes()
-
-
-def _unzip_exr(block: bytes, expected: int) -> bytes:
-    t = np.frombuffer(zlib.decompress(block), np.uint8)
-    if t.size != expected:
-        raise ImageIOError("bad ZIP block size in EXR")
-    d = t.astype(np.int64)
-    d[1:] -= 128
-    t = (np.cumsum(d) & 0xFF).astype(np.uint8)
-    half = (t.size + 1) // 2
-    out = np.empty_like(t)
-    out[0::2] = t[:half]
-    out[1::2] = t[half:]
-    return out.tobytes()
-
-
-def decode_exr(data: bytes) -> np.ndarray:
-    """Scanline OpenEXR bytes → (H, W, 4) float32 (R, G, B, A; Y as grey; missing alpha = 1)."""
-    if not data.startswith(_EXR_MAGIC):
-        raise ImageIOError("not an OpenEXR file")
-    (version,) = struct.unpack("<i", data[4:8])
-    if version & 0x200 or version & 0x1000:
-        raise ImageIOError("tiled or multi-part EXR is not supported")
-    pos, attrs = 8, {}
-    while data[pos] != 0:
-        end = data.index(b"\0", pos)
-        name = data[pos:end].decode()
-        tend = data.index(b"\0", end + 1)
-        (size,) = struct.unpack("<i", data[tend + 1:tend + 5])
-        attrs[name] = data[tend + 5:tend + 5 + size]
-        pos = tend + 5 + size
-    pos += 1
-    channels = []
-    cl = attrs["channels"]
-    i = 0
-    while cl[i] != 0:
-        end = cl.index(b"\0", i)
-        name = cl[i:end].decode()
-        ptype, _, xs, ys = struct.unpack("<iB3xii", cl[end + 1:end + 17])
-        if xs != 1 or ys != 1:
-            raise ImageIOError("sub-sampled EXR channels are not supported")
-        channels.append((name, _EXR_TYPES[ptype]))
-        i = end + 17
-    compression = attrs["compression"][0]
-    if compression not in _LINES_PER_BLOCK:
-        raise ImageIOError(f"EXR compression {compression} is not supported (use NONE, ZIPS or ZIP)")
-    x0, y0, x1, y1 = struct.unpack("<iiii", attrs["dataWindow"])
-    w, h = x1 - x0 + 1, y1 - y0 + 1
-    per_block = _LINES_PER_BLOCK[compression]
-    blocks = (h + per_block - 1) // per_block
-    offsets = np.frombuffer(data, "<u8", blocks, pos)
-    line_bytes = sum(w * dt.itemsize for _, dt in channels)
-    planes = {name: np.empty((h, w), np.float32) for name, _ in channels}
-    for off in offsets.tolist():
-        y, size = struct.unpack("<ii", data[off:off + 8])
-        n = min(per_block, y1 - y + 1)
-        block = data[off + 8:off + 8 + size]
-        if size < n * line_bytes:
-            block = _unzip_exr(block, n * line_bytes)
-        for k in range(n):
-            row = y - y0 + k
-            p = k * line_bytes
-            for name, dt in channels:
-                planes[name][row] = np.frombuffer(block, dt, w, p).astype(np.float32)
-                p += w * dt.itemsize
+    Y (grey) fills R, G and B when the layer has no R; missing alpha is 1.
+    """
+    exr = _library("OpenEXR", "EXR")
+    with _captured_output() as printed:
+        try:
+            file = exr.File(os.fspath(path), separate_channels=True)
+            parts = list(file.parts)
+            channels = {name: channel for part in parts for name, channel in part.channels.items()}
+            deep = [part for part in parts if part.type() in (exr.deepscanline, exr.deeptile)]
+        except Exception as exc:  # the bindings raise RuntimeError/ValueError/TypeError on bad headers
+            reason = _one_line(exc).replace(f" '{os.fspath(path)}'", "")
+            raise ImageIOError(f"not a readable OpenEXR file ({reason})") from None
+    if not parts:  # the bindings print why the pixels did not read and return no parts
+        reason = next((line for line in printed[0].splitlines() if line.strip()), "no image parts")
+        reason = reason.removeprefix(f"{os.fspath(path)}: ")
+        raise ImageIOError(f"corrupt or truncated OpenEXR file ({' '.join(reason.split())})")
+    if deep:
+        raise ImageIOError("deep OpenEXR images are not supported")
+    layer, found = exr_colour_layer(list(channels))
+    used = [channels[name] for name in found.values()]
+    if any(ch.xSampling != 1 or ch.ySampling != 1 for ch in used):
+        raise ImageIOError(f"sub-sampled EXR channels are not supported (layer {layer or '(unnamed)'})")
+    shapes = {np.shape(ch.pixels) for ch in used}
+    if len(shapes) != 1 or len(next(iter(shapes))) != 2:
+        raise ImageIOError(f"EXR channels of layer {layer or '(unnamed)'} differ in size: {sorted(shapes)}")
+    h, w = next(iter(shapes))
     out = np.ones((h, w, 4), np.float32)
-    if "Y" in planes and "R" not in planes:
-        out[..., :3] = planes["Y"][..., None]
-    for c, name in enumerate("RGBA"):
-        if name in planes:
-            out[..., c] = planes[name]
-    return out
+    if "Y" in found and "R" not in found:
+        out[..., :3] = np.asarray(channels[found["Y"]].pixels, np.float32)[..., None]
+    for c, suffix in enumerate("RGBA"):
+        if suffix in found:
+            out[..., c] = np.asarray(channels[found[suffix]].pixels, np.float32)
+    return out, layer
 
 
 # ---------------------------------------------------------------------------

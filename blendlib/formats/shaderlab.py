@@ -1,8 +1,9 @@
-"""ShaderLab import and export (issue 6): ``.shader`` text <-> Unity material settings.
+"""ShaderLab import and export: ``.shader`` text <-> Unity material settings.
 
 Import parses the ShaderLab subset that decides render state and returns a
-:class:`ShaderLabResult` with the SPEC §3 material fields, one
-:class:`blendlib.shaderlab.Pass` per ``Pass { }`` and a list of warnings:
+:class:`ShaderLabResult`: the typed :class:`blendlib.core.vocabulary.Material`
+(one :class:`~blendlib.core.vocabulary.Pass` per ``Pass { }``, no texture image),
+a list of warnings and what else the file says (``extra``):
 
 * ``Shader "name" { ... }``; ``Properties`` (defaults of ``_Color``, ``_MainTex``,
   ``_Cutoff``, ``_AlphaScale``, any attributes such as ``[Enum(...)]``/``[Toggle]``);
@@ -34,8 +35,8 @@ book's chapter 8 shaders whose import gives back the same settings (for the
 fields a ``.shader`` file holds; the texture image, its tiling/offset and sampler
 settings belong to the Unity material and texture asset, not the shader).
 
-This module does not use bpy itself; ``main(["--export", ...])`` opens the .blend
-and reads the material through :mod:`blendlib.bridge`.
+This module does not use bpy; ``python -m blendlib shaderlab --export`` opens the
+.blend and reads the material through :mod:`blendlib.blender` (``blendlib/cli/shaderlab.py``).
 """
 
 from __future__ import annotations
@@ -50,7 +51,6 @@ from decimal import Decimal
 from typing import Any
 
 from ..core.vocabulary import (
-    ALL_CHANNELS,
     CHANNELS,
     QUEUE_NUMBERS,
     BlendFactor,
@@ -62,9 +62,10 @@ from ..core.vocabulary import (
     Pass,
     Queue,
     StencilOp,
-    TextureFilter,
-    TextureWrap,
-    color_mask_text,
+    color_mask_from_bits,
+    float32_text,
+    parse_color_mask,
+    pass_state_commands,
     pass_to_dict,
     queue_text,
 )
@@ -74,7 +75,6 @@ __all__ = [
     "ShaderLabResult",
     "canonical_pass",
     "export_shaderlab",
-    "material_from_result",
     "parse_queue",
     "parse_shaderlab",
     "parse_shaderlab_file",
@@ -336,7 +336,6 @@ _STENCILOP_BY_NUMBER = {  # UnityEngine.Rendering.StencilOp
     0: StencilOp.Keep, 1: StencilOp.Zero, 2: StencilOp.Replace, 3: StencilOp.IncrSat,
     4: StencilOp.DecrSat, 5: StencilOp.Invert, 6: StencilOp.IncrWrap, 7: StencilOp.DecrWrap,
 }
-_COLORMASK_BITS = {"A": 1, "B": 2, "G": 4, "R": 8}  # UnityEngine.Rendering.ColorWriteMask
 
 _ZTEST_WORDS = {c.value.lower(): c for c in CompareFunction} | {"off": CompareFunction.Always}
 _STENCIL_COMP_WORDS = {c.value.lower(): c for c in CompareFunction}
@@ -347,18 +346,34 @@ _STENCIL_COMP_WORDS = {c.value.lower(): c for c in CompareFunction}
 
 @dataclass(frozen=True)
 class ShaderLabResult:
-    """What a ``.shader`` file says: material fields (SPEC §3 names), passes, warnings, extras."""
+    """What a ``.shader`` file says: the material (named as the shader, no texture image), warnings, extras.
 
-    name: str
-    material: dict[str, Any]
-    passes: tuple[Pass, ...]
+    ``material.passes`` holds one pass per ``Pass { }`` (empty when the file has no
+    SubShader: the material then draws one default pass).
+    """
+
+    material: Material
     warnings: tuple[str, ...] = ()
     extra: dict[str, Any] = field(default_factory=dict)
 
+    @property
+    def name(self) -> str:
+        """The ``Shader "name"``."""
+        return self.material.name
+
+    @property
+    def passes(self) -> tuple[Pass, ...]:
+        return self.material.passes
+
     def to_dict(self) -> dict[str, Any]:
+        """The JSON of ``python -m blendlib shaderlab``: ``material`` holds the ``Material.unity``
+        fields other than the passes (``enabled`` true: an imported shader is in use)."""
+        m = self.material
+        material = {"enabled": True} | {f.name: getattr(m, f.name) for f in fields(Material)
+                                         if f.name not in ("name", "passes")}
         return {
             "name": self.name,
-            "material": _json_ready(self.material),
+            "material": _json_ready(material),
             "passes": [pass_to_dict(p) for p in self.passes],
             "warnings": list(self.warnings),
             "extra": _json_ready(self.extra),
@@ -378,29 +393,6 @@ def _json_ready(value: Any) -> Any:
     if hasattr(value, "value") and isinstance(value, str):  # str enums
         return value.value
     return value
-
-
-#: Material fields a .shader file does not hold (they belong to the Unity material / texture asset).
-NON_SHADER_FIELDS = ("main_tex", "main_tex_tiling", "main_tex_offset", "main_tex_filter", "main_tex_wrap")
-
-
-def default_material_fields() -> dict[str, Any]:
-    """The SPEC §3 material dict with defaults (``enabled`` True: an imported shader is in use)."""
-    m = Material()
-    return {
-        "enabled": True,
-        "queue": m.queue,
-        "queue_offset": m.queue_offset,
-        "color": tuple(m.color),
-        "main_tex": None,
-        "main_tex_tiling": tuple(m.main_tex_tiling),
-        "main_tex_offset": tuple(m.main_tex_offset),
-        "main_tex_filter": m.main_tex_filter,
-        "main_tex_wrap": m.main_tex_wrap,
-        "alpha_scale": m.alpha_scale,
-        "cutoff": m.cutoff,
-        "lighting": m.lighting,
-    }
 
 
 def parse_queue(text: str) -> tuple[Queue, int]:
@@ -858,10 +850,10 @@ class _Parser:
             if is_ref:
                 if raw != int(raw) or not 0 <= raw <= 15:
                     raise self.s.error(f"ColorMask value {raw:g} from the property is not 0..15", tok)
-                v["color_mask"] = frozenset(c for c, bit in _COLORMASK_BITS.items() if int(raw) & bit)
+                v["color_mask"] = color_mask_from_bits(int(raw))  # Unity's ColorWriteMask numbering
             else:
                 try:
-                    v["color_mask"] = _parse_color_mask_word(str(raw))
+                    v["color_mask"] = parse_color_mask(str(raw))
                 except ValueError as exc:
                     raise self.s.error(str(exc), tok) from None
             nxt = self.s.peek()
@@ -964,15 +956,6 @@ def _enum_words(cls) -> dict[str, Any]:
     return {m.value.lower(): m for m in cls}
 
 
-def _parse_color_mask_word(word: str) -> frozenset[str]:
-    text = word.strip().upper()
-    if text == "0":
-        return frozenset()
-    if not text or any(c not in CHANNELS for c in text) or len(set(text)) != len(text):
-        raise ValueError(f"bad ColorMask {word!r} (expected 0 or a subset of RGBA such as RGB or A)")
-    return frozenset(text)
-
-
 # --------------------------------------------------------------------------- program inspection
 
 _CG_COMMENT_RE = re.compile(r"//[^\n]*|/\*.*?\*/", re.DOTALL)
@@ -998,7 +981,7 @@ def parse_shaderlab(text: str, filename: str = "<string>") -> ShaderLabResult:
     name, head = parser.parse()
     warnings = parser.warnings
     props = parser.properties
-    material = default_material_fields()
+    material: dict[str, Any] = {}  # Material fields the file states; the others keep their defaults
 
     # Queue.
     tags = parser.subshader_tags
@@ -1103,7 +1086,7 @@ def parse_shaderlab(text: str, filename: str = "<string>") -> ShaderLabResult:
             for p in props.values()
         ],
     }
-    return ShaderLabResult(name, material, tuple(passes), tuple(warnings), extra)
+    return ShaderLabResult(Material(name=name, **material, passes=tuple(passes)), tuple(warnings), extra)
 
 
 def _bool_tag(value: str | None) -> bool | None:
@@ -1148,35 +1131,19 @@ def parse_shaderlab_file(path: str) -> ShaderLabResult:
     return parse_shaderlab(text, filename=str(path))
 
 
-def material_from_result(result: ShaderLabResult) -> Material:
-    """The :class:`blendlib.shaderlab.Material` of an import (no texture: ``main_tex`` None)."""
-    m = result.material
-    return Material(
-        name=result.name,
-        queue=m["queue"],
-        queue_offset=int(m["queue_offset"]),
-        color=tuple(float(c) for c in m["color"]),
-        main_tex=None,
-        main_tex_tiling=tuple(m["main_tex_tiling"]),
-        main_tex_offset=tuple(m["main_tex_offset"]),
-        main_tex_filter=TextureFilter.parse(m["main_tex_filter"]),
-        main_tex_wrap=TextureWrap.parse(m["main_tex_wrap"]),
-        alpha_scale=float(m["alpha_scale"]),
-        cutoff=float(m["cutoff"]),
-        lighting=Lighting.parse(m["lighting"]),
-        passes=tuple(result.passes),
-    )
-
-
 def canonical_pass(p: Pass) -> Pass:
-    """The pass as a ``.shader`` file can state it: inactive blend/stencil fields at their defaults.
+    """The pass as a ``.shader`` file can state it: inactive blend/stencil fields at their defaults,
+    offsets as the export writes them.
 
     ``Blend Off`` carries no factors, a non-separate alpha state no alpha factors and
-    a pass without ``Stencil`` no stencil values, so export then import gives back
-    ``canonical_pass(p)``; for passes edited in the UI this is ``p`` itself unless
-    fields hidden by a switched-off option were changed.
+    a pass without ``Stencil`` no stencil values; offsets are written as the shortest
+    text of their float32 (what Blender stores, :func:`float32_text`). So export then
+    import gives back ``canonical_pass(p)``; for passes edited in the UI this is ``p``
+    itself at float32 precision unless fields hidden by a switched-off option were changed.
     """
     d = Pass()
+    p = replace(p, offset_factor=float(float32_text(p.offset_factor)),
+                offset_units=float(float32_text(p.offset_units)))
     if not p.blend:
         p = replace(p, src_blend=d.src_blend, dst_blend=d.dst_blend, blend_op=d.blend_op, separate_alpha=False)
     if not p.separate_alpha:
@@ -1210,39 +1177,6 @@ _RENDER_TYPE = {
     Queue.Background: "Opaque", Queue.Geometry: "Opaque", Queue.AlphaTest: "TransparentCutout",
     Queue.Transparent: "Transparent", Queue.Overlay: "Transparent",
 }
-
-
-def _pass_state_lines(p: Pass) -> list[str]:
-    lines = [f"Cull {p.cull}", f"ZWrite {'On' if p.zwrite else 'Off'}", f"ZTest {p.ztest}"]
-    if not p.blend:
-        lines.append("Blend Off")
-    else:
-        blend = f"Blend {p.src_blend} {p.dst_blend}"
-        if p.separate_alpha:
-            blend += f", {p.src_blend_alpha} {p.dst_blend_alpha}"
-        lines.append(blend)
-        if p.separate_alpha and p.blend_op_alpha != p.blend_op:
-            lines.append(f"BlendOp {p.blend_op}, {p.blend_op_alpha}")
-        elif p.blend_op != BlendOp.Add:
-            lines.append(f"BlendOp {p.blend_op}")
-    if p.color_mask != ALL_CHANNELS:
-        lines.append(f"ColorMask {color_mask_text(p.color_mask)}")
-    if p.offset_factor or p.offset_units:
-        lines.append(f"Offset {_num(p.offset_factor)}, {_num(p.offset_units)}")
-    if p.stencil:
-        lines += [
-            "Stencil",
-            "{",
-            f"    Ref {p.stencil_ref}",
-            f"    ReadMask {p.stencil_read_mask}",
-            f"    WriteMask {p.stencil_write_mask}",
-            f"    Comp {p.stencil_comp}",
-            f"    Pass {p.stencil_pass}",
-            f"    Fail {p.stencil_fail}",
-            f"    ZFail {p.stencil_zfail}",
-            "}",
-        ]
-    return lines
 
 
 _CG_HEAD = """\
@@ -1356,7 +1290,7 @@ def export_shaderlab(material: Material, shader_name: str | None = None) -> str:
             '            Tags { "LightMode"="ForwardBase" }',
             "",
         ]
-        out += ["            " + line for line in _pass_state_lines(p)]
+        out += ["            " + line for line in pass_state_commands(p)]
         out.append("")
         program = _CG_HEAD + (_CG_ALPHA_TEST if p.alpha_test else "") + body
         out += [("            " + line) if line else "" for line in program.splitlines()]

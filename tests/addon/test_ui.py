@@ -156,3 +156,27 @@ def test_presets_menu_offers_every_preset(material):
 
     UNITY_MT_presets.draw(SimpleNamespace(layout=MenuLayout(log)), None)
     assert set(PASS_PRESETS) <= set(presets), set(PASS_PRESETS) - set(presets)
+
+
+def test_panel_preview_and_export_write_the_same_state(material):
+    """One writer of a pass's state text: the panel's preview line is the exporter's state lines
+    joined, with Offset as the shortest text of the stored float32."""
+    from addon.ui import shaderlab_preview
+    from blendlib import blender
+    from blendlib.formats.shaderlab import export_shaderlab
+
+    scene, mat = material
+    item = mat.unity.passes[1]
+    item.offset_factor, item.offset_units = 0.1234567, -2.0
+    item.stencil, item.stencil_ref, item.stencil_comp = True, 3, "Equal"
+    item.color_mask = {"R", "A"}
+    item.alpha_test = True
+    preview = shaderlab_preview(item)
+    assert preview == ("Cull Back ZWrite Off ZTest LEqual Blend SrcAlpha OneMinusSrcAlpha ColorMask RA "
+                       "Offset 0.1234567, -2 Stencil { Ref 3 ReadMask 255 WriteMask 255 Comp Equal Pass Keep "
+                       "Fail Keep ZFail Keep } clip(a - _Cutoff)")
+    text = export_shaderlab(blender.material_from_blender(mat), "X")
+    block = text[text.index('Name "Blend"'):]
+    lines = [line.strip() for line in block.splitlines()[3:10]]
+    assert " ".join(lines) + " clip(a - _Cutoff)" == preview, lines
+    assert "0.123457," not in text and "0.1234567016" not in text

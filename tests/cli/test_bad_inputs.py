@@ -212,7 +212,7 @@ def test_frame_outside_blenders_range_is_clamped_with_a_warning(blends, tmp_path
 # --------------------------------------------------------------------------- compare
 
 
-@pytest.mark.parametrize("dtype, gist", [("<U3", "holds <U3 values"), ("complex64", "holds complex64 values")])
+@pytest.mark.parametrize("dtype, gist", [("<U3", "got dtype <U3"), ("complex64", "got dtype complex64")])
 def test_compare_refuses_arrays_that_are_not_real_numbers(tmp_path, dtype, gist):
     a = tmp_path / "a.npy"
     b = tmp_path / "b.npy"

@@ -1,4 +1,4 @@
-"""``python -m blendlib``: render/compare outputs, exit codes and one-line errors (SPEC §5, §6)."""
+"""``python -m blendlib``: render/compare outputs, exit codes and one-line errors (README "Command line")."""
 
 from __future__ import annotations
 

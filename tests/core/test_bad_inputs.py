@@ -1,4 +1,4 @@
-"""Bad input to the core (SPEC §6): skipped with a warning, or refused with a one-line SceneError."""
+"""Bad input to the core: skipped with a warning, or refused with a one-line SceneError."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""SPEC §7 reference 2: the renderer against real OpenGL (moderngl, EGL, Mesa llvmpipe).
+"""Reference 2 (tests/reference/glref.py): the renderer against real OpenGL (moderngl, EGL, Mesa llvmpipe).
 
 Every check runs twice: for the scalar reference (``tests/reference/scalar.py``: this
 cross-checks the reference and GL against each other) and for the vectorised core

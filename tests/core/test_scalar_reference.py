@@ -1,4 +1,4 @@
-"""SPEC §7 reference 1: the vectorised core equals the scalar reference bit for bit.
+"""Reference 1 (tests/reference/scalar.py): the vectorised core equals the scalar reference bit for bit.
 
 ``tests/reference/scalar.py`` is docs/pipeline.md written one fragment at a time in
 plain Python. Random scenes (hypothesis) and every structured state sweep must give

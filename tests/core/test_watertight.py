@@ -1,4 +1,4 @@
-"""Watertightness: a pixel on an edge shared by two triangles is covered exactly once (SPEC §4).
+"""Watertightness: a pixel on an edge shared by two triangles is covered exactly once (docs/pipeline.md §4).
 
 Counting set-ups: HDR Additive of a constant 1/8 (exact in float32, so n coverages
 give exactly n/8) and a stencil ``IncrWrap`` counter. A closed convex mesh seen from

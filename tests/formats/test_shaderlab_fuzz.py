@@ -21,7 +21,6 @@ from blendlib.formats.shaderlab import (
     MAX_NESTING,
     ShaderLabError,
     export_shaderlab,
-    material_from_result,
     parse_shaderlab,
 )
 from tests.formats.test_shaderlab import RAW, cleaned
@@ -89,7 +88,7 @@ def _check(text: str) -> None:
         return
     data = json.loads(result.to_json(), parse_constant=_reject_constant)
     assert isinstance(data["passes"], list), data
-    material = material_from_result(result)
+    material = result.material
     assert all(map(float.__eq__, material.color, material.color))  # finite: NaN != NaN
     assert all(abs(c) < float("inf") for c in material.color)
     for p in material.passes:
@@ -165,13 +164,13 @@ def test_non_finite_material_defaults_are_errors(prop):
 def test_constant_colour_expressions_in_cg_do_not_crash():
     body = "CGPROGRAM\nfixed4 frag() : SV_Target { return fixed4(1-0.5,0,0,1); }\nENDCG"
     result = parse_shaderlab(_PASS % ("1", body), filename=FILENAME)
-    assert result.material["color"] == (1.0, 1.0, 1.0, 1.0)  # an expression is not a constant colour
+    assert result.material.color == (1.0, 1.0, 1.0, 1.0)  # an expression is not a constant colour
     body = "CGPROGRAM\nfixed4 frag() : SV_Target { return fixed4(0.5h, .25, 1e0f, 1); }\nENDCG"
     result = parse_shaderlab(_PASS % ("1", body), filename=FILENAME)
-    assert result.material["color"] == (0.5, 0.25, 1.0, 1.0)
+    assert result.material.color == (0.5, 0.25, 1.0, 1.0)
     body = "CGPROGRAM\nfixed4 frag() : SV_Target { return fixed4(1e999, 0, 0, 1); }\nENDCG"
     result = parse_shaderlab(_PASS % ("1", body), filename=FILENAME)
-    assert result.material["color"] == (1.0, 1.0, 1.0, 1.0)
+    assert result.material.color == (1.0, 1.0, 1.0, 1.0)
     json.loads(result.to_json(), parse_constant=_reject_constant)
 
 

@@ -1,1 +1,2 @@
-"""Independent reference implementations the vectorised core is checked against (SPEC §7)."""
+"""Independent reference implementations the vectorised core is checked against
+(README "How correctness is checked")."""

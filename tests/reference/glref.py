@@ -1,4 +1,4 @@
-"""The real-GPU reference (SPEC §7, reference 2): a draw scene rendered through OpenGL.
+"""The real-GPU reference (README "How correctness is checked"): a draw scene rendered through OpenGL.
 
 The same draw list as the core, drawn with OpenGL's own fixed-function state on
 Mesa's llvmpipe through a headless EGL context (moderngl). Everything the core does
@@ -28,7 +28,7 @@ GL_FRAMEBUFFER_SRGB for Linear LDR, RGBA32F for HDR) and a DEPTH24_STENCIL8
 renderbuffer. moderngl only provides the context, programs, buffers and textures.
 
 This module is free of bpy; moderngl is imported lazily (``pip install
-unity-passes-for-blender[reference]``).
+blendlib[reference]``).
 """
 
 from __future__ import annotations
@@ -341,6 +341,7 @@ class GLRenderer:
         self.hdr = bool(scene.hdr)
         self.linear = scene.color_space is ColorSpace.Linear
         self._resources = []
+        self._query = None  # one occlusion query, reused for every draw
 
         # Framebuffer: colour texture + DEPTH24_STENCIL8 renderbuffer on a raw FBO.
         import moderngl
@@ -370,10 +371,13 @@ class GLRenderer:
 
         # Draw calls: (vao, vertex count, mirrored, texture, uniforms, pass).
         self.calls = []
+        self.call_numbers = []  # the 1-based draw-call number (SPEC §8) of each entry of ``calls``
+        number = 0
         for r in draw_order(scene):
             data, mirrored, skipped = vertex_data(scene, r)
             if skipped:
                 self.warnings.append(f"object {r.name!r} slot {r.slot}: {skipped} non-finite triangle(s) skipped")
+            number += len(r.material.draw_passes)
             if len(data) == 0:
                 continue
             vbo = ctx.buffer(data.tobytes())
@@ -396,8 +400,9 @@ class GLRenderer:
                 "cutoff": float(mat.cutoff), "lambert": mat.lighting is Lighting.Lambert,
                 "has_tex": tex is not None, "ambient": sh.ambient, "light": sh.light, "ldir": sh.ldir,
             }
-            for p in mat.draw_passes:
+            for k, p in enumerate(mat.draw_passes):
                 self.calls.append((vao, len(data), mirrored, tex, uniforms, p))
+                self.call_numbers.append(number - len(mat.draw_passes) + k + 1)
 
         clear = np.asarray(scene.clear_color, np.float64)
         if self.linear:
@@ -451,8 +456,12 @@ class GLRenderer:
         else:
             gl.Disable(GL_FRAMEBUFFER_SRGB)
 
-    def render(self, max_calls: int | None = None) -> None:
-        """Clear and issue every draw call (or the first ``max_calls``); no readback, no wait."""
+    def render(self, max_calls: int | None = None, samples: dict | None = None) -> None:
+        """Clear and issue every draw call (or those numbered up to ``max_calls``, SPEC §8 numbering:
+        renderers with no triangles count); no readback, no wait.
+
+        ``samples``: a dict that receives, per draw-call number, the samples that passed the
+        depth and stencil tests (an occlusion query, GL_SAMPLES_PASSED, around the draw)."""
         gl = self.gl
         self._bind()
         gl.ColorMask(1, 1, 1, 1)
@@ -463,7 +472,9 @@ class GLRenderer:
         gl.ClearStencil(0)
         gl.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT | GL_STENCIL_BUFFER_BIT)
         prog = self.program
-        for vao, count, mirrored, tex, uniforms, p in self.calls[:max_calls]:
+        for number, (vao, count, mirrored, tex, uniforms, p) in zip(self.call_numbers, self.calls, strict=True):
+            if max_calls is not None and number > max_calls:
+                break
             for name, value in uniforms.items():
                 if name in prog:
                     prog[name].value = value
@@ -475,7 +486,14 @@ class GLRenderer:
                     prog["tex"].value = 0
             self._bind()
             self._set_pass(p, mirrored)
-            vao.render(vertices=count)
+            if samples is None:
+                vao.render(vertices=count)
+                continue
+            if self._query is None:
+                self._query = self.ctx.query(samples=True)
+            with self._query:
+                vao.render(vertices=count)
+            samples[number] = self._query.samples
         gl.check("drawing")
 
     def finish(self) -> None:

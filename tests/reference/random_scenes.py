@@ -37,6 +37,7 @@ from blendlib.core.vocabulary import (
     Texture,
     TextureFilter,
     TextureWrap,
+    pass_state_text,
 )
 
 from .scenes import look_at, make_mesh, orthographic, perspective
@@ -237,5 +238,5 @@ def describe(scene: DrawScene) -> str:
                      f"tex={None if mat.main_tex is None else mat.main_tex.pixels.shape} "
                      f"{mat.main_tex_filter} {mat.main_tex_wrap} cutoff={mat.cutoff}")
         for p in mat.draw_passes:
-            lines.append(f"  pass {p.shaderlab()}")
+            lines.append(f"  pass {pass_state_text(p)}")
     return "\n".join(lines)

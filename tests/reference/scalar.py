@@ -1,6 +1,6 @@
 """The scalar reference renderer: docs/pipeline.md in plain Python, one fragment at a time.
 
-This is the specification written as code (SPEC §7, reference 1). Every value is a
+This is the specification written as code (README "How correctness is checked", reference 1). Every value is a
 Python float (IEEE float64) or int; each sum is written in the evaluation order the
 page prescribes, ``(a + b) + c``, so the vectorised core must match it bit for bit.
 numpy is used only to read the input arrays (converted to Python numbers first) and
@@ -346,6 +346,7 @@ class Buffers:
         self.color = [[list(stored) for _ in range(self.W)] for _ in range(self.H)]
         self.depth = [[DMAX] * self.W for _ in range(self.H)]
         self.stencil = [[0] * self.W for _ in range(self.H)]
+        self.collect: list | None = None  # sorted reference: fragments kept instead of merged
 
     def store(self, rgba: list) -> list:
         """Shading-space rgba → the stored representation (§8 'write')."""
@@ -401,11 +402,38 @@ class Buffers:
 # ---------------------------------------------------------------- the frame
 
 
-def render_reference(scene: DrawScene, warnings: list | None = None, max_calls: int | None = None):
+class FragmentLog:
+    """What :func:`render_reference` did, for the frame debugger's tests.
+
+    ``fragments``: one tuple per rasterised fragment, in the order applied:
+    ``(draw, x, y, triangle, depth_code, rgba, result)`` with ``draw`` the 1-based draw call,
+    ``y`` the window row (0 = bottom), ``triangle`` the index in the renderer's mesh, ``rgba``
+    the shader's output (shading space) and ``result`` one of ``written``, ``alpha_test``,
+    ``stencil``, ``depth``. ``triangles``: per draw call, the source triangles drawn (some
+    clipped piece neither culled nor of zero area).
+    """
+
+    def __init__(self) -> None:
+        self.fragments: list[tuple] = []
+        self.triangles: dict[int, int] = {}
+
+    def counts(self) -> dict[int, tuple[int, int]]:
+        """Per draw call: (fragments rasterised, fragments written)."""
+        out: dict[int, list[int]] = {}
+        for draw, *_, result in self.fragments:
+            c = out.setdefault(draw, [0, 0])
+            c[0] += 1
+            c[1] += result == "written"
+        return {k: (v[0], v[1]) for k, v in out.items()}
+
+
+def render_reference(scene: DrawScene, warnings: list | None = None, max_calls: int | None = None,
+                     log: FragmentLog | None = None):
     """Render ``scene`` fragment by fragment; returns ``(color, depth, stencil)`` (row 0 = top).
 
     Warnings (skipped triangles, empty meshes) are appended to ``warnings`` when given;
-    ``max_calls`` stops after that many draw calls (for locating a disagreement).
+    ``max_calls`` stops after that many draw calls (for locating a disagreement);
+    ``log`` (a :class:`FragmentLog`) receives every fragment and the triangles per draw.
     """
     found = validate_scene(scene)
     if warnings is not None:
@@ -413,13 +441,13 @@ def render_reference(scene: DrawScene, warnings: list | None = None, max_calls: 
     buf = Buffers(scene)
     cam = scene.camera
     V, P = to_list(cam.view_matrix), to_list(cam.projection)
-    budget = [math.inf if max_calls is None else max_calls]
+    budget = [math.inf if max_calls is None else max_calls, 0]  # draws left, draws done
     for r in draw_list(scene):
-        draw_renderer(scene, r, V, P, buf, warnings, budget)
+        draw_renderer(scene, r, V, P, buf, warnings, budget, log)
     return buf.arrays()
 
 
-def draw_renderer(scene, r, V, P, buf: Buffers, warnings, budget) -> None:
+def draw_renderer(scene, r, V, P, buf: Buffers, warnings, budget, log: FragmentLog | None = None) -> None:
     M = to_list(r.matrix_world)
     MVP = matmul4(P, matmul4(V, M))
     m = [row[:3] for row in M[:3]]
@@ -456,7 +484,7 @@ def draw_renderer(scene, r, V, P, buf: Buffers, warnings, budget) -> None:
         uv = uvs[t] if uvs is not None else [[0.0, 0.0]] * 3
         unit = ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0])
         verts = [clips[k] + list(unit[k]) for k in range(3)]
-        prims.append((clip_triangle(verts), uv, nws))
+        prims.append((t, clip_triangle(verts), uv, nws))
     if skipped and warnings is not None:
         warnings.append(f"object {r.name!r} slot {r.slot}: {skipped} non-finite triangle(s) skipped")
 
@@ -465,12 +493,23 @@ def draw_renderer(scene, r, V, P, buf: Buffers, warnings, budget) -> None:
         if budget[0] <= 0:
             return
         budget[0] -= 1
-        for tris, uv, nws in prims:
+        budget[1] += 1
+        where = None if log is None else [budget[1], 0]
+        drawn = 0
+        for t, tris, uv, nws in prims:
+            if where is not None:
+                where[1] = t
+            hit = False
             for tri in tris:
-                raster_triangle(tri, uv, nws, mirrored, p, shader, buf)
+                hit = raster_triangle(tri, uv, nws, mirrored, p, shader, buf, log, where) or hit
+            drawn += hit
+        if log is not None:
+            log.triangles[budget[1]] = drawn
 
 
-def raster_triangle(tri, uv, nws, mirrored: bool, p, shader: Shader, buf: Buffers) -> None:
+def raster_triangle(tri, uv, nws, mirrored: bool, p, shader: Shader, buf: Buffers,
+                    log: FragmentLog | None = None, where: list | None = None) -> bool:
+    """Rasterise one (clipped) triangle; returns whether it was drawn (not culled, not zero-area)."""
     W, H = buf.W, buf.H
     # §3 viewport and snapping
     win = []
@@ -486,10 +525,10 @@ def raster_triangle(tri, uv, nws, mirrored: bool, p, shader: Shader, buf: Buffer
     # §4 setup and culling
     area2 = (X1 - X0) * (Y2 - Y0) - (X2 - X0) * (Y1 - Y0)
     if area2 == 0:
-        return
+        return False
     front = (area2 > 0) != mirrored
     if (p.cull is Cull.Back and not front) or (p.cull is Cull.Front and front):
-        return
+        return False
     order = (0, 1, 2) if area2 > 0 else (0, 2, 1)
     a, b, c = (win[k] for k in order)
     Xa, Ya, Xb, Yb, Xc, Yc = a[0], a[1], b[0], b[1], c[0], c[1]
@@ -536,7 +575,8 @@ def raster_triangle(tri, uv, nws, mirrored: bool, p, shader: Shader, buf: Buffer
                 bw = (ba, bb, bc)
             else:  # order (v0, v2, v1): a = v0, b = v2, c = v1
                 bw = (ba, bc, bb)
-            fragment(px, py, bw, win, zws, bias, use_offset, uv, nws, p, shader, buf)
+            fragment(px, py, bw, win, zws, bias, use_offset, uv, nws, p, shader, buf, log, where)
+    return True
 
 
 def lerp3(o: list, corners: list, n: int) -> list:
@@ -546,7 +586,8 @@ def lerp3(o: list, corners: list, n: int) -> list:
     return [(o[0] * corners[0][c] + o[1] * corners[1][c]) + o[2] * corners[2][c] for c in range(n)]
 
 
-def fragment(px, py, bw, win, zws, bias, use_offset, uv, nws, p, shader: Shader, buf: Buffers) -> None:
+def fragment(px, py, bw, win, zws, bias, use_offset, uv, nws, p, shader: Shader, buf: Buffers,
+             log: FragmentLog | None = None, where: list | None = None) -> None:
     b0, b1, b2 = bw
     # §5 depth
     z = (b0 * zws[0] + b1 * zws[1]) + b2 * zws[2]
@@ -565,8 +606,20 @@ def fragment(px, py, bw, win, zws, bias, use_offset, uv, nws, p, shader: Shader,
     # §7 shading and alpha test
     rgba = shader.shade(uvf, nwf)
     if p.alpha_test and rgba[3] - shader.cutoff < 0:
+        result = "alpha_test"
+    elif buf.collect is not None:  # sorted reference, step 2: kept for the per-pixel sort
+        if p.color_mask:
+            buf.collect.append((py, px, d, len(buf.collect), rgba, p))
         return
-    # §8 output merger
+    else:
+        result = merge_fragment(px, py, d, rgba, p, buf)
+    if log is not None:
+        log.fragments.append((where[0], px, py, where[1], d, rgba, result))
+
+
+def merge_fragment(px: int, py: int, d: int, rgba: list, p, buf: Buffers) -> str:
+    """§8 output merger for one fragment at window pixel (px, py) with depth code ``d``;
+    returns ``written`` or the test that discarded it (``stencil``, ``depth``)."""
     s_old = buf.stencil[py][px]
     if p.stencil:
         ref, rm, wm = p.stencil_ref, p.stencil_read_mask, p.stencil_write_mask
@@ -576,13 +629,51 @@ def fragment(px, py, bw, win, zws, bias, use_offset, uv, nws, p, shader: Shader,
 
         if not compare(p.stencil_comp, ref & rm, s_old & rm):
             apply(p.stencil_fail)
-            return
+            return "stencil"
     if not compare(p.ztest, d, buf.depth[py][px]):
         if p.stencil:
             apply(p.stencil_zfail)
-        return
+        return "depth"
     if p.stencil:
         apply(p.stencil_pass)
     if p.zwrite:
         buf.depth[py][px] = d
     buf.write_color(px, py, p, rgba)
+    return "written"
+
+
+# ---------------------------------------------------------------- SPEC §9 sorted reference
+
+
+def render_sorted_reference(scene: DrawScene):
+    """SPEC §9's sorted reference, one fragment at a time; returns ``(color, depth, stencil)``.
+
+    Queues up to 2500 draw as usual; every fragment of queues 2501..3999 that survives culling
+    and the alpha test (passes with ColorMask 0 left out: they write nothing) is kept, then
+    the kept fragments are merged pixel by pixel far to near (larger depth code first; ties in
+    draw order, then primitive order) with their pass state and no depth writes; Overlay
+    (4000 and up) draws last as usual.
+    """
+    from dataclasses import replace
+
+    validate_scene(scene)
+    buf = Buffers(scene)
+    cam = scene.camera
+    V, P = to_list(cam.view_matrix), to_list(cam.projection)
+    budget = [math.inf, 0]
+    renderers = draw_list(scene)
+    sorted_range = [r for r in renderers if LAST_OPAQUE_QUEUE < r.material.render_queue < 4000]
+    for r in renderers:
+        if r.material.render_queue <= LAST_OPAQUE_QUEUE:
+            draw_renderer(scene, r, V, P, buf, None, budget)
+    buf.collect = []
+    for r in sorted_range:
+        draw_renderer(scene, r, V, P, buf, None, budget)
+    kept, buf.collect = buf.collect, None
+    kept.sort(key=lambda f: (f[0], f[1], -f[2], f[3]))  # pixel, far first, then arrival order
+    for py, px, d, _, rgba, p in kept:
+        merge_fragment(px, py, d, rgba, replace(p, zwrite=False), buf)
+    for r in renderers:
+        if r.material.render_queue >= 4000:
+            draw_renderer(scene, r, V, P, buf, None, budget)
+    return buf.arrays()

@@ -62,14 +62,12 @@ def add_cube(name: str, size: float = 2.0, location=(0.0, 0.0, 0.0), material=No
 
 
 def unlit_material(name: str, color=(1.0, 0.0, 0.0, 1.0), **unity):
-    """A material with Unity settings stored; works with the add-on registered or not."""
+    """A material with Unity settings stored (through the schema's writer); works with the add-on
+    registered or not. ``unity``: more ``Material.unity`` values by name."""
+    from blendlib.blender import write_material
+
     mat = bpy.data.materials.new(name)
-    if hasattr(mat, "unity"):
-        mat.unity.enabled = True
-        mat.unity.lighting = "Unlit"
-        mat.unity.color = color
-        for key, value in unity.items():
-            setattr(mat.unity, key, value)
+    write_material(mat, enabled=True, lighting="Unlit", color=tuple(color), **unity)
     return mat
 
 

@@ -1,0 +1,75 @@
+"""Operators: analyse the scene's sorting; apply a suggested queue offset or sort setting."""
+
+from __future__ import annotations
+
+import json
+
+import bpy
+
+from .properties import store
+
+
+class UNITY_OT_sort_analyze(bpy.types.Operator):
+    """Render the frame and its per-fragment sorted reference; list the objects drawn out of order"""
+
+    bl_idname = "unity.sort_analyze"
+    bl_label = "Analyze Sorting"
+    bl_options = {"REGISTER"}
+
+    def execute(self, context):
+        import blendlib
+        from blendlib.core.pipeline import RenderCancelled
+        from blendlib.core.scene import SceneError
+
+        try:
+            analysis = blendlib.analyze(context.scene)
+        except (SceneError, RenderCancelled) as exc:
+            self.report({"ERROR"}, f"Unity Passes: {exc}")
+            return {"CANCELLED"}
+        results = context.window_manager.unity_sort_results
+        store(results, analysis)
+        self.report({"INFO"}, f"Unity Passes: {results.summary}; {len(results.items)} inverted pairs")
+        return {"FINISHED"}
+
+
+class UNITY_OT_sort_apply_advice(bpy.types.Operator):
+    """Apply the selected inversion's suggested queue offset or sort setting"""
+
+    bl_idname = "unity.sort_apply_advice"
+    bl_label = "Apply Advice"
+    bl_options = {"REGISTER", "UNDO"}
+
+    index: bpy.props.IntProperty(name="Index", description="Row of the inversion list (-1: the selected row)",
+                                 default=-1)
+
+    @classmethod
+    def poll(cls, context):
+        results = getattr(context.window_manager, "unity_sort_results", None)
+        return results is not None and any(row.change for row in results.items)
+
+    def execute(self, context):
+        results = context.window_manager.unity_sort_results
+        index = results.active_index if self.index < 0 else self.index
+        if not 0 <= index < len(results.items) or not results.items[index].change:
+            self.report({"ERROR"}, "Unity Passes: this inversion has no setting to apply (self-overlap: "
+                                   "use the 'Alpha Blend ZWrite' preset, split the mesh or sort its faces)")
+            return {"CANCELLED"}
+        change = json.loads(results.items[index].change)
+        if "material" in change:
+            mat = bpy.data.materials.get(change["material"])
+            if mat is None or not hasattr(mat, "unity"):
+                self.report({"ERROR"}, f"Unity Passes: material {change['material']!r} not found")
+                return {"CANCELLED"}
+            mat.unity.queue_offset = int(change["queue_offset"])
+            done = f"material {mat.name!r}: queue offset {mat.unity.queue_offset}"
+        else:
+            unity = context.scene.unity
+            unity.sort_mode = change["sort_mode"]
+            if "sort_axis" in change:
+                unity.sort_axis = change["sort_axis"]
+            done = f"scene sort mode {unity.sort_mode}"
+        self.report({"INFO"}, f"Unity Passes: {done} (run Analyze Sorting again to check)")
+        return {"FINISHED"}
+
+
+CLASSES = (UNITY_OT_sort_analyze, UNITY_OT_sort_apply_advice)

@@ -1,0 +1,311 @@
+"""The viewport's Rendered shading: a view's matrices → Camera, and rendering off the main thread.
+
+- :func:`camera_from_matrices` / :func:`render_view`: a Frame through any 4x4 view and
+  projection matrices (the viewport's own view, SPEC §10).
+- :func:`region_view`: what a 3D viewport region shows (through the scene camera in camera
+  view, the camera frame only; otherwise the region's view and window matrices).
+- :class:`ViewportScheduler`: one worker thread that renders the newest request, a reduced
+  frame first and then the full one, and drops stale work as soon as a newer request comes.
+
+Only :func:`render_view`, :func:`region_view` and :func:`extract_template` touch bpy (imported
+inside them); the scheduler works on bpy-free :class:`DrawScene` values, because bpy is not
+thread-safe: the add-on extracts on the main thread and hands the result to the worker.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import threading
+from collections.abc import Callable, Hashable
+from typing import Any
+
+import numpy as np
+
+from ..core import pipeline
+from ..core.pipeline import Frame, RenderCancelled
+from ..core.scene import Camera, DrawScene, SceneError
+
+#: The reduced frame is 1/REDUCED_FACTOR of the full one per side (1/16 of the pixels).
+REDUCED_FACTOR = 4
+#: Frames of at most this many pixels are rendered at full size at once (no reduced frame first).
+REDUCED_MIN_PIXELS = 128 * 128
+
+#: The camera the viewport template is extracted with; :meth:`ViewportScheduler.submit` replaces it.
+PLACEHOLDER_CAMERA = Camera(view_matrix=np.eye(4), projection=np.eye(4), width=1, height=1)
+
+
+def as_matrix(m: Any, name: str) -> np.ndarray:
+    """A 4x4 float64 array of a ``mathutils.Matrix`` or anything numpy accepts; SceneError otherwise."""
+    try:
+        arr = np.array([list(row) for row in m], dtype=np.float64) if hasattr(m, "row") else \
+            np.asarray(m, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise SceneError(f"{name}: not a 4x4 matrix") from None
+    if arr.shape != (4, 4) or not np.all(np.isfinite(arr)):
+        raise SceneError(f"{name}: must be a finite 4x4 matrix, got shape {arr.shape}")
+    return arr
+
+
+def is_orthographic(projection: np.ndarray) -> bool:
+    """A projection whose bottom row is (0, 0, 0, 1) is orthographic (w stays 1)."""
+    return bool(np.array_equal(np.asarray(projection, np.float64)[3], [0.0, 0.0, 0.0, 1.0]))
+
+
+def camera_from_matrices(view_matrix: Any, projection_matrix: Any, width: int, height: int) -> Camera:
+    """The :class:`Camera` of a view: world → view ``view_matrix``, view → clip ``projection_matrix``.
+
+    The sort position is the inverse view matrix's translation (:attr:`Camera.position`);
+    orthographic when the projection's bottom row is (0, 0, 0, 1); near/far are those
+    the projection encodes; pixel aspect 1.
+    """
+    view = as_matrix(view_matrix, "view_matrix")
+    proj = as_matrix(projection_matrix, "projection_matrix")
+    if isinstance(width, bool) or isinstance(height, bool) or not (
+            isinstance(width, (int, np.integer)) and isinstance(height, (int, np.integer))):
+        raise SceneError(f"view size must be integers, got {width!r}x{height!r}")
+    if abs(np.linalg.det(view)) < 1e-300:
+        raise SceneError("view_matrix is singular")
+    return Camera(view_matrix=view, projection=proj, width=int(width), height=int(height),
+                  orthographic=is_orthographic(proj))
+
+
+def extract_template(scene: Any = None, depsgraph: Any = None) -> DrawScene:
+    """The scene as the viewport shows it (viewport visibility and modifiers), camera left open.
+
+    The returned DrawScene carries :data:`PLACEHOLDER_CAMERA`; put a view's camera in with
+    ``dataclasses.replace(template, camera=...)``. Runs on the main thread (bpy).
+    """
+    from .extract import build_draw_scene
+
+    return build_draw_scene(scene, depsgraph, camera=PLACEHOLDER_CAMERA, visibility="viewport")
+
+
+def render_view(scene: Any, view_matrix: Any, projection_matrix: Any, width: int, height: int, *,
+                depsgraph: Any = None, progress: Callable[[float], None] | None = None,
+                should_cancel: Callable[[], bool] | None = None) -> Frame:
+    """Render ``scene`` (a ``bpy.types.Scene``; None: the context scene) through a view's 4x4 matrices.
+
+    Returns the :class:`Frame` a camera with those matrices would give at ``width`` x ``height``
+    (see :func:`camera_from_matrices`), with objects and modifiers as the viewport shows them.
+    The scene needs no camera, and its camera, resolution and frame are left unchanged.
+    """
+    camera = camera_from_matrices(view_matrix, projection_matrix, width, height)
+    draw = dataclasses.replace(extract_template(scene, depsgraph), camera=camera)
+    frame = pipeline.render_scene(draw, progress=progress, should_cancel=should_cancel)
+    frame.warnings[:0] = [w for w in draw.warnings if w not in frame.warnings]
+    return frame
+
+
+# ---------------------------------------------------------------------------------------------
+# What a viewport region shows
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclasses.dataclass(frozen=True)
+class ViewRequest:
+    """One view of a viewport region: the camera to render and where to draw it.
+
+    ``x``, ``y``, ``width``, ``height``: the rectangle in region pixels (origin bottom-left) the
+    frame covers — the whole region, or the camera frame in camera view. ``key``: hashable,
+    equal for equal views (a changed key means the view changed).
+    """
+
+    camera: Camera
+    x: int
+    y: int
+    width: int
+    height: int
+
+    @property
+    def key(self) -> Hashable:
+        c = self.camera
+        return (c.view_matrix.tobytes(), c.projection.tobytes(), c.width, c.height, self.x, self.y)
+
+
+def free_view(view_matrix: Any, window_matrix: Any, width: int, height: int) -> ViewRequest:
+    """The region's own view: its view matrix and window (projection) matrix, which carries the
+    viewport's clip start/end, over the whole region."""
+    width, height = max(int(width), 1), max(int(height), 1)
+    return ViewRequest(camera_from_matrices(view_matrix, window_matrix, width, height), 0, 0, width, height)
+
+
+def camera_frame_rect(frame_corners_world: np.ndarray, perspective_matrix: Any, width: int,
+                      height: int) -> tuple[int, int, int, int]:
+    """(x, y, w, h) in region pixels of the camera frame whose four world-space corners are given
+    (``Camera.view_frame`` transformed by the camera's world matrix), as the region shows it
+    through ``perspective_matrix`` (window @ view) at ``width`` x ``height``."""
+    pm = as_matrix(perspective_matrix, "perspective_matrix")
+    pts = np.c_[np.asarray(frame_corners_world, np.float64), np.ones(len(frame_corners_world))] @ pm.T
+    w = np.where(np.abs(pts[:, 3]) < 1e-12, 1e-12, pts[:, 3])
+    px = (pts[:, 0] / w * 0.5 + 0.5) * width
+    py = (pts[:, 1] / w * 0.5 + 0.5) * height
+    x0, x1 = math.floor(px.min() + 0.5), math.floor(px.max() + 0.5)
+    y0, y1 = math.floor(py.min() + 0.5), math.floor(py.max() + 0.5)
+    return x0, y0, max(x1 - x0, 1), max(y1 - y0, 1)
+
+
+#: A zoomed-in camera frame larger than the region renders at most this many times the region's size.
+MAX_CAMERA_FRAME_SCALE = 2.0
+
+
+def region_view(scene: Any, depsgraph: Any, region: Any, region_data: Any) -> ViewRequest:
+    """What a 3D viewport region shows: through the scene camera in camera view (the camera frame
+    only, with the camera's own projection as F12 computes it), else the region's view.
+
+    ``region`` needs ``width``/``height``; ``region_data`` ``view_matrix``, ``window_matrix``,
+    ``perspective_matrix`` and ``view_perspective`` (a ``bpy.types.RegionView3D`` has them).
+    """
+    width, height = max(int(region.width), 1), max(int(region.height), 1)
+    cam_obj = getattr(scene, "camera", None)
+    if region_data.view_perspective != "CAMERA" or cam_obj is None or cam_obj.type != "CAMERA":
+        return free_view(region_data.view_matrix, region_data.window_matrix, width, height)
+    from .extract import _matrix, render_size
+
+    cam_eval = cam_obj.evaluated_get(depsgraph)
+    world = _matrix(cam_eval.matrix_world)
+    corners = np.array([list(v) for v in cam_eval.data.view_frame(scene=scene)], np.float64)
+    corners_world = (np.c_[corners, np.ones(4)] @ world.T)[:, :3]
+    x, y, w, h = camera_frame_rect(corners_world, region_data.perspective_matrix, width, height)
+    scale = min(1.0, MAX_CAMERA_FRAME_SCALE * width / w, MAX_CAMERA_FRAME_SCALE * height / h)
+    rw, rh = max(int(w * scale), 1), max(int(h * scale), 1)
+    r = scene.render
+    rx, ry = render_size(scene)
+    proj = cam_eval.calc_matrix_camera(depsgraph, x=rx, y=ry, scale_x=float(r.pixel_aspect_x),
+                                       scale_y=float(r.pixel_aspect_y))
+    camera = Camera(view_matrix=np.linalg.inv(world), projection=_matrix(proj), width=rw, height=rh,
+                    orthographic=cam_eval.data.type == "ORTHO")
+    return ViewRequest(camera, x, y, w, h)
+
+
+# ---------------------------------------------------------------------------------------------
+# Rendering off the main thread
+# ---------------------------------------------------------------------------------------------
+
+
+def reduced_size(width: int, height: int, factor: int = REDUCED_FACTOR,
+                 min_pixels: int = REDUCED_MIN_PIXELS) -> tuple[int, int] | None:
+    """The size of the quick first frame (each side divided by ``factor``, rounded up), or None
+    when the full frame is small enough to come first."""
+    if factor <= 1 or width * height <= min_pixels:
+        return None
+    return -(-width // factor), -(-height // factor)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class ViewFrame:
+    """A finished viewport frame: the Frame, the request key it answers, and whether it is full size."""
+
+    frame: Frame
+    key: Hashable
+    full: bool
+
+
+class ViewportScheduler:
+    """Renders the newest submitted DrawScene on one worker thread: reduced frame, then full.
+
+    ``submit`` cancels whatever is running or waiting (the render's ``should_cancel`` turns True,
+    so it stops between chunks) and queues the new scene. Each finished frame becomes
+    :meth:`latest` and ``on_ready()`` is called (from the worker thread; the add-on tags a
+    redraw). ``render`` is :func:`blendlib.core.pipeline.render_scene` or a stand-in with its
+    signature. ``error`` holds the last render's one-line error, cleared by the next success.
+    """
+
+    def __init__(self, on_ready: Callable[[], None] = lambda: None,
+                 render: Callable[..., Frame] = pipeline.render_scene,
+                 factor: int = REDUCED_FACTOR, min_pixels: int = REDUCED_MIN_PIXELS):
+        self._on_ready = on_ready
+        self._render = render
+        self._factor = factor
+        self._min_pixels = min_pixels
+        self._cond = threading.Condition()
+        self._generation = 0
+        self._pending: tuple[int, DrawScene, Hashable] | None = None
+        self._running = False
+        self._latest: ViewFrame | None = None
+        self._closed = False
+        self._thread: threading.Thread | None = None
+        self.error: str | None = None
+
+    # -- main thread ---------------------------------------------------------------------------
+    def submit(self, draw: DrawScene, key: Hashable) -> None:
+        """Render ``draw`` (its camera is the view) for request ``key``; stale work is dropped."""
+        with self._cond:
+            if self._closed:
+                raise RuntimeError("viewport scheduler is closed")
+            self._generation += 1
+            self._pending = (self._generation, draw, key)
+            if self._thread is None:
+                self._thread = threading.Thread(target=self._run, name="unity-passes-viewport", daemon=True)
+                self._thread.start()
+            self._cond.notify_all()
+
+    def latest(self) -> ViewFrame | None:
+        """The newest finished frame (possibly of an older request), or None."""
+        with self._cond:
+            return self._latest
+
+    @property
+    def busy(self) -> bool:
+        with self._cond:
+            return self._pending is not None or self._running
+
+    def wait_idle(self, timeout: float | None = None) -> bool:
+        """Block until nothing is queued or running; False on timeout (tests, scripts)."""
+        with self._cond:
+            return self._cond.wait_for(lambda: self._pending is None and not self._running, timeout)
+
+    def close(self, timeout: float | None = 5.0) -> None:
+        """Cancel all work and stop the worker thread (idempotent)."""
+        with self._cond:
+            self._closed = True
+            self._generation += 1
+            self._pending = None
+            self._cond.notify_all()
+            thread = self._thread
+        if thread is not None and thread is not threading.current_thread():
+            thread.join(timeout)
+
+    # -- worker thread -------------------------------------------------------------------------
+    def _stages(self, camera: Camera) -> list[tuple[Camera, bool]]:
+        small = reduced_size(camera.width, camera.height, self._factor, self._min_pixels)
+        stages = [] if small is None else [(dataclasses.replace(camera, width=small[0], height=small[1]), False)]
+        return stages + [(camera, True)]
+
+    def _run(self) -> None:
+        while True:
+            with self._cond:
+                self._cond.wait_for(lambda: self._pending is not None or self._closed)
+                if self._closed:
+                    self._running = False
+                    self._cond.notify_all()
+                    return
+                generation, draw, key = self._pending
+                self._pending = None
+                self._running = True
+
+            def stale(generation=generation) -> bool:
+                return self._generation != generation
+
+            for camera, full in self._stages(draw.camera):
+                if stale():
+                    break
+                try:
+                    frame = self._render(dataclasses.replace(draw, camera=camera), should_cancel=stale)
+                except RenderCancelled:
+                    break
+                except (SceneError, MemoryError) as exc:
+                    self.error = str(exc) or type(exc).__name__
+                    break
+                except Exception as exc:  # noqa: BLE001 - shown in the viewport, the worker lives on
+                    self.error = f"internal error: {type(exc).__name__}: {exc}"
+                    break
+                with self._cond:
+                    if stale():
+                        break
+                    self._latest = ViewFrame(frame, key, full)
+                    self.error = None
+                self._on_ready()
+            with self._cond:
+                self._running = False
+                self._cond.notify_all()

@@ -1,0 +1,380 @@
+"""The frame debugger (SPEC §8): draw-call statistics, pixel history, and stepping through draws.
+
+Everything here watches an ordinary render through :class:`blendlib.core.pipeline.FrameObserver`:
+
+- :func:`draw_list`: every draw call with its triangles, fragments rasterised and fragments
+  written (what an occlusion query counts), from one render.
+- :func:`pixel_history`: every fragment rasterised at one pixel, in the order the pipeline
+  applies it (draw order, then primitive order), with the pixel's colour, depth and stencil
+  before and after it and the test that discarded it. The render records only the fragments
+  of the pixel; before/after come from replaying those fragments, one by one, through the
+  output merger on a one-pixel buffer (exactly the merger the frame uses, so the last
+  ``after`` is the frame's pixel).
+- :class:`FrameCapture`: one render that keeps the draw statistics, the frame and buffer
+  snapshots every few draws within a memory bound; :meth:`FrameCapture.frame_after` shows
+  the frame after any draw by replaying from the nearest snapshot (never from scratch).
+
+Coordinates are those of :class:`Frame`: X the column from the left, Y the row from the top.
+Triangles are named by ``Mesh.loop_triangles`` (their index in the evaluated Blender mesh)
+and faces by ``Mesh.polygons``; a synthetic mesh without them reports the triangle's index in
+the renderer's mesh and ``polygon`` None.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..core import merger, shade
+from ..core.drawlist import DrawCall, draw_calls
+from ..core.merger import FrameBuffers, Outcome
+from ..core.pipeline import Frame, FrameObserver, ShadedFragments, render_scene
+from ..core.scene import DrawScene, SceneError
+from ..core.vertex import DEPTH_MAX
+from ..core.vocabulary import pass_state_text
+
+#: ``result`` of a fragment in the pixel history, by :class:`Outcome`.
+RESULT_NAMES = {Outcome.WRITTEN: "written", Outcome.ALPHA_TEST: "alpha_test", Outcome.STENCIL: "stencil",
+                Outcome.DEPTH: "depth"}
+
+#: Default memory bound of a capture's snapshots (bytes). One snapshot costs 13 bytes per pixel
+#: in LDR (colour 4, depth 8, stencil 1) and 25 in HDR: 27 MB / 52 MB at 1920x1080, so the
+#: default keeps at most 19 (LDR) or 10 (HDR) snapshots of a 1080p frame.
+SNAPSHOT_MEMORY = 512 * 1024 * 1024
+
+
+def float32_json(value: float) -> float:
+    """The float whose shortest repr is the shortest text that reads back to the same float32
+    (SPEC §8: JSON floats at full float32 precision)."""
+    v = np.float32(value)
+    if not np.isfinite(v):
+        return float(v)
+    return float(str(v))
+
+
+def _rgba_json(values) -> list[float]:
+    return [float32_json(v) for v in values]
+
+
+def _call_json(call: DrawCall) -> dict:
+    r = call.renderer
+    return {"index": call.index, "object": r.name, "slot": r.slot, "material": r.material.name,
+            "pass": call.pass_index, "pass_name": call.state.name, "queue": call.queue,
+            "distance": float(call.distance), "state": pass_state_text(call.state)}
+
+
+# ------------------------------------------------------------------ draw list
+
+
+@dataclass(frozen=True)
+class DrawStats:
+    """One draw call and what it did: ``triangles`` drawn (neither culled, nor degenerate, nor
+    entirely outside the view), ``fragments`` rasterised (before any test), ``written`` (passed
+    alpha test, stencil and depth: what an occlusion query counts)."""
+
+    call: DrawCall
+    triangles: int
+    fragments: int
+    written: int
+
+    def to_json(self) -> dict:
+        """The SPEC §8 ``drawlist --json`` item."""
+        out = _call_json(self.call)
+        out.update(triangles=self.triangles, fragments=self.fragments, written=self.written)
+        return out
+
+
+class _StatsObserver(FrameObserver):
+    """Counts fragments and writes per draw call; optionally keeps snapshots and a pixel mask."""
+
+    def __init__(self, snapshot_every: int = 0, last: int = 0, mark_draw: int | None = None):
+        self.lock = threading.Lock()
+        self.rasterised: dict[int, int] = {}
+        self.passed: dict[int, int] = {}
+        self.triangles: dict[int, int] = {}
+        self.snapshot_every, self.last = snapshot_every, last
+        self.snapshots: dict[int, FrameBuffers] = {}
+        self.mark_draw = mark_draw
+        self.mask: np.ndarray | None = None
+
+    def draw_begin(self, call, buffers):
+        if call.index == self.mark_draw:
+            self.mask = np.zeros(buffers.width * buffers.height, dtype=bool)
+
+    def fragments(self, call, frags: ShadedFragments, outcome: np.ndarray) -> None:
+        written = int(np.count_nonzero(outcome == Outcome.WRITTEN))
+        with self.lock:
+            self.rasterised[call.index] = self.rasterised.get(call.index, 0) + frags.count
+            self.passed[call.index] = self.passed.get(call.index, 0) + written
+            if call.index == self.mark_draw:
+                self.mask[frags.pix] = True
+
+    def draw_end(self, call, buffers, triangles):
+        self.triangles[call.index] = triangles
+        if self.snapshot_every and call.index % self.snapshot_every == 0 and call.index < self.last:
+            self.snapshots[call.index] = buffers.copy()
+
+    def stats(self, calls: list[DrawCall]) -> list[DrawStats]:
+        return [DrawStats(c, self.triangles.get(c.index, 0), self.rasterised.get(c.index, 0),
+                          self.passed.get(c.index, 0)) for c in calls]
+
+
+def _calls(scene: DrawScene) -> list[DrawCall]:
+    try:
+        return draw_calls(scene)
+    except ValueError as exc:
+        raise SceneError(str(exc)) from None
+
+
+def draw_list(scene: DrawScene, *, progress: Callable[[float], None] | None = None,
+              should_cancel: Callable[[], bool] | None = None, workers: int | None = None) -> list[DrawStats]:
+    """Every draw call of ``scene`` in order with its statistics (one render of the scene)."""
+    return FrameCapture.capture(scene, progress=progress, should_cancel=should_cancel, workers=workers,
+                                memory=0).stats
+
+
+# ------------------------------------------------------------------ pixel history
+
+
+@dataclass(frozen=True)
+class PixelFragment:
+    """One fragment of a pixel history (SPEC §8).
+
+    ``source`` (4,) float64: the shader's RGBA in shading space before the LDR clamp.
+    ``before``/``after`` (4,): the stored pixel in ``frame.color`` units (float32 values);
+    ``depth*`` window depth code / (2**24 - 1) as float32; ``depth_code`` the 24-bit code.
+    ``triangle``: index in the evaluated mesh's loop triangles (or the renderer's mesh);
+    ``polygon``: the face index, None for a synthetic mesh. ``result``: ``written``,
+    ``alpha_test``, ``stencil`` or ``depth``.
+    """
+
+    call: DrawCall
+    triangle: int
+    polygon: int | None
+    depth_code: int
+    source: tuple[float, float, float, float]
+    before: tuple[float, float, float, float]
+    after: tuple[float, float, float, float]
+    depth_before: float
+    depth_after: float
+    stencil_before: int
+    stencil_after: int
+    result: str
+
+    @property
+    def depth(self) -> float:
+        return float(np.float32(self.depth_code / float(DEPTH_MAX)))
+
+    def to_json(self) -> dict:
+        call = self.call
+        return {
+            "draw": call.index, "object": call.renderer.name, "slot": call.renderer.slot,
+            "material": call.renderer.material.name, "pass": call.pass_index, "pass_name": call.state.name,
+            "triangle": self.triangle, "polygon": self.polygon, "depth": float32_json(self.depth),
+            "source": _rgba_json(self.source), "before": _rgba_json(self.before), "after": _rgba_json(self.after),
+            "depth_before": float32_json(self.depth_before), "depth_after": float32_json(self.depth_after),
+            "stencil_before": self.stencil_before, "stencil_after": self.stencil_after, "result": self.result,
+        }
+
+
+@dataclass
+class PixelHistory:
+    """The history of pixel (``x``, ``y``): ``clear`` and ``final`` (4,) stored RGBA (``final`` is
+    ``frame.color[y, x]``) and every fragment rasterised there, in application order."""
+
+    x: int
+    y: int
+    clear: tuple[float, float, float, float]
+    final: tuple[float, float, float, float]
+    fragments: list[PixelFragment] = field(default_factory=list)
+
+    def to_json(self) -> dict:
+        """The SPEC §8 ``pixel --json`` object."""
+        return {"x": self.x, "y": self.y, "clear": _rgba_json(self.clear), "final": _rgba_json(self.final),
+                "fragments": [f.to_json() for f in self.fragments]}
+
+
+class _PixelObserver(FrameObserver):
+    """Keeps the fragments that land on the target window pixels, in application order.
+
+    A pixel belongs to one band, so its fragments arrive from one thread at a time, in
+    primitive order, and draw calls follow each other: appending keeps each pixel's order.
+    """
+
+    def __init__(self, targets: np.ndarray, size: int):
+        self.lock = threading.Lock()
+        self.single = int(targets[0]) if targets.size == 1 else None
+        self.wanted = np.zeros(size, dtype=bool)
+        self.wanted[targets] = True
+        self.records: list[tuple] = []
+
+    def fragments(self, call, frags: ShadedFragments, outcome: np.ndarray) -> None:
+        hit = np.flatnonzero(frags.pix == self.single if self.single is not None else self.wanted[frags.pix])
+        if hit.size == 0:
+            return
+        colors = frags.select(hit).colors()
+        record = (call, frags.pix[hit].copy(), frags.triangle[hit].copy(), frags.depth[hit].copy(),
+                  np.array(colors, dtype=np.float64), outcome[hit].copy())
+        with self.lock:
+            self.records.append(record)
+
+
+def _stored(buf: FrameBuffers) -> tuple[tuple, float, int]:
+    color, depth, stencil = buf.output()
+    return tuple(float(v) for v in color[0, 0]), float(depth[0, 0]), int(stencil[0, 0])
+
+
+def _clear_buffers(scene: DrawScene, width: int = 1, height: int = 1) -> FrameBuffers:
+    cs = scene.color_space
+    clear = shade.gamma_color_to_shading(scene.clear_color[:3], cs) + (float(scene.clear_color[3]),)
+    return FrameBuffers(width, height, scene.hdr, cs, clear)
+
+
+def _replay(scene: DrawScene, records: list[tuple]) -> list[PixelFragment]:
+    """Before/after of each fragment of ONE pixel: its fragments through the merger on a 1x1 buffer."""
+    buf = _clear_buffers(scene)
+    zero = np.zeros(1, dtype=np.int64)
+    out = []
+    color, depth, stencil = _stored(buf)
+    for call, triangle, code, rgba, outcome in records:
+        mesh = call.renderer.mesh
+        tri = int(triangle) if mesh.loop_triangles is None else int(mesh.loop_triangles[triangle])
+        polygon = None if mesh.polygons is None else int(mesh.polygons[triangle])
+        result = Outcome(int(outcome))
+        if result is not Outcome.ALPHA_TEST:
+            replayed = np.empty(1, dtype=np.int8)
+            merger.merge(buf, call.state, zero, np.array([code], dtype=np.int64), rgba[None, :].copy(),
+                         outcome=replayed)
+            if Outcome(int(replayed[0])) is not result:  # the replay is the frame's own arithmetic
+                raise RuntimeError(f"pixel replay disagrees with the render at draw {call.index}")
+        after, depth_after, stencil_after = _stored(buf)
+        out.append(PixelFragment(call, tri, polygon, int(code), tuple(float(v) for v in rgba), color, after,
+                                 depth, depth_after, stencil, stencil_after, RESULT_NAMES[result]))
+        color, depth, stencil = after, depth_after, stencil_after
+    return out
+
+
+def _check_pixel(scene: DrawScene, x, y) -> tuple[int, int]:
+    w, h = int(scene.camera.width), int(scene.camera.height)
+    if isinstance(x, bool) or isinstance(y, bool) or not (isinstance(x, (int, np.integer))
+                                                          and isinstance(y, (int, np.integer))):
+        raise SceneError(f"pixel ({x!r}, {y!r}): X and Y must be integers")
+    if not (0 <= x < w and 0 <= y < h):
+        raise SceneError(f"pixel ({x}, {y}) is outside the {w}x{h} image (X 0..{w - 1} from the left, "
+                         f"Y 0..{h - 1} from the top)")
+    return int(x), int(y)
+
+
+def pixel_histories(scene: DrawScene, pixels: Iterable[tuple[int, int]], *,
+                    progress: Callable[[float], None] | None = None,
+                    should_cancel: Callable[[], bool] | None = None,
+                    workers: int | None = None) -> tuple[list[PixelHistory], Frame]:
+    """The histories of several pixels (X from the left, Y from the top) from one render, and
+    the frame. Costs one render plus a replay of each pixel's fragments."""
+    pixels = [_check_pixel(scene, x, y) for x, y in pixels]
+    w, h = int(scene.camera.width), int(scene.camera.height)
+    window = np.array([(h - 1 - y) * w + x for x, y in pixels], dtype=np.int64)
+    observer = _PixelObserver(window, w * h)
+    frame = render_scene(scene, progress=progress, should_cancel=should_cancel, workers=workers,
+                         observer=observer)
+    per_pixel: dict[int, list[tuple]] = {int(p): [] for p in window}
+    for call, pix, tri, depth, colors, outcome in observer.records:
+        for k in range(pix.size):  # only fragments on the asked pixels
+            per_pixel[int(pix[k])].append((call, tri[k], depth[k], colors[k], outcome[k]))
+    clear, _, _ = _stored(_clear_buffers(scene))
+    out = []
+    for (x, y), p in zip(pixels, window, strict=True):
+        final = tuple(float(v) for v in frame.color[y, x])
+        out.append(PixelHistory(x, y, clear, final, _replay(scene, per_pixel[int(p)])))
+    return out, frame
+
+
+def pixel_history(scene: DrawScene, x: int, y: int, **kwargs) -> PixelHistory:
+    """The history of pixel (``x`` from the left, ``y`` from the top): one render of the scene.
+    An untouched pixel has an empty history (a valid answer). Raises :class:`SceneError` for a
+    pixel outside the image."""
+    return pixel_histories(scene, [(x, y)], **kwargs)[0][0]
+
+
+# ------------------------------------------------------------------ stepping
+
+
+def snapshot_bytes(width: int, height: int, hdr: bool) -> int:
+    """Memory of one buffer snapshot: colour (4 or 16 bytes), depth (8) and stencil (1) per pixel."""
+    return int(width) * int(height) * ((16 if hdr else 4) + 8 + 1)
+
+
+@dataclass(eq=False)
+class FrameCapture:
+    """One captured frame: draw statistics, the final frame and snapshots for stepping.
+
+    Snapshots are taken after every ``interval``-th draw call, at most ``memory`` bytes in all
+    (``interval = ceil(draws / (memory // snapshot_bytes))``), so :meth:`frame_after` replays
+    at most ``interval`` draw calls from the nearest snapshot.
+    """
+
+    scene: DrawScene
+    stats: list[DrawStats]
+    frame: Frame
+    snapshots: dict[int, FrameBuffers]
+    interval: int
+
+    @property
+    def calls(self) -> list[DrawCall]:
+        return [s.call for s in self.stats]
+
+    @property
+    def snapshot_memory(self) -> int:
+        """Bytes held by the snapshots."""
+        return sum(b.color.nbytes + b.depth.nbytes + b.stencil.nbytes for b in self.snapshots.values())
+
+    @classmethod
+    def capture(cls, scene: DrawScene, *, memory: int = SNAPSHOT_MEMORY,
+                progress: Callable[[float], None] | None = None, should_cancel: Callable[[], bool] | None = None,
+                workers: int | None = None) -> FrameCapture:
+        """Render ``scene`` once, keeping statistics and snapshots within ``memory`` bytes (0: none)."""
+        calls = _calls(scene)
+        cam = scene.camera
+        per = snapshot_bytes(cam.width, cam.height, scene.hdr)
+        most = int(memory) // per if per else 0
+        interval = 0 if most <= 0 or not calls else max(1, math.ceil(len(calls) / most))
+        observer = _StatsObserver(snapshot_every=interval, last=len(calls))
+        frame = render_scene(scene, progress=progress, should_cancel=should_cancel, workers=workers,
+                             observer=observer)
+        return cls(scene, observer.stats(calls), frame, observer.snapshots, interval)
+
+    def frame_after(self, k: int, *, highlight: bool = False,
+                    workers: int | None = None) -> tuple[Frame, np.ndarray | None]:
+        """The frame after draw ``k`` (0 = cleared; ≥ the draw count = the whole frame), replayed
+        from the nearest snapshot before it, and with ``highlight`` the (H, W) bool mask (row 0 =
+        top) of the pixels draw ``k`` rasterised (None without)."""
+        if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 0:
+            raise SceneError(f"draw {k!r}: must be an integer 0 or more")
+        n = len(self.stats)
+        k = min(int(k), n)
+        if k == n and not highlight:
+            return self.frame, None
+        base = max((s for s in self.snapshots if s < k), default=0)
+        resume = (self.snapshots[base], base) if base else None
+        observer = _StatsObserver(mark_draw=k if highlight and k > 0 else None)
+        frame = render_scene(self.scene, until_draw=k, resume=resume, workers=workers,
+                             observer=observer if highlight else None)
+        if not highlight:
+            return frame, None
+        cam = self.scene.camera
+        mask = observer.mask
+        if mask is None:
+            return frame, np.zeros((cam.height, cam.width), dtype=bool)
+        return frame, mask.reshape(cam.height, cam.width)[::-1].copy()
+
+
+def draw_list_json(stats: list[DrawStats]) -> list[dict]:
+    return [s.to_json() for s in stats]
+
+
+__all__ = ["DrawStats", "FrameCapture", "PixelFragment", "PixelHistory", "RESULT_NAMES", "SNAPSHOT_MEMORY",
+           "draw_list", "draw_list_json", "float32_json", "pixel_histories", "pixel_history", "snapshot_bytes"]

@@ -1,0 +1,191 @@
+"""The viewport's worker: reduced frame first, then full; stale work cancelled; matrices → Camera.
+
+bpy-free: the scheduler renders DrawScenes built by hand (the add-on extracts them on the
+main thread), with the core renderer or a stand-in that blocks to expose the timing.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import threading
+
+import numpy as np
+import pytest
+
+from blendlib import render_scene
+from blendlib.blender import viewport
+from blendlib.blender.viewport import ViewportScheduler, camera_from_matrices, reduced_size
+from blendlib.core.pipeline import RenderCancelled
+from blendlib.core.scene import SceneError
+from tests.reference.random_scenes import seeded_scene
+from tests.reference.scenes import look_at, orthographic, perspective
+
+WAIT = 30.0
+
+
+def scene_at(width: int, height: int, seed: int = 3):
+    draw = seeded_scene(seed)
+    return dataclasses.replace(draw, camera=dataclasses.replace(draw.camera, width=width, height=height))
+
+
+class Recorder:
+    """on_ready: the (key, size, full) of each published frame, in order."""
+
+    def __init__(self):
+        self.events = []
+        self.scheduler = None
+
+    def __call__(self):
+        shown = self.scheduler.latest()
+        self.events.append((shown.key, shown.frame.color.shape[:2], shown.full))
+
+
+def make(render=render_scene, **kwargs) -> tuple[ViewportScheduler, Recorder]:
+    rec = Recorder()
+    sched = ViewportScheduler(on_ready=rec, render=render, **kwargs)
+    rec.scheduler = sched
+    return sched, rec
+
+
+def test_reduced_size_rule():
+    assert reduced_size(960, 540) == (240, 135)
+    assert reduced_size(961, 541) == (241, 136)  # rounded up: never an empty frame
+    assert reduced_size(128, 128) is None  # small frames come at full size at once
+    assert reduced_size(129, 128) == (33, 32)
+    assert reduced_size(960, 540, factor=1) is None
+
+
+def test_reduced_frame_first_then_full_equal_to_a_direct_render():
+    draw = scene_at(200, 120)
+    sched, rec = make()
+    try:
+        sched.submit(draw, "A")
+        assert sched.wait_idle(WAIT)
+    finally:
+        sched.close()
+    assert rec.events == [("A", (30, 50), False), ("A", (120, 200), True)]
+    latest = sched.latest()
+    assert latest.full and latest.key == "A"
+    direct = render_scene(draw)
+    np.testing.assert_array_equal(latest.frame.color, direct.color)
+    np.testing.assert_array_equal(latest.frame.depth, direct.depth)
+    # the reduced frame is the same view (same matrices) at a quarter of the size per side
+    small = render_scene(dataclasses.replace(draw, camera=dataclasses.replace(draw.camera, width=50, height=30)))
+    assert small.color.shape == (30, 50, 4)
+    assert sched.error is None and not sched.busy
+
+
+def test_small_view_renders_full_size_only():
+    sched, rec = make()
+    try:
+        sched.submit(scene_at(64, 48), "S")
+        assert sched.wait_idle(WAIT)
+    finally:
+        sched.close()
+    assert rec.events == [("S", (48, 64), True)]
+
+
+def test_stale_work_is_cancelled_and_never_shown():
+    """A render still running when a new request comes sees should_cancel() turn True and stops;
+    only the newest request's frames are published."""
+    started = threading.Event()
+    seen_cancel = []
+
+    def blocking(draw, should_cancel=None, **kw):
+        if draw.camera.width == 999:  # the stale request: blocks until cancelled
+            started.set()
+            for _ in range(2000):
+                if should_cancel():
+                    seen_cancel.append(True)
+                    raise RenderCancelled("render cancelled")
+                threading.Event().wait(0.005)
+            raise AssertionError("never cancelled")
+        return render_scene(draw, should_cancel=should_cancel, **kw)
+
+    sched, rec = make(render=blocking, min_pixels=10**9)  # no reduced frames: one render per request
+    try:
+        sched.submit(scene_at(999, 10), "old")
+        assert started.wait(WAIT)
+        sched.submit(scene_at(40, 30), "mid")   # queued behind the running one ...
+        sched.submit(scene_at(48, 36), "new")   # ... and replaced before it starts
+        assert sched.wait_idle(WAIT)
+    finally:
+        sched.close()
+    assert seen_cancel == [True]
+    assert rec.events == [("new", (36, 48), True)]
+
+
+def test_cancel_between_reduced_and_full():
+    """A new request arriving after the reduced frame stops the old request's full frame."""
+    gate = threading.Event()
+    calls = []
+
+    def gated(draw, should_cancel=None, **kw):
+        calls.append((draw.camera.width, draw.camera.height))
+        frame = render_scene(draw, **kw)
+        if len(calls) == 1:
+            gate.wait(WAIT)  # hold the worker after the first (reduced) frame of "A"
+        if should_cancel():
+            raise RenderCancelled("render cancelled")
+        return frame
+
+    sched, rec = make(render=gated)
+    try:
+        sched.submit(scene_at(200, 120), "A")
+        while not calls:
+            threading.Event().wait(0.01)
+        sched.submit(scene_at(200, 120, seed=5), "B")
+        gate.set()
+        assert sched.wait_idle(WAIT)
+    finally:
+        sched.close()
+    assert [e[0] for e in rec.events] == ["B", "B"]
+    assert [e[2] for e in rec.events] == [False, True]
+    assert calls == [(50, 30), (50, 30), (200, 120)]  # A reduced (dropped), then B reduced and full
+
+
+def test_render_errors_are_kept_and_the_worker_lives_on():
+    def failing(draw, **kw):
+        if draw.camera.width == 7:
+            raise SceneError("object 'X' slot 0: triangles must be integer")
+        return render_scene(draw, **kw)
+
+    sched, rec = make(render=failing)
+    try:
+        sched.submit(scene_at(7, 7), "bad")
+        assert sched.wait_idle(WAIT)
+        assert sched.error == "object 'X' slot 0: triangles must be integer" and sched.latest() is None
+        sched.submit(scene_at(20, 10), "good")
+        assert sched.wait_idle(WAIT)
+        assert sched.error is None and sched.latest().key == "good"
+    finally:
+        sched.close()
+    assert not sched._thread.is_alive()
+    with pytest.raises(RuntimeError):
+        sched.submit(scene_at(20, 10), "closed")
+
+
+def test_camera_from_matrices():
+    view = look_at((3, -5, 2), (0, 0, 0), (0, 0, 1))
+    persp = perspective(50, 4 / 3, 0.5, 40)
+    cam = camera_from_matrices(view, persp, 40, 30)
+    assert not cam.orthographic and (cam.width, cam.height) == (40, 30)
+    np.testing.assert_allclose(cam.position, (3, -5, 2), atol=1e-12)  # the sort position
+    ortho = camera_from_matrices(view.tolist(), orthographic(8, 6), 40, 30)
+    assert ortho.orthographic
+    for bad in (np.eye(3), [[1, 2], [3, 4]], "matrix", np.full((4, 4), np.nan)):
+        with pytest.raises(SceneError, match="4x4"):
+            camera_from_matrices(bad, persp, 40, 30)
+    with pytest.raises(SceneError, match="integers"):
+        camera_from_matrices(view, persp, 40.0, 30)
+    with pytest.raises(SceneError, match="singular"):
+        camera_from_matrices(np.zeros((4, 4)), persp, 40, 30)
+
+
+def test_camera_frame_rect():
+    # corners of a frame that the perspective maps to NDC x in [-0.5, 0.5], y in [-0.5, 0.5]
+    corners = np.array([[0.5, 0.5, 0.0], [0.5, -0.5, 0.0], [-0.5, -0.5, 0.0], [-0.5, 0.5, 0.0]])
+    assert viewport.camera_frame_rect(corners, np.eye(4), 200, 100) == (50, 25, 100, 50)
+    shifted = np.eye(4)
+    shifted[0, 3] = 0.5  # NDC x + 0.5: a quarter of the region to the right
+    assert viewport.camera_frame_rect(corners, shifted, 200, 100) == (100, 25, 100, 50)

@@ -1,0 +1,122 @@
+"""The pipeline's hooks for the explaining tools: draw calls, stop after draw K, resume from a
+snapshot, and the per-fragment records an observer receives (with the test that discarded each)."""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import pytest
+
+from blendlib import render_scene
+from blendlib.core.drawlist import draw_calls, sort_distance
+from blendlib.core.merger import Outcome
+from blendlib.core.pipeline import FrameObserver
+from blendlib.core.vocabulary import CompareFunction, Cull, Pass, Queue, StencilOp
+from tests.reference import scenes as sc
+from tests.reference.random_scenes import seeded_scene
+from tests.reference.scalar import render_reference
+
+
+class Recorder(FrameObserver):
+    def __init__(self):
+        self.lock = threading.Lock()
+        self.calls, self.snapshots, self.triangles = [], {}, {}
+        self.outcomes: dict[int, list[np.ndarray]] = {}
+        self.pixels: dict[int, list[np.ndarray]] = {}
+
+    def draw_begin(self, call, buffers):
+        self.calls.append(call.index)
+
+    def fragments(self, call, frags, outcome):
+        with self.lock:
+            self.outcomes.setdefault(call.index, []).append(outcome.copy())
+            self.pixels.setdefault(call.index, []).append(frags.pix.copy())
+
+    def draw_end(self, call, buffers, triangles):
+        self.snapshots[call.index] = buffers.copy()
+        self.triangles[call.index] = triangles
+
+    def counts(self, index):
+        out = np.concatenate(self.outcomes.get(index, [np.zeros(0, np.int8)]))
+        return {o: int(np.count_nonzero(out == o)) for o in Outcome}
+
+
+def _frame_equal(a, b):
+    return (np.array_equal(a.color, b.color) and np.array_equal(a.depth, b.depth)
+            and np.array_equal(a.stencil, b.stencil))
+
+
+@pytest.mark.parametrize("seed", [3, 11, 27])
+def test_until_draw_equals_the_scalar_reference_stopped_after_k_draws(seed):
+    scene = seeded_scene(seed)
+    n = len(draw_calls(scene))
+    for k in sorted({0, 1, n // 2, n, n + 3}):
+        frame = render_scene(scene, until_draw=k, workers=2)
+        color, depth, stencil = render_reference(scene, max_calls=k)
+        assert np.array_equal(frame.color, color), (seed, k)
+        assert np.array_equal(frame.depth, depth) and np.array_equal(frame.stencil, stencil), (seed, k)
+
+
+@pytest.mark.parametrize("seed", [5, 8])
+def test_resume_from_a_snapshot_equals_the_whole_render(seed):
+    scene = seeded_scene(seed)
+    rec = Recorder()
+    full = render_scene(scene, observer=rec, workers=2)
+    assert _frame_equal(full, render_scene(scene, workers=2))  # observing changes nothing
+    n = len(draw_calls(scene))
+    assert rec.calls == list(range(1, n + 1))
+    for k0 in (1, n // 2):
+        resumed = render_scene(scene, resume=(rec.snapshots[k0], k0), workers=2)
+        assert _frame_equal(resumed, full)
+        part = render_scene(scene, resume=(rec.snapshots[k0], k0), until_draw=n - 1, workers=1)
+        assert _frame_equal(part, render_scene(scene, until_draw=n - 1))
+
+
+def test_negative_until_draw_is_an_error():
+    with pytest.raises(ValueError, match="until_draw"):
+        render_scene(seeded_scene(1), until_draw=-1)
+
+
+def test_outcomes_name_the_test_that_discarded_each_fragment():
+    cam = sc.screen_camera(8, 8)
+    quad = sc.quad(0, 0, 8, 8, z=0.0)
+    cutout = sc.unlit((1, 0, 0, 0.25), passes=[Pass(alpha_test=True)], cutoff=0.5)
+    base = sc.unlit((0, 1, 0, 1), passes=[Pass(stencil=True, stencil_pass=StencilOp.Replace, stencil_ref=7)])
+    masked = sc.unlit((0, 0, 1, 1), queue=Queue.Transparent,
+                      passes=[Pass(ztest=CompareFunction.Less, name="behind"),
+                              Pass(ztest=CompareFunction.Always, stencil=True, stencil_ref=7,
+                                   stencil_comp=CompareFunction.NotEqual, name="stencil")])
+    scene = sc.scene(cam, sc.renderer(quad, cutout, name="A"), sc.renderer(quad, base, name="B"),
+                     sc.renderer(quad, masked, name="C"))
+    rec = Recorder()
+    frame = render_scene(scene, observer=rec)
+    names = {c.index: (c.renderer.name, c.pass_index) for c in draw_calls(scene)}
+    by_name = {names[i]: rec.counts(i) for i in names}
+    assert by_name[("A", 0)][Outcome.ALPHA_TEST] == 64 and by_name[("A", 0)][Outcome.WRITTEN] == 0
+    assert by_name[("B", 0)][Outcome.WRITTEN] == 64
+    assert by_name[("C", 0)][Outcome.DEPTH] == 64  # same depth, ZTest Less
+    assert by_name[("C", 1)][Outcome.STENCIL] == 64  # stencil 7 everywhere, Comp NotEqual 7
+    assert np.all(frame.color[..., :3] == (0, 1, 0)) and np.all(frame.stencil == 7)
+    assert set(rec.triangles.values()) == {2}
+
+
+def test_draw_calls_are_numbered_with_euclidean_distance_and_culling_counts():
+    cam = sc.camera(16, 16, eye=(0, 0, 5))
+    cube = sc.cube(1.0)
+    glass = sc.unlit((1, 1, 1, 0.5), queue=Queue.Transparent,
+                     passes=[Pass(cull=Cull.Front, zwrite=False), Pass(cull=Cull.Back, zwrite=False)])
+    near = sc.renderer(cube, glass, name="Near", matrix=sc.translate(0, 0, 2))
+    far = sc.renderer(cube, glass, name="Far", matrix=sc.translate(3, 0, -1))
+    scene = sc.scene(cam, near, far)
+    calls = draw_calls(scene)
+    assert [(c.index, c.renderer.name, c.pass_index) for c in calls] == [
+        (1, "Far", 0), (2, "Far", 1), (3, "Near", 0), (4, "Near", 1)]
+    assert calls[0].distance == pytest.approx(np.sqrt(3**2 + 6**2)) and calls[2].distance == pytest.approx(3.0)
+    assert calls[0].distance == sort_distance(scene, far)
+    rec = Recorder()
+    render_scene(scene, observer=rec)
+    # a cube seen from the front: 6 triangles face the camera side, 6 the back, per pass (some may be
+    # edge-on in perspective and count as culled for both): back + front never exceed 12
+    assert rec.triangles[1] + rec.triangles[2] <= 12 and rec.triangles[3] + rec.triangles[4] <= 12
+    assert rec.triangles[2] >= 2 and rec.triangles[4] >= 2

@@ -1,0 +1,200 @@
+"""The frame debugger (SPEC §8) against the scalar reference: draw statistics, pixel histories
+replayed fragment by fragment, stepping through draws from snapshots."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from blendlib import render_scene
+from blendlib.core.drawlist import draw_calls
+from blendlib.core.scene import SceneError
+from blendlib.core.vocabulary import BlendFactor, Cull, Pass, Queue, pass_state_text
+from blendlib.explain import framedebug as fd
+from tests.reference import scalar
+from tests.reference import scenes as sc
+from tests.reference.random_scenes import describe, seeded_scene
+
+SEEDS = [0, 2, 4, 7, 9, 10, 11, 13, 21, 33]
+DMAX = 2**24 - 1
+
+
+def _all_pixels(scene):
+    return [(x, y) for y in range(scene.camera.height) for x in range(scene.camera.width)]
+
+
+def _reference(scene, max_calls=None):
+    log = scalar.FragmentLog()
+    frame = scalar.render_reference(scene, max_calls=max_calls, log=log)
+    return frame, log
+
+
+def _stored(buf, x, y):
+    """The scalar buffers' pixel in frame units: (rgba float32 (4,), depth float32, stencil int)."""
+    c = buf.color[y][x]
+    rgba = np.array(c, dtype=np.float32) if buf.hdr else (np.array(c, dtype=np.int64) / 255.0).astype(np.float32)
+    return rgba, np.float32(buf.depth[y][x] / DMAX), buf.stencil[y][x]
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_every_pixel_history_replays_through_the_scalar_reference_to_the_frame(seed):
+    scene = seeded_scene(seed)
+    w, h = scene.camera.width, scene.camera.height
+    histories, frame = fd.pixel_histories(scene, _all_pixels(scene))
+    (color, depth, stencil), log = _reference(scene)
+    assert np.array_equal(frame.color, color) and np.array_equal(frame.depth, depth)
+    ref_by_pixel: dict[tuple[int, int], list] = {}
+    for rec in log.fragments:
+        ref_by_pixel.setdefault((rec[1], rec[2]), []).append(rec)
+    replay = scalar.Buffers(scene)
+    calls = {c.index: c for c in draw_calls(scene)}
+    total = 0
+    for hist in histories:
+        x, y = hist.x, hist.y
+        wy = h - 1 - y  # window row (y up)
+        ref = ref_by_pixel.get((x, wy), [])
+        # the same fragments in the same order, with the same triangle, depth, colour and result
+        got = [(f.call.index, f.triangle, f.depth_code, f.result) for f in hist.fragments]
+        assert got == [(r[0], r[3], r[4], r[6]) for r in ref], (seed, x, y, describe(scene))
+        for f, r in zip(hist.fragments, ref, strict=True):
+            assert list(f.source) == list(r[5]), (seed, x, y)
+        # replay: each fragment through the reference's own merger, from the cleared pixel
+        rgba, d, s = _stored(replay, x, wy)
+        assert np.array_equal(np.float32(hist.clear), rgba)
+        for f in hist.fragments:
+            assert np.array_equal(np.float32(f.before), rgba) and f.depth_before == d and f.stencil_before == s
+            if f.result != "alpha_test":
+                assert scalar.merge_fragment(x, wy, f.depth_code, list(f.source), calls[f.call.index].state,
+                                             replay) == f.result
+            rgba, d, s = _stored(replay, x, wy)
+            assert np.array_equal(np.float32(f.after), rgba), (seed, x, y, f)
+            assert f.depth_after == d and f.stencil_after == s, (seed, x, y, f)
+            assert f.depth == np.float32(f.depth_code / DMAX)
+        assert np.array_equal(rgba, frame.color[y, x]) and np.array_equal(np.float32(hist.final), rgba)
+        assert d == frame.depth[y, x] and s == frame.stencil[y, x]
+        # a triangle (even split by clipping) gives at most one fragment per pixel and draw
+        keys = [(f.call.index, f.triangle) for f in hist.fragments]
+        assert len(keys) == len(set(keys))
+        total += len(hist.fragments)
+    assert total == len(log.fragments) and len(histories) == w * h
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_draw_list_counts_equal_the_scalar_reference(seed):
+    scene = seeded_scene(seed)
+    stats = fd.draw_list(scene)
+    _, log = _reference(scene)
+    counts = log.counts()
+    assert [s.call.index for s in stats] == list(range(1, len(draw_calls(scene)) + 1))
+    for s in stats:
+        assert (s.fragments, s.written) == counts.get(s.call.index, (0, 0)), (seed, s)
+        assert s.triangles == log.triangles.get(s.call.index, 0), (seed, s)
+    assert sum(s.fragments for s in stats) > 0 or seed == 3
+
+
+def test_draw_list_json_items_follow_spec():
+    cam = sc.camera(16, 16, eye=(0, 0, 5))
+    glass = sc.unlit((1, 1, 1, 0.5), queue=Queue.Transparent,
+                     passes=[Pass(name="Back", cull=Cull.Front, zwrite=False),
+                             Pass(name="Front", blend=True, src_blend=BlendFactor.SrcAlpha,
+                                  dst_blend=BlendFactor.OneMinusSrcAlpha, zwrite=False)])
+    floor = sc.unlit((0, 1, 0, 1), passes=())
+    scene = sc.scene(cam, sc.renderer(sc.cube(1.0), glass, name="Glass"),
+                     sc.renderer(sc.quad(-3, -3, 3, 3, z=-1.0), floor, name="Floor", slot=1))
+    items = json.loads(json.dumps(fd.draw_list_json(fd.draw_list(scene))))
+    assert [(i["index"], i["object"], i["pass"], i["pass_name"]) for i in items] == [
+        (1, "Floor", 0, "Pass"), (2, "Glass", 0, "Back"), (3, "Glass", 1, "Front")]
+    first = items[0]
+    assert first["slot"] == 1 and first["queue"] == 2000 and first["material"] == floor.name
+    assert first["state"] == pass_state_text(Pass()) == "Cull Back ZWrite On ZTest LEqual Blend Off"
+    assert first["distance"] == pytest.approx(6.0) and first["triangles"] == 2
+    assert first["fragments"] == first["written"] == 256  # the floor fills the 16x16 frame
+    assert items[2]["state"] == "Cull Back ZWrite Off ZTest LEqual Blend SrcAlpha OneMinusSrcAlpha"
+    assert items[1]["written"] == items[1]["fragments"] > 0  # back faces in front of the floor
+    assert set(first) >= {"index", "object", "slot", "material", "pass", "pass_name", "queue", "distance", "state",
+                          "triangles", "fragments", "written"}
+
+
+def test_history_within_one_draw_is_primitive_order_and_json_is_exact():
+    """A Cull Off blended mesh: its triangles blend at a pixel in mesh order, and the JSON reads
+    back to the frame's float32 values exactly."""
+    cam = sc.screen_camera(4, 4)
+    far_first = sc.make_mesh([(0, 0, -0.5), (4, 0, -0.5), (0, 4, -0.5), (0, 0, 0.5), (4, 0, 0.5), (0, 4, 0.5)],
+                             [(0, 1, 2), (3, 5, 4)])  # second triangle is a back face
+    mat = sc.unlit((0.8, 0.3, 0.1, 0.4), queue=Queue.Transparent,
+                   passes=[Pass(cull=Cull.Off, zwrite=False, blend=True, src_blend=BlendFactor.SrcAlpha,
+                                dst_blend=BlendFactor.OneMinusSrcAlpha)])
+    scene = sc.scene(cam, sc.renderer(far_first, mat, name="Knot"))
+    hist = fd.pixel_history(scene, 0, 3)  # bottom-left pixel (row 3 from the top)
+    assert [f.triangle for f in hist.fragments] == [0, 1] and [f.result for f in hist.fragments] == ["written"] * 2
+    assert hist.fragments[0].polygon is None
+    assert hist.fragments[0].before == hist.clear and hist.fragments[1].before == hist.fragments[0].after
+    data = json.loads(json.dumps(hist.to_json()))
+    frame = render_scene(scene)
+    assert np.array_equal(np.float32(data["final"]), frame.color[3, 0])
+    assert np.array_equal(np.float32(data["fragments"][-1]["after"]), frame.color[3, 0])
+    assert np.float32(data["fragments"][0]["depth"]) == np.float32(hist.fragments[0].depth_code / DMAX)
+    assert set(data["fragments"][0]) >= {
+        "draw", "object", "slot", "pass", "triangle", "polygon", "depth", "source", "before", "after",
+        "depth_before", "depth_after", "stencil_before", "stencil_after", "result"}
+    assert (data["x"], data["y"], data["fragments"][0]["object"]) == (0, 3, "Knot")
+
+
+def test_mesh_names_triangles_by_loop_triangle_and_polygon():
+    cam = sc.screen_camera(4, 4)
+    mesh = sc.quad(0, 0, 4, 4)
+    named = replace(mesh, polygons=np.array([7, 7]), loop_triangles=np.array([10, 11]))
+    scene = sc.scene(cam, sc.renderer(named, sc.unlit((1, 0, 0, 1)), name="Quad"))
+    hist = fd.pixel_history(scene, 1, 1)
+    assert [(f.triangle, f.polygon) for f in hist.fragments] in ([(10, 7)], [(11, 7)])
+
+
+def test_empty_history_and_bad_pixels():
+    scene = seeded_scene(3)  # draws nothing
+    hist = fd.pixel_history(scene, 0, 0)
+    assert hist.fragments == [] and hist.final == hist.clear
+    for x, y in [(-1, 0), (0, -1), (scene.camera.width, 0), (0, scene.camera.height)]:
+        with pytest.raises(SceneError, match="outside"):
+            fd.pixel_history(scene, x, y)
+
+
+def test_float32_json_is_the_shortest_text_of_the_float32():
+    for v in [0.1, 1 / 3, 0.5019608, 1e-8, 123456.789, 0.0]:
+        text = json.dumps(fd.float32_json(v))
+        assert np.float32(json.loads(text)) == np.float32(v)
+        assert len(text) <= len(repr(float(np.float32(v))))
+    assert json.dumps(fd.float32_json(0.1)) == "0.1"
+
+
+@pytest.mark.parametrize("seed", [0, 9, 10])
+def test_stepping_from_snapshots_equals_the_reference_stopped_after_k_draws(seed):
+    scene = seeded_scene(seed)
+    n = len(draw_calls(scene))
+    per = fd.snapshot_bytes(scene.camera.width, scene.camera.height, scene.hdr)
+    cap = fd.FrameCapture.capture(scene, memory=2 * per)  # at most 2 snapshots: replay several draws
+    assert cap.interval == -(-n // 2) and len(cap.snapshots) <= 2 and cap.snapshot_memory <= 2 * per
+    _, log = _reference(scene)
+    for k in range(n + 2):
+        frame, mask = cap.frame_after(k, highlight=True)
+        color, depth, stencil = scalar.render_reference(scene, max_calls=k)
+        assert np.array_equal(frame.color, color) and np.array_equal(frame.depth, depth), (seed, k)
+        assert np.array_equal(frame.stencil, stencil), (seed, k)
+        expect = np.zeros((scene.camera.height, scene.camera.width), dtype=bool)
+        for draw, x, wy, *_ in log.fragments:
+            if draw == min(k, n):  # past the last draw: the whole frame, the last draw marked
+                expect[scene.camera.height - 1 - wy, x] = True
+        assert np.array_equal(mask, expect), (seed, k)
+        plain, none = cap.frame_after(k)
+        assert none is None and np.array_equal(plain.color, frame.color)
+    with pytest.raises(SceneError):
+        cap.frame_after(-1)
+
+
+def test_snapshot_bound_at_1080p():
+    """The stated bound: S2 at 1080p keeps its snapshots within SNAPSHOT_MEMORY (well under 2 GB)."""
+    per = fd.snapshot_bytes(1920, 1080, False)
+    assert per == 1920 * 1080 * 13 and fd.SNAPSHOT_MEMORY // per == 19
+    assert fd.SNAPSHOT_MEMORY // fd.snapshot_bytes(1920, 1080, True) == 10

@@ -1,0 +1,285 @@
+"""SPEC §9: the sorted reference equals the scalar reference's sorted mode bit for bit; sort error,
+inversions and overdraw have the values their definitions give on scenes where they are known."""
+
+from __future__ import annotations
+
+import threading
+import warnings
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+
+from blendlib import render_scene
+from blendlib.core.drawlist import draw_calls
+from blendlib.core.merger import Outcome
+from blendlib.core.pipeline import FrameObserver
+from blendlib.core.vocabulary import BlendFactor, CompareFunction, Cull, Pass, Queue, preset
+from blendlib.explain import sorted_reference as sr
+from blendlib.explain.sorted_reference import analyze
+from tests.reference import scenes as sc
+from tests.reference.random_scenes import describe, scenes, seeded_scene
+from tests.reference.scalar import render_sorted_reference
+
+BLEND = Pass(blend=True, zwrite=False, src_blend=BlendFactor.SrcAlpha, dst_blend=BlendFactor.OneMinusSrcAlpha)
+
+
+def transparent(scene, every: int = 1):
+    """The same scene with every ``every``-th renderer's material moved to the Transparent queue."""
+    renderers = tuple(replace(r, material=replace(r.material, queue=Queue.Transparent, queue_offset=k % 3 - 1))
+                      if k % every == 0 else r for k, r in enumerate(scene.renderers))
+    return replace(scene, renderers=renderers)
+
+
+def assert_reference(scene):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        result = analyze(scene, advice=False)
+        color, _, _ = render_sorted_reference(scene)
+    assert result.reference.dtype == np.float32 and result.reference.shape == color.shape
+    if not np.array_equal(result.reference, color):
+        ys, xs = np.nonzero((result.reference != color).any(axis=-1))
+        where = [(int(y), int(x), result.reference[y, x].tolist(), color[y, x].tolist())
+                 for y, x in zip(ys, xs, strict=True)][:4]
+        pytest.fail(f"{ys.size} pixels differ: {where}\n{describe(scene)}")
+    return result
+
+
+@pytest.mark.parametrize("seed", range(0, 120, 6))
+def test_seeded_scenes_equal_the_scalar_sorted_reference(seed):
+    assert_reference(seeded_scene(seed))
+    assert_reference(transparent(seeded_scene(seed)))
+    assert_reference(transparent(seeded_scene(seed + 1, shared=False), every=2))
+
+
+@settings(max_examples=40, deadline=None, database=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+@given(scenes())
+def test_random_scenes_equal_the_scalar_sorted_reference(scene):
+    assert_reference(transparent(scene, every=2))
+
+
+def test_small_bands_and_blocks_give_the_same_result(monkeypatch):
+    scene = transparent(seeded_scene(42))
+    whole = analyze(scene, advice=False)
+    monkeypatch.setattr(sr, "BLOCK_ROWS", 1)
+    monkeypatch.setattr(sr, "BAND_FRAGMENTS", 5)
+    banded = analyze(scene, advice=False)
+    assert np.array_equal(whole.reference, banded.reference)
+    assert np.array_equal(whole.inverted, banded.inverted) and whole.inversions == banded.inversions
+
+
+def _two_quads(order_right: bool):
+    """A red quad nearer than a blue one; ``order_right``: the blue (far) one drawn first."""
+    cam = sc.screen_camera(16, 12)
+    far = sc.renderer(sc.quad(0, 0, 10, 12, z=-1.0), sc.unlit((0, 0, 1, 0.5), queue=Queue.Transparent,
+                                                              passes=[BLEND]), name="Blue")
+    near = sc.renderer(sc.quad(6, 0, 16, 12, z=1.0), sc.unlit((1, 0, 0, 0.5), queue=Queue.Transparent,
+                                                              passes=[BLEND]), name="Red")
+    if not order_right:  # sort points that put the near quad behind the far one
+        far = replace(far, bounds_center=np.array([0.0, 0.0, 9.0]))
+        near = replace(near, bounds_center=np.array([0.0, 0.0, -9.0]))
+    return sc.scene(cam, far, near)
+
+
+def test_a_scene_in_correct_order_has_no_error_and_no_inversions():
+    result = analyze(_two_quads(True))
+    assert np.array_equal(result.reference, result.frame.color)
+    assert result.differing == 0 and float(result.error.max()) == 0.0 and result.inversions == []
+    assert result.advice == []
+
+
+def test_two_quads_in_the_wrong_order():
+    result = analyze(_two_quads(False), advice=False)
+    overlap = 4 * 12  # columns 6..9, all 12 rows
+    assert [inv.as_json() for inv in result.inversions] == [
+        {"front": "Red", "front_slot": 0, "behind": "Blue", "behind_slot": 0, "pixels": overlap}]
+    assert np.array_equal(result.inverted > 0, np.pad(np.ones((12, 4), bool), ((0, 0), (6, 6))))
+    # blue over red vs red over blue, alpha 0.5 on the (0.19, 0.30, 0.47, 0) clear colour: whole steps
+    assert result.differing == overlap and np.all(result.error[:, 6:10] > 1)
+    assert np.all(result.error[:, :6] == 0) and np.all(result.error[:, 10:] == 0)
+    assert np.all(result.error == np.round(result.error))
+    summary = result.summary()
+    assert summary["pixels"] == 16 * 12 and summary["differing"] == overlap
+    assert summary["max_error"] == float(result.error.max())
+    assert summary["mean_error"] == pytest.approx(float(result.error.sum()) / (16 * 12))
+
+
+def _depth_alone(renderer, cam):
+    opaque = replace(renderer, material=replace(renderer.material, queue=Queue.Geometry, passes=(Pass(),)))
+    return render_scene(sc.scene(cam, opaque)).depth
+
+
+def test_two_crossing_quads_give_exactly_the_crossing_pixels():
+    """Two quads crossing in depth (an X seen from above): the one drawn first is nearer on one side."""
+    cam = sc.screen_camera(16, 8)
+    mat = sc.unlit((0.2, 0.9, 0.3, 0.4), queue=Queue.Transparent, passes=[BLEND])
+    rising = sc.make_mesh([(0, 0, -4), (16, 0, 4), (16, 8, 4), (0, 8, -4)], [(0, 1, 2), (0, 2, 3)])
+    falling = sc.make_mesh([(0, 0, 4), (16, 0, -4), (16, 8, -4), (0, 8, 4)], [(0, 1, 2), (0, 2, 3)])
+    a, b = sc.renderer(rising, mat, name="A"), sc.renderer(falling, mat, name="B")
+    scene = sc.scene(cam, a, b)
+    assert [c.renderer.name for c in draw_calls(scene)] == ["A", "B"]  # same sort point: by name
+    result = analyze(scene, advice=False)
+    da, db = _depth_alone(a, cam), _depth_alone(b, cam)
+    expected = da < db  # A drawn first and nearer: (A, B) inverted
+    assert 0 < expected.sum() < expected.size
+    assert np.array_equal(result.inverted > 0, expected)
+    assert [(i.front, i.behind, i.pixels) for i in result.inversions] == [(("A", 0), ("B", 0), int(expected.sum()))]
+
+
+class _Counts(FrameObserver):
+    def __init__(self, n):
+        self.lock = threading.Lock()
+        self.per_call: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        self.n = n
+
+    def fragments(self, call, frags, outcome):
+        with self.lock:
+            r, w = self.per_call.setdefault(call.index, (np.zeros(self.n, np.int64), np.zeros(self.n, np.int64)))
+            np.add.at(r, frags.pix, 1)
+            np.add.at(w, frags.pix[outcome == Outcome.WRITTEN], 1)
+
+
+@pytest.mark.parametrize("seed", [4, 9, 17])
+def test_overdraw_equals_the_per_draw_fragment_counts(seed):
+    scene = transparent(seeded_scene(seed), every=2)
+    cam = scene.camera
+    counts = _Counts(cam.width * cam.height)
+    render_scene(scene, observer=counts)
+    result = analyze(scene, advice=False)
+    assert result.overdraw.dtype == np.uint32 and result.overdraw.shape == (cam.height, cam.width, 2)
+    for k in (0, 1):
+        total = sum(v[k] for v in counts.per_call.values()) if counts.per_call else np.zeros(cam.width * cam.height)
+        assert np.array_equal(result.overdraw[..., k], total.reshape(cam.height, cam.width)[::-1])
+    assert result.overdraw[..., 0].sum() > 0 or not counts.per_call
+
+
+def test_no_transparent_draws_reference_is_the_frame():
+    cam = sc.screen_camera(8, 8)
+    scene = sc.scene(cam, sc.renderer(sc.quad(0, 0, 8, 8), sc.unlit((1, 0, 0, 1))),
+                     sc.renderer(sc.quad(2, 2, 6, 6, z=1), sc.unlit((0, 1, 0, 0.5), queue=Queue.Overlay,
+                                                                       passes=[BLEND]), name="Hud"))
+    result = analyze(scene)
+    assert np.array_equal(result.reference, result.frame.color)
+    assert result.differing == 0 and result.inversions == [] and result.advice == []
+    assert np.array_equal(result.overdraw[..., 0], np.where(np.pad(np.ones((4, 4)), 2) > 0, 2, 1))
+
+
+def test_overlay_tests_against_step_one_depth_and_its_own_writes():
+    """An Overlay quad behind an opaque one is hidden; a transparent quad (no depth in step 2) is not."""
+    cam = sc.screen_camera(8, 4)
+    wall = sc.renderer(sc.quad(0, 0, 4, 4, z=0.0), sc.unlit((1, 1, 1, 1)), name="Wall")
+    glass = sc.renderer(sc.quad(0, 0, 8, 4, z=2.0), sc.unlit((1, 0, 0, 0.5), queue=Queue.Transparent,
+                                                             passes=[replace(BLEND, zwrite=True)]), name="Glass")
+    hud = sc.renderer(sc.quad(0, 0, 8, 4, z=-1.0), sc.unlit((0, 0, 1, 1), queue=Queue.Overlay), name="Hud")
+    scene = sc.scene(cam, wall, glass, hud)
+    result = analyze(scene)
+    color, _, _ = render_sorted_reference(scene)
+    assert np.array_equal(result.reference, color)
+    # the frame: Glass wrote depth, so Hud (farther than Glass) is hidden everywhere; in the
+    # reference Glass writes no depth: Hud covers the right half, the wall hides it on the left
+    assert np.all(result.frame.color[:, :, 2] < 1)
+    assert np.all(result.reference[:, 4:, :3] == (0, 0, 1)) and np.all(result.reference[:, :4, 2] < 1)
+
+
+def test_hdr_error_is_absolute():
+    scene = replace(_two_quads(False), hdr=True)
+    result = analyze(scene, advice=False)
+    diff = np.abs(result.frame.color.astype(np.float64) - result.reference.astype(np.float64)).max(axis=-1)
+    assert np.array_equal(result.error, diff.astype(np.float32))
+    assert 0 < float(result.error.max()) < 1 and result.differing == 4 * 12
+
+
+def test_self_overlap_and_the_prepass():
+    """A sphere drawn in one Cull Off call: self-overlap (A, A); the prepass removes the inversions."""
+    cam = sc.camera(24, 24, eye=(0, 0, 4))
+    ball = sc.renderer(sc.uv_sphere(1.0, 12, 8), sc.unlit((0.9, 0.6, 0.1, 0.4), queue=Queue.Transparent,
+                                                           passes=[replace(BLEND, cull=Cull.Off)]),
+                       name="Ball")
+    result = analyze(sc.scene(cam, ball), advice=False)
+    assert result.inversions and all(i.self_overlap for i in result.inversions)
+    queue, passes = preset("Alpha Blend ZWrite")
+    prepass = replace(ball, material=replace(ball.material, queue=queue, passes=passes))
+    fixed = analyze(sc.scene(cam, prepass), advice=False)
+    assert fixed.inversions == []
+    # the price: only the front layer shows, unlike the sorted reference of the two-sided material
+    price = sr._error(fixed.frame.color, result.reference, False)
+    assert np.count_nonzero(price > 1) > 0
+
+
+def test_ztest_against_step_one_depth():
+    cam = sc.screen_camera(8, 4)
+    wall = sc.renderer(sc.quad(0, 0, 4, 4, z=0.0), sc.unlit((1, 1, 1, 1)), name="Wall")
+    glass = sc.renderer(sc.quad(0, 0, 8, 4, z=-1.0), sc.unlit(
+        (1, 0, 0, 1), queue=Queue.Transparent, passes=[replace(BLEND, ztest=CompareFunction.Greater)]), name="G")
+    result = analyze(sc.scene(cam, wall, glass))
+    assert np.all(result.reference[:, :4, :3] == (1, 0, 0))  # behind the wall: Greater passes there
+
+
+class _Written(FrameObserver):
+    """Every written fragment of queues 2501..3999 (ColorMask not 0) in the order applied."""
+
+    def __init__(self):
+        self.lock = threading.Lock()
+        self.items = []
+
+    def fragments(self, call, frags, outcome):
+        if not (2500 < call.queue < 4000 and call.state.color_mask):
+            return
+        with self.lock:
+            for pix, depth, out in zip(frags.pix.tolist(), frags.depth.tolist(), outcome.tolist(), strict=True):
+                if out == Outcome.WRITTEN:
+                    self.items.append((call.index, pix, depth, (call.renderer.name, call.renderer.slot)))
+
+
+def layered_scene(seed: int):
+    """Big overlapping transparent shapes (tilted quads, Cull Off spheres) at random depths, drawn
+    in a random order (shuffled sort points): many layers and inversions per pixel."""
+    rng = np.random.default_rng(seed)
+    cam = sc.camera(16, 14, eye=(0, 0, 6))
+    renderers = []
+    for k in range(int(rng.integers(2, 6))):
+        passes = []
+        for _ in range(int(rng.integers(1, 3))):
+            passes.append(replace(BLEND, cull=Cull.Off if rng.random() < 0.5 else Cull.Back,
+                                  zwrite=bool(rng.random() < 0.3),
+                                  ztest=CompareFunction.Always if rng.random() < 0.2 else CompareFunction.LEqual))
+        color = tuple(float(v) for v in rng.random(3)) + (float(rng.uniform(0.2, 0.8)),)
+        mat = sc.unlit(color, queue=Queue.Transparent, passes=passes, queue_offset=int(rng.integers(0, 2)))
+        if rng.random() < 0.5:
+            z0, z1 = rng.uniform(-1.5, 1.5, 2)
+            mesh = sc.make_mesh([(-2, -2, z0), (2, -2, z1), (2, 2, z1), (-2, 2, z0)], [(0, 1, 2), (0, 2, 3)])
+        else:
+            mesh = sc.uv_sphere(float(rng.uniform(0.8, 1.6)), 10, 6)
+        m = sc.translate(*rng.uniform(-0.8, 0.8, 3))
+        r = sc.renderer(mesh, mat, name=f"R{k}", slot=int(rng.integers(0, 2)), matrix=m)
+        renderers.append(replace(r, bounds_center=rng.uniform(-3, 3, 3)))
+    return sc.scene(cam, *renderers)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_layered_scenes_equal_the_scalar_sorted_reference(seed):
+    result = assert_reference(layered_scene(seed))
+    assert result.inversions and result.differing > 0
+
+
+@pytest.mark.parametrize("seed", [*range(1, 60, 4), *(1000 + k for k in range(8))])
+def test_inversions_equal_a_plain_pairwise_count(seed):
+    scene = transparent(seeded_scene(seed), every=1) if seed < 1000 else layered_scene(seed)
+    cam = scene.camera
+    written = _Written()
+    render_scene(scene, observer=written, workers=1)
+    per_pixel: dict[int, list] = {}
+    for _index, pix, depth, who in sorted(written.items, key=lambda t: t[0]):  # draw order (stable)
+        per_pixel.setdefault(pix, []).append((depth, who))
+    pairs: dict[tuple, int] = {}
+    inverted = np.zeros(cam.width * cam.height, np.int64)
+    for pix, seq in per_pixel.items():
+        found = {(a[1], b[1]) for i, a in enumerate(seq) for b in seq[i + 1:] if a[0] < b[0]}
+        inverted[pix] = len(found)
+        for pair in found:
+            pairs[pair] = pairs.get(pair, 0) + 1
+    result = analyze(scene, advice=False)
+    assert {(i.front, i.behind): i.pixels for i in result.inversions} == pairs
+    assert np.array_equal(result.inverted, inverted.reshape(cam.height, cam.width)[::-1])
