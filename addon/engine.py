@@ -103,12 +103,12 @@ class UnityPassesRenderEngine(bpy.types.RenderEngine):
         except Exception as exc:  # noqa: BLE001 - a report, not a traceback in the UI
             self.report({"ERROR"}, f"Unity Passes: internal error: {type(exc).__name__}: {exc}")
             return
-        for warning in one_warning_per_cause(frame.warnings):
-            self.report({"WARNING"}, f"Unity Passes: {warning}")
         if self.test_break():
             self.report({"ERROR"}, "Unity Passes: render cancelled")
             return
-        try:
+        try:  # everything after the render reports its failure: an error report stops Blender saving
+            for warning in one_warning_per_cause(frame.warnings):
+                self.report({"WARNING"}, f"Unity Passes: {warning}")
             extra = sort_analysis.result_arrays(analysis) if analysed else None
             self._write_result(depsgraph, frame, region, extra, width, height)
         except Exception as exc:  # noqa: BLE001 - an error report stops Blender from saving the image

@@ -41,6 +41,8 @@ class _Extractor:
         self.materials: dict[int, Material] = {}
         self.textures: dict[int, Texture] = {}
         self.default_material = Material(name="Default")
+        # (object or 'instancer/object', slot) → how many renderers had that empty slot: one warning each
+        self.empty_slots: dict[tuple[str, int], int] = {}
 
     # -- textures -----------------------------------------------------------
     def texture(self, image: Any) -> Texture | None:
@@ -112,6 +114,14 @@ class _Extractor:
         )
 
     # -- meshes ----------------------------------------------------------------
+    def slot_warnings(self) -> list[str]:
+        """One warning per object (all its instances together) with an empty material slot."""
+        out = []
+        for (name, slot), count in self.empty_slots.items():
+            times = f" ({count} instances)" if count > 1 else ""
+            out.append(f"object {name!r} slot {slot}{times}: empty material slot, using the default material")
+        return out
+
     def renderers(self, obj_eval: Any, matrix_world: np.ndarray, name: str) -> list[Renderer]:
         mesh = obj_eval.to_mesh()
         try:
@@ -150,10 +160,9 @@ class _Extractor:
                 sel = np.flatnonzero(tri_mat == slot)
                 loop_tris = sel.astype(np.int32)
             mat = mats[slot] if slot < len(mats) else None
-            if mat is None and len(arrays["triangles"]):
-                if mats:
-                    self.warnings.append(
-                        f"object {name!r} slot {slot}: empty material slot, using the default material")
+            if mat is None and len(arrays["triangles"]) and mats:
+                cause = (name.split("#")[0], int(slot))  # every instance of one object: one cause
+                self.empty_slots[cause] = self.empty_slots.get(cause, 0) + 1
             uvs = arrays["uvs"]
             sub = Mesh(
                 positions=positions,
@@ -333,7 +342,7 @@ def build_draw_scene(scene: Any = None, depsgraph: Any = None, *, camera: Camera
     suns: list[tuple[float, str, Any, np.ndarray]] = []
     visible = render_visible_objects(view_layer) if check_visibility else set()
 
-    def add(obj: Any, name: str, matrix: Any) -> None:
+    def add(obj: Any, name: str, matrix: Any, instancer: bool = False) -> None:
         mw = _matrix(matrix)
         if obj.type in MESH_LIKE and not (np.all(np.isfinite(mw)) and np.abs(mw).max() < MAX_TRANSFORM):
             # Blender stores an "infinite" scale as FLT_MAX: nothing sensible can be drawn from it.
@@ -344,14 +353,19 @@ def build_draw_scene(scene: Any = None, depsgraph: Any = None, *, camera: Camera
             energy = float(obj.data.energy)
             suns.append((energy * max(float(c) for c in obj.data.color), name, obj, mw))
         elif obj.type in MESH_LIKE:
-            renderers.extend(ex.renderers(obj, mw, name))
+            found = ex.renderers(obj, mw, name)
+            if instancer:  # e.g. geometry nodes that turn all geometry into instances: no "empty mesh"
+                found = [r for r in found if r.mesh.triangle_count]
+            renderers.extend(found)
 
     # Curves and text evaluate to a mesh component that the depsgraph lists as an
     # instance of the object itself: draw that, not the curve.
     components: set[int] = set()
+    instancers: set[int] = set()  # objects that instance other objects (particles, geometry nodes)
     for inst in depsgraph.object_instances:
-        if inst.is_instance and inst.parent is not None and inst.object.original == inst.parent.original:
-            components.add(inst.parent.original.as_pointer())
+        if inst.is_instance and inst.parent is not None:
+            own = inst.object.original == inst.parent.original
+            (components if own else instancers).add(inst.parent.original.as_pointer())
     seen: set[int] = set()
     for inst in depsgraph.object_instances:
         obj = inst.object
@@ -363,7 +377,7 @@ def build_draw_scene(scene: Any = None, depsgraph: Any = None, *, camera: Camera
                 continue
             if obj.type in ("CURVE", "FONT", "SURFACE") and key in components:
                 continue
-            add(obj, original.name, inst.matrix_world)
+            add(obj, original.name, inst.matrix_world, instancer=key in instancers)
         else:
             parent = inst.parent.original if inst.parent is not None else original
             if (check_visibility and parent.as_pointer() not in visible) or not inst.show_self:
@@ -384,6 +398,7 @@ def build_draw_scene(scene: Any = None, depsgraph: Any = None, *, camera: Camera
                 warnings.append(f"object {original.name!r} is disabled in viewports: "
                                 "rendered without modifiers (enable it, or render with the Unity Passes engine)")
             add(obj, original.name, obj.matrix_world)
+    warnings.extend(ex.slot_warnings())
 
     light = None
     if suns:

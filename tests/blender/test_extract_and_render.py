@@ -303,3 +303,31 @@ def test_one_million_triangles_extract_with_the_fast_dtypes():
 def test_render_size_rounds_down_like_blender():
     scene = empty_scene(101, 77, percentage=50)
     assert blender.render_size(scene) == (50, 38)
+
+
+def test_geometry_nodes_instances_warn_once_per_cause():
+    """An object whose geometry nodes turn everything into instances of a mesh with an empty
+    material slot: no "empty mesh" for the instancer, one empty-slot warning for all instances."""
+    empty_scene()
+    tree = add_cube("Tree")
+    tree.data.materials.append(None)  # one empty slot
+    tree.hide_render = True  # only its instances render
+    points = add_plane("Points", size=2.0)
+    group = bpy.data.node_groups.new("Scatter", "GeometryNodeTree")
+    group.interface.new_socket(name="Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+    group.interface.new_socket(name="Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    nodes = group.nodes
+    gin, gout = nodes.new("NodeGroupInput"), nodes.new("NodeGroupOutput")
+    info, scatter = nodes.new("GeometryNodeObjectInfo"), nodes.new("GeometryNodeInstanceOnPoints")
+    info.inputs["Object"].default_value = tree
+    info.inputs["As Instance"].default_value = True
+    group.links.new(gin.outputs["Geometry"], scatter.inputs["Points"])
+    group.links.new(info.outputs["Geometry"], scatter.inputs["Instance"])
+    group.links.new(scatter.outputs["Instances"], gout.inputs["Geometry"])
+    points.modifiers.new("Scatter", "NODES").node_group = group
+    frame = render()
+    empty_slot = [w for w in frame.warnings if "empty material slot" in w]
+    assert empty_slot == ["object 'Points/Tree' slot 0 (4 instances): empty material slot, using the default material"]
+    assert not any("empty mesh" in w for w in frame.warnings), frame.warnings
+    draw = blender.build_draw_scene()
+    assert len(draw.renderers) == 4 and all(r.mesh.triangle_count == 12 for r in draw.renderers)
