@@ -9,7 +9,15 @@ from pathlib import Path
 import numpy as np
 
 from ..formats import heatmap, images
-from .common import CliError, check_blend, check_output, open_scene, redirect_fds, require_bpy, warn
+from .common import (
+    CliError,
+    add_scene_arguments,
+    check_blend,
+    check_distinct,
+    check_output,
+    load_draw_scene,
+    warn,
+)
 
 EPILOG_ANALYZE = """\
 examples:
@@ -33,9 +41,7 @@ def add_parser(sub) -> None:
     r = sub.add_parser("analyze", help="sorted reference, sort errors, inversions, overdraw and advice",
                        description="Compare the frame Unity draws with the per-fragment sorted reference.",
                        epilog=EPILOG_ANALYZE, formatter_class=argparse.RawDescriptionHelpFormatter)
-    r.add_argument("file", metavar="FILE.blend", help="the .blend file (it is only read, never saved)")
-    r.add_argument("--scene", metavar="NAME", help="scene to analyse (default: the file's active scene)")
-    r.add_argument("--frame", type=int, metavar="N", help="frame number (default: the file's current frame)")
+    add_scene_arguments(r)
     r.add_argument("--reference", metavar="REF", help="write the sorted reference: .png, .exr or .npy")
     r.add_argument("--error", metavar="ERR", help="write the sort error: .png (heat map) or .npy")
     r.add_argument("--overdraw", metavar="OD", help="write the overdraw: .png (heat maps) or .npy")
@@ -110,22 +116,20 @@ def run(args: argparse.Namespace) -> int:
         _check_map_output(overdraw, "--overdraw")
     if args.advice < 0:
         raise CliError("--advice must be 0 or more")
-    require_bpy()
-    from .. import blender
+    named = {"--reference": reference, "--error": error, "--overdraw": overdraw}
+    check_distinct({"FILE.blend": blend, **{k: v for k, v in named.items() if v is not None}})
     from ..core.pipeline import RenderCancelled
     from ..core.scene import SceneError
     from ..explain.sorted_reference import analyze
 
-    scene = open_scene(blend, args.scene)
+    draw = load_draw_scene(args)
     try:
-        with redirect_fds(2):
-            draw = blender.draw_scene_final(scene, frame=args.frame)
         result = analyze(draw, advice=args.advice > 0, max_advice=args.advice)
     except SceneError as exc:
         raise CliError(str(exc)) from None
     except RenderCancelled:
         raise CliError("render cancelled") from None
-    for warning in dict.fromkeys(list(draw.warnings) + result.frame.warnings):
+    for warning in dict.fromkeys(w for w in result.frame.warnings if w not in draw.warnings):
         warn(warning)
     todo = outputs(result, reference, error, overdraw)
     write_all(todo)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import importlib.util
 import os
@@ -105,3 +106,65 @@ def write_text_atomic(path: Path, text: str) -> None:
         write_atomic(path, text)
     except OSError as exc:
         raise CliError(f"{path}: cannot write ({exc.strerror or exc})") from None
+
+
+#: Blender's frame range (MAXFRAME); frame_set clamps to it.
+MAX_FRAME = 1048574
+
+
+def frame_number(text: str) -> int:
+    """``--frame``: an integer (argparse type)."""
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"frame must be an integer, got {text!r}") from None
+
+
+def add_scene_arguments(parser: argparse.ArgumentParser, *, after_file=()) -> None:
+    """``FILE.blend`` (then the positionals in ``after_file``: (name, kwargs) pairs), ``--scene``, ``--frame``."""
+    parser.add_argument("file", metavar="FILE.blend", help="the .blend file (it is only read, never saved)")
+    for name, kwargs in after_file:
+        parser.add_argument(name, **kwargs)
+    parser.add_argument("--scene", metavar="NAME", help="scene (default: the file's active scene)")
+    parser.add_argument("--frame", type=frame_number, metavar="N",
+                        help="frame number (default: the file's current frame)")
+
+
+def checked_frame(frame: int | None) -> int | None:
+    """A ``--frame`` inside Blender's frame range (clamped with a warning, as Blender would clamp it)."""
+    if frame is not None and abs(frame) > MAX_FRAME:
+        clamped = max(-MAX_FRAME, min(MAX_FRAME, frame))
+        warn(f"--frame {frame} is outside Blender's frame range; rendering frame {clamped}")
+        return clamped
+    return frame
+
+
+def load_draw_scene(args: argparse.Namespace):
+    """The checked ``args.file``'s scene (``args.scene``, ``args.frame``) as F12 evaluates it: a
+    DrawScene, its warnings printed; errors as CliError."""
+    blend = Path(args.file)
+    check_blend(blend)
+    frame = checked_frame(args.frame)
+    require_bpy()
+    from .. import blender
+    from ..core.scene import SceneError
+
+    scene = open_scene(blend, args.scene)
+    try:
+        with redirect_fds(2):
+            draw = blender.draw_scene_final(scene, frame=frame)
+    except SceneError as exc:
+        raise CliError(str(exc)) from None
+    for warning in draw.warnings:
+        warn(warning)
+    return draw
+
+
+def check_distinct(paths: dict[str, Path]) -> None:
+    """One-line error when two of the named files (inputs and outputs) are the same file."""
+    seen: dict[Path, str] = {}
+    for option, path in paths.items():
+        key = path.resolve()
+        if key in seen:
+            raise CliError(f"{path}: {option} is the same file as {seen[key]}; choose another output")
+        seen[key] = option

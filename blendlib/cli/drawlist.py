@@ -4,9 +4,8 @@ from __future__ import annotations
 
 import argparse
 import json
-from pathlib import Path
 
-from .common import CliError, check_blend, open_scene, redirect_fds, require_bpy, warn
+from .common import CliError, add_scene_arguments, load_draw_scene
 
 EPILOG = """\
 examples:
@@ -24,30 +23,9 @@ def add_parser(sub) -> None:
     r = sub.add_parser("drawlist", help="list the draw calls of a frame with their statistics",
                        description="The draw calls of the active (or named) scene, in draw order.",
                        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
-    r.add_argument("file", metavar="FILE.blend", help="the .blend file (it is only read, never saved)")
-    r.add_argument("--scene", metavar="NAME", help="scene (default: the file's active scene)")
-    r.add_argument("--frame", type=int, metavar="N", help="frame number (default: the file's current frame)")
+    add_scene_arguments(r)
     r.add_argument("--json", action="store_true", help="one JSON list on stdout instead of a table")
     r.set_defaults(func=run)
-
-
-def load_draw_scene(args: argparse.Namespace):
-    """The checked .blend file's scene as F12 evaluates it (a DrawScene); errors as CliError."""
-    blend = Path(args.file)
-    check_blend(blend)
-    require_bpy()
-    from .. import blender
-    from ..core.scene import SceneError
-
-    scene = open_scene(blend, args.scene)
-    try:
-        with redirect_fds(2):
-            draw = blender.draw_scene_final(scene, frame=args.frame)
-    except SceneError as exc:
-        raise CliError(str(exc)) from None
-    for warning in draw.warnings:
-        warn(warning)
-    return draw
 
 
 def table(rows: list[list[str]], right: set[int]) -> str:

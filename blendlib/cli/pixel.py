@@ -5,8 +5,8 @@ from __future__ import annotations
 import argparse
 import json
 
-from .common import CliError
-from .drawlist import load_draw_scene, table
+from .common import CliError, add_scene_arguments, load_draw_scene
+from .drawlist import table
 
 EPILOG = """\
 examples:
@@ -25,11 +25,9 @@ def add_parser(sub) -> None:
     r = sub.add_parser("pixel", help="the history of one pixel: every fragment, each test, before and after",
                        description="The history of pixel (X, Y) of the active (or named) scene.",
                        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
-    r.add_argument("file", metavar="FILE.blend", help="the .blend file (it is only read, never saved)")
-    r.add_argument("x", type=int, metavar="X", help="column, from the left (0-based)")
-    r.add_argument("y", type=int, metavar="Y", help="row, from the top (0-based)")
-    r.add_argument("--scene", metavar="NAME", help="scene (default: the file's active scene)")
-    r.add_argument("--frame", type=int, metavar="N", help="frame number (default: the file's current frame)")
+    add_scene_arguments(r, after_file=(
+        ("x", dict(type=int, metavar="X", help="column, from the left (0-based)")),
+        ("y", dict(type=int, metavar="Y", help="row, from the top (0-based)"))))
     r.add_argument("--json", action="store_true", help="one JSON object on stdout instead of a table")
     r.set_defaults(func=run)
 

@@ -9,7 +9,18 @@ import signal
 from pathlib import Path
 
 from ..formats import images
-from .common import CliError, check_blend, check_output, open_scene, redirect_fds, require_bpy, warn
+from .common import (
+    CliError,
+    add_scene_arguments,
+    check_blend,
+    check_distinct,
+    check_output,
+    checked_frame,
+    open_scene,
+    redirect_fds,
+    require_bpy,
+    warn,
+)
 from .frames import check_pattern, frame_path, parse_frames
 from .progress import Progress
 
@@ -35,12 +46,9 @@ def add_parser(sub) -> None:
     r = sub.add_parser("render", help="render a .blend file to PNG/EXR/NPY",
                        description="Render the active (or named) scene of a .blend file through its camera.",
                        epilog=EPILOG_RENDER, formatter_class=argparse.RawDescriptionHelpFormatter)
-    r.add_argument("file", metavar="FILE.blend", help="the .blend file (it is only read, never saved)")
+    add_scene_arguments(r)
     r.add_argument("-o", "--output", required=True, metavar="OUT", help="output image: .png, .exr or .npy")
     r.add_argument("--depth", metavar="DEPTH.npy", help="also write the depth buffer (H, W) float32, 0..1 window depth")
-    r.add_argument("--frame", type=frame_number, metavar="N",
-                   help="frame number to render (default: the file's current frame)")
-    r.add_argument("--scene", metavar="NAME", help="scene to render (default: the file's active scene)")
     r.add_argument("--frames", metavar="A-B[:STEP]",
                    help="render frames A..B (inclusive) every STEP; '#' in OUT becomes the frame number")
     r.add_argument("--skip-existing", action="store_true",
@@ -48,28 +56,6 @@ def add_parser(sub) -> None:
     r.add_argument("--until-draw", type=int, metavar="K",
                    help="stop after draw call K (1-based, as 'drawlist' numbers them; 0 = the cleared frame)")
     r.set_defaults(func=run)
-
-
-#: Blender's frame range (MAXFRAME); frame_set clamps to it.
-MAX_FRAME = 1048574
-
-
-def frame_number(text: str) -> int:
-    """``--frame``: an integer (argparse type)."""
-    try:
-        return int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"frame must be an integer, got {text!r}") from None
-
-
-def check_distinct(paths: dict[str, Path]) -> None:
-    """One-line error when two of the named files (inputs and outputs) are the same file."""
-    seen: dict[Path, str] = {}
-    for option, path in paths.items():
-        key = path.resolve()
-        if key in seen:
-            raise CliError(f"{path}: {option} is the same file as {seen[key]}; choose another output")
-        seen[key] = option
 
 
 @contextlib.contextmanager
@@ -116,10 +102,7 @@ def run(args: argparse.Namespace) -> int:
         check_output(Path(args.depth), "--depth")
         paths["--depth"] = Path(args.depth)
     check_distinct(paths)
-    if args.frame is not None and abs(args.frame) > MAX_FRAME:
-        clamped = max(-MAX_FRAME, min(MAX_FRAME, args.frame))
-        warn(f"--frame {args.frame} is outside Blender's frame range; rendering frame {clamped}")
-        args.frame = clamped
+    args.frame = checked_frame(args.frame)
     if args.frames is not None or args.skip_existing:
         return run_frames(args, blend, out)
     require_bpy()

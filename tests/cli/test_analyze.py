@@ -7,7 +7,7 @@ import json
 import numpy as np
 
 from blendlib.formats import images
-from tests.support.blender_fixtures import REPO, run_cli
+from tests.support.blender_fixtures import REPO, one_line_error, run_cli
 
 TWO = REPO / "blend_files" / "two_transparent.blend"
 
@@ -20,12 +20,6 @@ add_cube("Cube", 2.0)
 bpy.data.objects.remove(scene.camera)
 bpy.ops.wm.save_as_mainfile(filepath=sys.argv[1])
 """
-
-
-def one_line_error(proc, text):
-    assert proc.returncode == 1, proc.stderr
-    lines = [x for x in proc.stderr.splitlines() if x.strip()]
-    assert len(lines) == 1 and lines[0].startswith("error: ") and text in lines[0], proc.stderr
 
 
 def test_json_and_exact_arrays(tmp_path):

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from blendlib.formats import images
-from tests.support.blender_fixtures import run_cli
+from tests.support.blender_fixtures import one_line_error, run_cli
 
 MAKE = r"""
 import sys, math, bpy
@@ -41,12 +41,6 @@ def blends(tmp_path_factory):
         assert proc.returncode == 0, proc.stderr
         out[kind] = path
     return out
-
-
-def one_line_error(proc, text):
-    assert proc.returncode == 1, proc.stderr
-    lines = [x for x in proc.stderr.splitlines() if x.strip()]
-    assert len(lines) == 1 and lines[0].startswith("error: ") and text in lines[0], proc.stderr
 
 
 def test_render_png_npy_exr_and_depth(blends, tmp_path):

@@ -9,7 +9,7 @@ import json
 import numpy as np
 import pytest
 
-from tests.support.blender_fixtures import run_cli
+from tests.support.blender_fixtures import one_line_error, run_cli
 
 MAKE = r"""
 import sys, bpy
@@ -42,12 +42,6 @@ def blends(tmp_path_factory):
         assert proc.returncode == 0, proc.stderr
         out[kind] = path
     return out
-
-
-def one_line_error(proc, text):
-    assert proc.returncode == 1, proc.stderr
-    lines = [x for x in proc.stderr.splitlines() if x.strip()]
-    assert len(lines) == 1 and lines[0].startswith("error: ") and text in lines[0], proc.stderr
 
 
 def test_drawlist_json_and_table(blends):

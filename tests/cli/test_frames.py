@@ -15,8 +15,8 @@ from blendlib.cli.common import CliError
 from blendlib.cli.frames import frame_path, parse_frames
 from blendlib.cli.progress import Progress
 from blendlib.formats import images
-from tests.cli.test_cli import MAKE, one_line_error
-from tests.support.blender_fixtures import run_cli
+from tests.cli.test_cli import MAKE
+from tests.support.blender_fixtures import one_line_error, run_cli
 
 
 @pytest.fixture(scope="module")

@@ -118,3 +118,10 @@ def run_cli(*args: str, cwd: Path = REPO, code: str | None = None) -> subprocess
     """``python -m blendlib ARGS`` (or ``python -c CODE ARGS``) in a fresh process."""
     cmd = [sys.executable, "-c", code, *args] if code else [sys.executable, "-m", "blendlib", *args]
     return subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, timeout=300)
+
+
+def one_line_error(proc: subprocess.CompletedProcess, text: str) -> None:
+    """The CLI failed with exit status 1 and exactly one ``error: ...`` line containing ``text``."""
+    assert proc.returncode == 1, proc.stderr
+    lines = [x for x in proc.stderr.splitlines() if x.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error: ") and text in lines[0], proc.stderr
