@@ -9,20 +9,17 @@ list, the frames after draw calls, the picked pixel and its history.
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 import numpy as np
 
+from blendlib import blender
+from blendlib.blender.framedebug import buffer_rgba
+from blendlib.core.pipeline import FrameObserver
+from blendlib.explain import framedebug as fd
+from blendlib.formats import images
+
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
-
-from blendlib import blender  # noqa: E402
-from blendlib.blender.framedebug import buffer_rgba  # noqa: E402
-from blendlib.core.pipeline import FrameObserver  # noqa: E402
-from blendlib.explain import framedebug as fd  # noqa: E402
-from blendlib.formats import images  # noqa: E402
-
 BLEND = ROOT / "blend_files" / "self_overlap.blend"
 
 

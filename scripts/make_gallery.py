@@ -83,6 +83,10 @@ def main(argv: list[str]) -> int:
 
     import bpy  # noqa: F401  (bpy before addon)
 
+    import addon
+
+    addon.register()  # the scenes name the Unity Passes engine: Blender knows it when it loads them
+
     from blendlib.formats import images
 
     out = Path(args.out)

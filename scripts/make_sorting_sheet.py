@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
 """Build docs/sorting.png: the example scenes' frame, sorted reference, sort error and overdraw.
 
-    .venv/bin/python scripts/make_sorting_sheet.py            # docs/sorting.png
-    .venv/bin/python scripts/make_sorting_sheet.py --sheet OUT.png
+    .venv/bin/python -m scripts.make_sorting_sheet            # docs/sorting.png
+    .venv/bin/python -m scripts.make_sorting_sheet --sheet OUT.png
 
 One row per example scene of ``blend_files/`` that has sorting problems (two transparent objects
 in both orders, cyclic overlap, self-overlap with and without a depth prepass): the frame Unity
@@ -47,10 +47,10 @@ def main(argv: list[str]) -> int:
     args = parser.parse_args(argv)
 
     import bpy
-    from make_gallery import text_image
 
     import blendlib
     from blendlib.formats import heatmap, images
+    from scripts.make_gallery import text_image
 
     tw, th = TILE
     width = GAP + len(COLUMNS) * (tw + GAP)

@@ -40,4 +40,4 @@ fi
 # The example scenes as F12 renders them (out/<file>.png), then every scene of every file and the
 # gallery contact sheet (out/gallery.png; docs/gallery.png is the committed copy).
 .venv/bin/python scripts/render_examples.py
-.venv/bin/python scripts/make_gallery.py --sheet out/gallery.png
+.venv/bin/python -m scripts.make_gallery --sheet out/gallery.png
