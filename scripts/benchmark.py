@@ -4,6 +4,7 @@
     .venv/bin/python -m scripts.benchmark                      # the full run (docs/benchmark.md)
     .venv/bin/python -m scripts.benchmark --quick              # small sizes, a smoke run
     .venv/bin/python -m scripts.benchmark --scenes S1,S4 --repeats 5 --json out.json --plot docs/benchmark.png
+    .venv/bin/python -m scripts.benchmark --from-json out.json --write-doc docs/benchmark.md   # no run
 
 Run it from the repository root (``-m``): the workers import ``addon`` and ``tests.reference``
 from there, and ``blendlib`` as installed (editable) in the environment.
@@ -29,6 +30,20 @@ Peak memory of the project's render: the worker resets its peak resident set siz
 "peak RSS over the RSS before the render" is what the render needs on top of the Blender
 process and the input scene (numpy buffers, chunks, the frame). CPU use is the process CPU
 time (all threads) over wall time of the same call: 2.0 means both cores busy.
+
+More series of the project worker (docs/benchmark.md, "What is timed"):
+
+- S1, S2 and every S3 scene (issues 11, 12): the frame debugger's draw list, the pixel history
+  of the frame centre, a capture with snapshots, a slider step to the middle draw, and
+  ``analyze(draw, advice=False)``, each alternated with a plain ``render_scene`` of the same
+  DrawScene and reported as a ratio to it; tracemalloc peaks of a render, a capture, an analysis;
+- every S3 scene (issue 13): the viewport through the scene camera's matrices at 960x540:
+  extraction, the reduced (1/4 per side) and the full frame, change → first frame, and the
+  same through :class:`blendlib.blender.viewport.ViewportScheduler`;
+- S2p (issue 14): S2's planes through a perspective camera, at varied depths and angles.
+
+The load average at the start and the end of the run is printed and written to the doc: on a
+shared machine absolute times are noisy, ratios from alternating runs less so.
 """
 
 from __future__ import annotations
@@ -1157,6 +1172,9 @@ def write_plot(results: list[dict], path: Path, title: str) -> Path:
                                      ("analyze", "analyze_ratio", "#d62728")],
                      lambda r, key: r["explain"].get(key))
         ax.set_yscale("log")
+        # a one-draw scene's step returns the kept frame (~1e-5: off the axis); room for the legend
+        ax.set_ylim(0.01, 30)
+        ax.legend(fontsize=8, ncol=3, loc="upper left")
         for y, style in ((1.0, "-"), (3.0, "--")):
             ax.axhline(y, color="grey", linestyle=style, linewidth=0.8)
         ax.set_ylabel("time / plain render (median)")
@@ -1222,6 +1240,9 @@ def parse_args(argv=None):
                          "and print the top N functions by own time")
     ap.add_argument("--no-explain", action="store_true",
                     help="skip the frame debugger and sorted-reference series of S1, S2, S3 (issues 11, 12)")
+    ap.add_argument("--from-json", metavar="IN.json",
+                    help="run nothing: print the tables of a run saved with --json (and write --plot, "
+                         "--write-doc, --markdown from it)")
     ap.add_argument("--log", default=None, help="worker log file (default: a temporary file, path printed)")
     ap.add_argument("--worker", choices=BACKENDS, help=argparse.SUPPRESS)
     return ap.parse_args(argv)
@@ -1231,6 +1252,9 @@ def main(argv=None) -> int:
     args = parse_args(argv)
     if args.worker:
         return worker_main(args.worker)
+    if args.from_json:
+        data = json.loads(Path(args.from_json).read_text())
+        return report(args, data["results"], data["env"], None)
     kinds = [k.strip().lower() for k in args.backends.split(",") if k.strip()]
     bad = [k for k in kinds if k not in BACKENDS]
     if bad or "project" not in kinds:
@@ -1283,6 +1307,13 @@ def main(argv=None) -> int:
         "loadavg": [load_start, _loadavg()] if load_start else None,
         "command": " ".join(["python", "-m", "scripts.benchmark", *(argv if argv is not None else sys.argv[1:])]),
     }
+    return report(args, results, env, log_path)
+
+
+def report(args, results: list[dict], env: dict, log_path: Path | None) -> int:
+    """Print the tables and targets of a run; write the JSON, the doc's results and the plot as asked."""
+    args.quick, args.repeats = env["quick"], env["repeats"]
+    elapsed = env["elapsed_s"]
     print()
     print(f"Unity Passes benchmark — {env['processor']}, {env['cpus']} CPUs, numpy {env['numpy']}, "
           f"{args.repeats} runs each (median){', QUICK sizes' if args.quick else ''}")
@@ -1360,7 +1391,7 @@ def main(argv=None) -> int:
         p = write_plot(results, Path(args.plot), f"Unity Passes benchmark, {env['cpus']} CPUs"
                        + (" (quick sizes)" if args.quick else ""))
         print(f"plot: {p}")
-    print(f"\n({elapsed:.0f} s in all; worker log {log_path})")
+    print(f"\n({elapsed:.0f} s in all" + (f"; worker log {log_path})" if log_path else ")"))
     failed = any(k.startswith("project") for r in results for k in r["errors"])
     return 1 if failed else 0
 

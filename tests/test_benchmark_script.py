@@ -208,3 +208,36 @@ def test_write_doc_replaces_only_the_results_section(tmp_path):
     text = doc.read_text()
     assert text.startswith("# B\n\nmethod\n") and text.rstrip().endswith("after")
     assert "old" not in text and "| S4 | 1.00M |" in text and "under 0.3 s | 0.100 s | yes" in text
+
+
+def test_from_json_prints_and_writes_a_saved_run_without_running_it(tmp_path, capsys):
+    bench = _load_module()
+    case = dict(id="S2", group="S2", width=1920, height=1080, explain=True)
+    explain = dict(size=[1920, 1080], draws=50, fragments=51_840_000, written=51_840_000, plain_s=2.0,
+                   drawlist_ratio=1.05, pixel_ratio=1.0, capture_ratio=1.4, step_ratio=0.05, step_to=25, step_from=24,
+                   analyze_ratio=2.5, plain_peak_mb=140.0, capture_peak_mb=560.0, analyze_peak_mb=1000.0,
+                   snapshots=16, snapshot_mb=411.0)
+    viewport = dict(size=[960, 540], extract_s=0.004, reduced_s=0.015, full_s=0.050, first_frame_s=0.019,
+                    render_view_s=0.055, scheduler_first_s=0.021, scheduler_full_s=0.072)
+    res = {"case": case, "setup": {"project": {"triangles": 100, "covered_px": 2_000_000, "first_s": 2.5}},
+           "median": {"project": {"extract_s": 0.01, "render_s": 2.0, "total_s": 2.01, "peak_mb": 140.0,
+                                  "cpu_ratio": 1.8}, "opengl": {"total_s": 0.8}},
+           "ratio_gl": 2.5, "ratio_eevee": None, "errors": {}, "explain": explain,
+           "viewport": viewport}
+    env = {"command": "python -m scripts.benchmark --scenes S2", "processor": "CPU", "cpus": 2, "python": "3",
+           "numpy": "1", "repeats": 3, "elapsed_s": 120.0, "quick": False, "loadavg": [[5.9, 4.7, 4.7], [4, 4.5, 4.7]]}
+    saved = tmp_path / "run.json"
+    saved.write_text(json.dumps({"env": env, "results": [res]}))
+    doc = tmp_path / "benchmark.md"
+    assert bench.main(["--from-json", str(saved), "--write-doc", str(doc)]) == 0
+    out = capsys.readouterr().out
+    assert "[ok] issue 14 (round 2): S2 render within 3x of OpenGL/llvmpipe: 2.5x" in out
+    assert "[ok] issue 12: S2: analyze within 3x of a plain render: 2.5x" in out
+    assert "5.9, 4.7, 4.7 at the start" in out
+    text = doc.read_text()
+    assert text.startswith(f"# Benchmark\n\n{bench.RESULTS_START}\nCommand: `python -m scripts.benchmark --scenes S2`")
+    assert ("| S2 | 1920x1080 | 50 | 51.84M | 2.00 | 1.1x | 1.0x | 1.4x | 0.050x (25<-24) | 2.5x | 140 | 560 | 1000 |"
+            in text)
+    assert "| S2 | 960x540 | 4.0 | 15.0 | 50.0 | 19.0 | 55.0 | 21.0 | 72.0 |" in text
+    assert "| 11 | S2 capture at 1920x1080 peak memory under 2 GB | 560 MB (16 snapshots, 411 MB) | yes |" in text
+    assert "Load average (1, 5, 15 min) at the start 5.9, 4.7, 4.7, at the end 4.0, 4.5, 4.7 on 2 CPUs" in text
