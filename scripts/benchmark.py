@@ -4,6 +4,7 @@
     .venv/bin/python -m scripts.benchmark                      # the full run (docs/benchmark.md)
     .venv/bin/python -m scripts.benchmark --quick              # small sizes, a smoke run
     .venv/bin/python -m scripts.benchmark --scenes S1,S4 --repeats 5 --json out.json --plot docs/benchmark.png
+    .venv/bin/python -m scripts.benchmark --from-json out.json --write-doc docs/benchmark.md   # no run
 
 Run it from the repository root (``-m``): the workers import ``addon`` and ``tests.reference``
 from there, and ``blendlib`` as installed (editable) in the environment.
@@ -29,6 +30,20 @@ Peak memory of the project's render: the worker resets its peak resident set siz
 "peak RSS over the RSS before the render" is what the render needs on top of the Blender
 process and the input scene (numpy buffers, chunks, the frame). CPU use is the process CPU
 time (all threads) over wall time of the same call: 2.0 means both cores busy.
+
+More series of the project worker (docs/benchmark.md, "What is timed"):
+
+- S1, S2 and every S3 scene (issues 11, 12): the frame debugger's draw list, the pixel history
+  of the frame centre, a capture with snapshots, a slider step to the middle draw, and
+  ``analyze(draw, advice=False)``, each alternated with a plain ``render_scene`` of the same
+  DrawScene and reported as a ratio to it; tracemalloc peaks of a render, a capture, an analysis;
+- every S3 scene (issue 13): the viewport through the scene camera's matrices at 960x540:
+  extraction, the reduced (1/4 per side) and the full frame, change → first frame, and the
+  same through :class:`blendlib.blender.viewport.ViewportScheduler`;
+- S2p (issue 14): S2's planes through a perspective camera, at varied depths and angles.
+
+The load average at the start and the end of the run is printed and written to the doc: on a
+shared machine absolute times are noisy, ratios from alternating runs less so.
 """
 
 from __future__ import annotations
@@ -59,10 +74,17 @@ def sphere_k(triangles: int) -> int:
     return max(2, round(math.sqrt(triangles / 4.0)))
 
 
+#: Scene groups whose project worker also times the frame debugger and the sorted reference
+#: against a plain render (issues 11 and 12).
+EXPLAIN_GROUPS = ("S1", "S2", "S3")
+#: The viewport size of issue 13 (every S3 scene through blendlib.blender.viewport), and --quick's.
+VIEWPORT_SIZE, VIEWPORT_QUICK = (960, 540), (320, 180)
+
+
 def plan_cases(args) -> list[dict]:
     """The cases to run, in order. Each is a plain dict (sent as JSON to the workers)."""
     quick = args.quick
-    wanted = {s.strip().upper() for s in args.scenes.split(",") if s.strip()}
+    wanted = {s.strip().upper() for s in args.scenes.split(",") if s.strip()}  # "S2p" -> "S2P"
     full_hd = (480, 270) if quick else (1920, 1080)
     cases: list[dict] = []
     if "S1" in wanted:
@@ -73,13 +95,18 @@ def plan_cases(args) -> list[dict]:
         cases.append(dict(id="S2", group="S2", kind="planes", count=10 if quick else 50,
                           width=full_hd[0], height=full_hd[1],
                           label="transparent planes, each half the frame"))
+    if "S2P" in wanted:
+        cases.append(dict(id="S2p", group="S2p", kind="planes-perspective", count=10 if quick else 50,
+                          width=full_hd[0], height=full_hd[1],
+                          label="transparent planes, perspective, varied depths and angles, most of the frame each"))
     if "S3" in wanted:
         blend_dir = Path(args.blend_dir)
         files = sorted(blend_dir.glob("*.blend")) if blend_dir.is_dir() else []
         size = (320, 180) if quick else (1280, 720)
         for f in files:
             cases.append(dict(id=f"S3:{f.stem}", group="S3", kind="blend", path=str(f.resolve()),
-                              width=size[0], height=size[1], label=f"blend_files/{f.name}"))
+                              width=size[0], height=size[1], label=f"blend_files/{f.name}",
+                              viewport=list(VIEWPORT_QUICK if quick else VIEWPORT_SIZE)))
         if not files:
             print(f"note: S3 skipped: no .blend files in {blend_dir}", file=sys.stderr)
     if "S4" in wanted:
@@ -98,6 +125,10 @@ def plan_cases(args) -> list[dict]:
         for w, h in sizes:
             cases.append(dict(id=f"{w}x{h}", group="scale-res", kind="sphere", k=k, width=w, height=h,
                               fill=1 / 3, label="S1 material, resolution varies"))
+    if not getattr(args, "no_explain", False):
+        for case in cases:
+            if case["group"] in EXPLAIN_GROUPS:
+                case["explain"] = True
     return cases
 
 
@@ -261,6 +292,33 @@ def build_case(case: dict):
             scene.collection.objects.link(obj)
             obj.location = (x, 0.0, i * 0.05)
         _add_camera(scene, (0.0, 0.0, 10.0), (0.0, 0.0, 0.0), ortho_scale=16.0 * max(1.0, (16 / 9) / (w / h)))
+    elif case["kind"] == "planes-perspective":
+        # S2p (issue 14): the S2 planes through a 50 mm perspective camera at the origin looking
+        # down -Z; each plane at a depth in [2, 8], tilted up to 35 degrees about X and Y and
+        # turned up to 20 degrees about Z, sized to 90 % of the frustum at its depth and shifted
+        # by up to 10 %: each covers most of the frame, with perspective-correct interpolation.
+        me = bpy.data.meshes.new("Plane")
+        me.from_pydata([(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], [], [(0, 1, 2, 3)])
+        me.materials.append(_material("Veil", (1.0, 0.5, 0.2), 0.1, transparent=True, cull="Back"))
+        half_w = 18.0 / 50.0  # frustum half-width per unit of depth (36 mm sensor, width fit)
+        aspect = h / w
+        seed = 54321
+
+        def uniform(lo, hi):
+            nonlocal seed
+            seed = (seed * 1103515245 + 12345) % 2**31
+            return lo + (hi - lo) * seed / 2**31
+
+        for i in range(int(case["count"])):
+            depth = uniform(2.0, 8.0)
+            hw, hh = half_w * depth, half_w * depth * aspect
+            obj = bpy.data.objects.new(f"Plane.{i:03d}", me)
+            scene.collection.objects.link(obj)
+            obj.location = (uniform(-0.1, 0.1) * hw, uniform(-0.1, 0.1) * hh, -depth)
+            obj.rotation_euler = (math.radians(uniform(-35, 35)), math.radians(uniform(-35, 35)),
+                                  math.radians(uniform(-20, 20)))
+            obj.scale = (0.9 * hw, 0.9 * hh, 1.0)
+        _add_camera(scene, (0.0, 0.0, 0.0), (0.0, 0.0, -1.0))
     elif case["kind"] == "monkey":
         bpy.ops.mesh.primitive_monkey_add(size=2.0)
         obj = bpy.context.object
@@ -302,6 +360,31 @@ def _reset_peak() -> bool:
         return False
 
 
+def traced_peak_mb(call, *args) -> float:
+    """Peak of the memory allocated during ``call(*args)`` over what was allocated before it, in
+    MiB (tracemalloc: Python objects and numpy data buffers from every thread); the result is
+    counted while it is alive, then dropped."""
+    import tracemalloc
+
+    tracemalloc.start()
+    try:
+        base = tracemalloc.get_traced_memory()[0]
+        tracemalloc.reset_peak()
+        result = call(*args)
+        peak = tracemalloc.get_traced_memory()[1] - base
+        del result
+    finally:
+        tracemalloc.stop()
+    return peak / 2**20
+
+
+#: Timed series of ProjectWorker.explain (medians), in their alternation order.
+EXPLAIN_TIMES = ("plain_s", "drawlist_s", "pixel_s", "capture_s", "step_s", "analyze_s")
+#: Timed series of ProjectWorker.viewport (medians).
+VIEWPORT_TIMES = ("extract_s", "reduced_s", "full_s", "first_frame_s", "render_view_s",
+                  "scheduler_first_s", "scheduler_full_s")
+
+
 class Timer:
     def __enter__(self):
         self.cpu0, self.t0 = time.process_time(), time.perf_counter()
@@ -325,26 +408,16 @@ class ProjectWorker:
         return {"first_s": first["total_s"], "triangles": first["triangles"], "covered_px": first["covered_px"],
                 "peak_mb": self.traced_peak()}
 
-    def traced_peak(self) -> float:
-        """Peak of the memory allocated during one (untimed) ``render_scene`` call, in MiB: Python
-        objects and numpy buffers (numpy reports its data allocations to tracemalloc), the frame
-        included, the input DrawScene excluded."""
-        import tracemalloc
-
+    def traced_peak(self, call=None) -> float:
+        """Peak of the memory allocated during one (untimed) call of ``call(draw)`` (default
+        ``render_scene``), in MiB: Python objects and numpy buffers (numpy reports its data
+        allocations to tracemalloc), the result included, the input DrawScene excluded."""
         from blendlib import blender
         from blendlib.core.pipeline import render_scene
 
         draw = blender.build_draw_scene(self.scene)
-        tracemalloc.start()
-        try:
-            base = tracemalloc.get_traced_memory()[0]
-            tracemalloc.reset_peak()
-            frame = render_scene(draw, **self._kwargs())
-            peak = tracemalloc.get_traced_memory()[1] - base
-            del frame
-        finally:
-            tracemalloc.stop()
-        return peak / 2**20
+        kwargs = self._kwargs()
+        return traced_peak_mb(call or (lambda d: render_scene(d, **kwargs)), draw)
 
     def _kwargs(self) -> dict:
         kwargs = {}
@@ -380,6 +453,144 @@ class ProjectWorker:
             out["covered_px"] = int(np.count_nonzero(np.any(c != background, axis=-1)))
         del frame, draw
         return out
+
+    def explain(self, repeats: int) -> dict:
+        """The frame debugger (issue 11) and the sorted reference (issue 12) on this scene's
+        DrawScene, each timed against a plain ``render_scene`` of the same DrawScene in
+        alternating runs (plain, draw list, pixel history, capture, step, analyze, plain, ...):
+        medians in seconds, ratios to the plain render's median, and the tracemalloc peaks
+        (MiB, one untimed call each) of a plain render, a capture and an analysis."""
+        from blendlib import blender
+        from blendlib.core.pipeline import render_scene
+        from blendlib.explain import framedebug as fd
+        from blendlib.explain.sorted_reference import analyze
+
+        draw = blender.build_draw_scene(self.scene)
+        kwargs = self._kwargs()
+        workers = kwargs.get("workers")
+        cam = draw.camera
+        x, y = int(cam.width) // 2, int(cam.height) // 2  # the pixel at the frame centre
+        runs: dict[str, list[float]] = {k: [] for k in EXPLAIN_TIMES}
+        info: dict = {}
+        for _ in range(repeats):
+            with Timer() as t:
+                frame = render_scene(draw, **kwargs)
+            runs["plain_s"].append(t.wall)
+            del frame
+            with Timer() as t:
+                stats = fd.draw_list(draw, workers=workers)
+            runs["drawlist_s"].append(t.wall)
+            with Timer() as t:
+                history = fd.pixel_history(draw, x, y, workers=workers)
+            runs["pixel_s"].append(t.wall)
+            with Timer() as t:
+                cap = fd.FrameCapture.capture(draw, workers=workers)
+            runs["capture_s"].append(t.wall)
+            # The slider moved to the middle draw: replayed from the nearest snapshot before it.
+            k = max(1, math.ceil(len(cap.stats) / 2))
+            base = max((s for s in cap.snapshots if s < k), default=0)
+            with Timer() as t:
+                cap.frame_after(k, workers=workers)
+            runs["step_s"].append(t.wall)
+            info.update(draws=len(cap.stats), snapshots=len(cap.snapshots), interval=cap.interval,
+                        snapshot_mb=cap.snapshot_memory / 2**20, step_to=k, step_from=base)
+            del cap
+            with Timer() as t:
+                analysis = analyze(draw, advice=False, workers=workers)
+            runs["analyze_s"].append(t.wall)
+            info.update(inversion_pairs=len(analysis.inversions), differing_px=int(analysis.differing))
+            del analysis
+        info.update(fragments=sum(s.fragments for s in stats), written=sum(s.written for s in stats),
+                    pixel=[x, y], pixel_fragments=len(history.fragments))
+        out = {k: median(v) for k, v in runs.items()}
+        plain = out["plain_s"]
+        for k in EXPLAIN_TIMES[1:]:
+            out[k.replace("_s", "_ratio")] = out[k] / plain if plain > 0 else None
+        out["plain_peak_mb"] = traced_peak_mb(lambda d: render_scene(d, **kwargs), draw)
+        out["capture_peak_mb"] = traced_peak_mb(lambda d: fd.FrameCapture.capture(d, workers=workers), draw)
+        out["analyze_peak_mb"] = traced_peak_mb(lambda d: analyze(d, advice=False, workers=workers), draw)
+        out.update(info)
+        out["size"] = [int(cam.width), int(cam.height)]
+        return {"explain": out}
+
+    def viewport(self, width: int, height: int, repeats: int) -> dict:
+        """The viewport (issue 13) through the scene camera's view and projection matrices at
+        ``width`` x ``height``: extraction of the viewport template, the reduced first frame
+        (1/4 per side) and the full frame, each timed directly; the time from a change to the
+        first frame (extraction + reduced frame); :func:`render_view` end to end; and the same
+        through a :class:`ViewportScheduler` (extraction on this thread, frames on its worker
+        thread: from the start of the extraction to each frame's ``on_ready``). A change is a
+        1e-4 nudge of one mesh object, evaluated (untimed, Blender's work) before each run."""
+        import dataclasses
+        import threading
+
+        import bpy
+        import numpy as np
+
+        from blendlib.blender import viewport as vp
+        from blendlib.core.pipeline import render_scene
+
+        scene = self.scene
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        cam_obj = scene.camera.evaluated_get(depsgraph)
+        view = np.linalg.inv(vp.as_matrix(cam_obj.matrix_world, "matrix_world"))
+        proj = vp.as_matrix(cam_obj.calc_matrix_camera(depsgraph, x=width, y=height), "projection")
+        camera = vp.camera_from_matrices(view, proj, width, height)
+        small = vp.reduced_size(width, height)
+        reduced = dataclasses.replace(camera, width=small[0], height=small[1]) if small else camera
+        target = next((o for o in scene.objects if o.type == "MESH"), None)
+        nudges = [0]
+
+        def change() -> None:
+            if target is not None:
+                nudges[0] += 1
+                target.location.x += 1e-4 if nudges[0] % 2 else -1e-4
+            bpy.context.view_layer.update()
+
+        stamps: list[float] = []
+        ready = threading.Condition()
+
+        def on_ready() -> None:
+            with ready:
+                stamps.append(time.perf_counter())
+                ready.notify_all()
+
+        sched = vp.ViewportScheduler(on_ready=on_ready)
+        runs: dict[str, list[float]] = {k: [] for k in VIEWPORT_TIMES}
+        try:
+            for i in range(repeats):
+                change()
+                with Timer() as te:
+                    template = vp.extract_template(scene, depsgraph)
+                draw = dataclasses.replace(template, camera=camera)
+                with Timer() as tr:
+                    render_scene(dataclasses.replace(template, camera=reduced))
+                with Timer() as tf:
+                    render_scene(draw)
+                runs["extract_s"].append(te.wall)
+                runs["reduced_s"].append(tr.wall)
+                runs["full_s"].append(tf.wall)
+                runs["first_frame_s"].append(te.wall + tr.wall)
+                change()
+                with Timer() as tv:
+                    vp.render_view(scene, view, proj, width, height, depsgraph=depsgraph)
+                runs["render_view_s"].append(tv.wall)
+                change()
+                stamps.clear()
+                t0 = time.perf_counter()
+                template = vp.extract_template(scene, depsgraph)
+                sched.submit(dataclasses.replace(template, camera=camera), key=i)
+                if not sched.wait_idle(timeout=120) or len(stamps) < (2 if small else 1):
+                    raise RuntimeError(f"viewport scheduler gave {len(stamps)} frames: {sched.error}")
+                runs["scheduler_first_s"].append(stamps[0] - t0)
+                runs["scheduler_full_s"].append(stamps[-1] - t0)
+        finally:
+            sched.close()
+            if target is not None and nudges[0] % 2:
+                target.location.x -= 1e-4  # leave the scene as it was
+        out = {k: median(v) for k, v in runs.items()}
+        out.update(size=[width, height], reduced_size=[reduced.width, reduced.height], runs=repeats)
+        return {"viewport": out}
 
     def profile(self, top: int) -> dict:
         """cProfile of one extraction + render with ``workers=1`` (cProfile sees one thread only):
@@ -527,6 +738,10 @@ def worker_main(kind: str) -> int:
                 res = w.run()
             elif cmd == "profile":
                 res = w.profile(int(msg.get("top", 25)))
+            elif cmd == "explain":
+                res = w.explain(int(msg["repeats"]))
+            elif cmd == "viewport":
+                res = w.viewport(int(msg["width"]), int(msg["height"]), int(msg["repeats"]))
             elif cmd == "end":
                 res = w.end()
             else:
@@ -611,6 +826,21 @@ def run_case(case: dict, workers: dict[str, Worker], repeats: int, say, profile:
         r = workers["project"].call("profile", top=profile)
         if r.pop("ok"):
             res["profile"] = r
+    if "project" in active and case.get("explain"):
+        say(f"  {case['id']}: frame debugger and sorted reference against a plain render")
+        r = workers["project"].call("explain", repeats=repeats)
+        if r.pop("ok"):
+            res["explain"] = r["explain"]
+        else:
+            res["errors"]["project explain"] = r.get("error", "?")
+    if "project" in active and case.get("viewport"):
+        vw, vh = case["viewport"]
+        say(f"  {case['id']}: viewport frames at {vw}x{vh}")
+        r = workers["project"].call("viewport", width=vw, height=vh, repeats=max(5, 3 * repeats))
+        if r.pop("ok"):
+            res["viewport"] = r["viewport"]
+        else:
+            res["errors"]["project viewport"] = r.get("error", "?")
     for kind in active:
         workers[kind].call("end")
     res["median"] = {}
@@ -680,17 +910,53 @@ def table_rows(results: list[dict]) -> list[list[str]]:
     return rows
 
 
-def format_table(results: list[dict], markdown: bool = False) -> str:
-    rows = table_rows(results)
+def format_table(results: list[dict], markdown: bool = False, columns=COLUMNS, rows_of=table_rows) -> str:
+    """The main table (default), or with ``columns`` and ``rows_of`` another one (explain, viewport)."""
+    rows = rows_of(results)
     if markdown:
-        lines = ["| " + " | ".join(COLUMNS) + " |", "|" + "|".join("---" for _ in COLUMNS) + "|"]
+        lines = ["| " + " | ".join(columns) + " |", "|" + "|".join("---" for _ in columns) + "|"]
         lines += ["| " + " | ".join(r) + " |" for r in rows]
         return "\n".join(lines)
-    widths = [max(len(c), *(len(r[i]) for r in rows)) if rows else len(c) for i, c in enumerate(COLUMNS)]
+    widths = [max(len(c), *(len(r[i]) for r in rows)) if rows else len(c) for i, c in enumerate(columns)]
     fmt = "  ".join(f"{{:{'<' if i == 0 else '>'}{w}}}" for i, w in enumerate(widths))
-    lines = [fmt.format(*COLUMNS), fmt.format(*("-" * w for w in widths))]
+    lines = [fmt.format(*columns), fmt.format(*("-" * w for w in widths))]
     lines += [fmt.format(*r) for r in rows]
     return "\n".join(lines)
+
+
+EXPLAIN_COLUMNS = ("scene", "size", "draws", "fragments", "plain s", "draw list", "pixel", "capture",
+                   "step (to<-from)", "analyze", "plain MB", "capture MB", "analyze MB")
+VIEWPORT_COLUMNS = ("scene", "size", "extract ms", "reduced ms", "full ms", "change->first ms",
+                    "render_view ms", "sched. first ms", "sched. full ms")
+
+
+def explain_rows(results: list[dict]) -> list[list[str]]:
+    """Frame debugger and sorted reference (issues 11, 12): ratios to a plain render of the same
+    DrawScene in alternating runs, and tracemalloc peaks."""
+    rows = []
+    for res in results:
+        e = res.get("explain")
+        if not e:
+            continue
+        rows.append([
+            res["case"]["id"], f"{e['size'][0]}x{e['size'][1]}", str(e["draws"]), _fmt_n(e["fragments"]),
+            _fmt_t(e["plain_s"]), _fmt_x(e["drawlist_ratio"]), _fmt_x(e["pixel_ratio"]), _fmt_x(e["capture_ratio"]),
+            f"{_fmt_x(e['step_ratio'])} ({e['step_to']}<-{e['step_from']})", _fmt_x(e["analyze_ratio"]),
+            f"{e['plain_peak_mb']:.0f}", f"{e['capture_peak_mb']:.0f}", f"{e['analyze_peak_mb']:.0f}",
+        ])
+    return rows
+
+
+def viewport_rows(results: list[dict]) -> list[list[str]]:
+    """Viewport frames (issue 13), medians in milliseconds."""
+    rows = []
+    for res in results:
+        v = res.get("viewport")
+        if not v:
+            continue
+        rows.append([res["case"]["id"], f"{v['size'][0]}x{v['size'][1]}"]
+                    + [f"{v[k] * 1000:.1f}" for k in VIEWPORT_TIMES])
+    return rows
 
 
 def loglog_slope(xs, ys) -> float | None:
@@ -716,37 +982,121 @@ def scaling_summary(results: list[dict]) -> dict:
     return out
 
 
-def targets(results: list[dict], quick: bool) -> list[tuple[str, str, bool | None]]:
-    """(target, figure, met?) lines of issue 5."""
+def _worst(rows: list[tuple[str, float]], limit: float, fmt=None) -> tuple[str, bool]:
+    """(figure, met?) of several scenes against one limit: the worst value and its scene, the range."""
+    fmt = fmt or _fmt_x
+    name, worst = max(rows, key=lambda r: r[1])
+    best = min(r[1] for r in rows)
+    met = sum(v <= limit for _, v in rows)
+    return (f"worst {fmt(worst)} ({name}); range {fmt(best)}–{fmt(worst)}; {met} of {len(rows)} met",
+            worst <= limit)
+
+
+def targets(results: list[dict], quick: bool) -> list[tuple[str, str, str, bool | None]]:
+    """``(issue, target, figure, met?)`` lines: issue 5 (round 1), issue 14 (speed, round 2),
+    issue 11 (frame debugger), issue 12 (sorted reference), issue 13 (viewport)."""
     by_id = {r["case"]["id"]: r for r in results}
     out = []
+    r1 = "5 (round 1)"
     for sid, limit in (("S1", 8), ("S2", 10), ("S4", 5)):
         r = by_id.get(sid)
         if r and r["ratio_gl"] is not None:
-            out.append((f"{sid} render within {limit}x of OpenGL/llvmpipe", _fmt_x(r["ratio_gl"]),
+            out.append((r1, f"{sid} render within {limit}x of OpenGL/llvmpipe", _fmt_x(r["ratio_gl"]),
                         r["ratio_gl"] <= limit))
     s3 = [r for r in results if r["case"]["group"] == "S3" and r["ratio_eevee"] is not None]
     for r in s3:
-        out.append((f"{r['case']['id']} faster than EEVEE (1 sample)", _fmt_x(r["ratio_eevee"]), r["ratio_eevee"] < 1))
+        out.append((r1, f"{r['case']['id']} faster than EEVEE (1 sample)", _fmt_x(r["ratio_eevee"]),
+                    r["ratio_eevee"] < 1))
     r = by_id.get("S4")
     p = r and r["median"].get("project")
     if p:
         tris = r["setup"]["project"]["triangles"]
-        out.append((f"extraction of the {_fmt_n(tris)}-triangle evaluated mesh under 0.3 s",
+        out.append((r1, f"extraction of the {_fmt_n(tris)}-triangle evaluated mesh under 0.3 s",
                     f"{p['extract_s']:.3f} s", p["extract_s"] < 0.3))
-        out.append(("S4 peak memory of the render under 2 GB",
+        out.append((r1, "S4 peak memory of the render under 2 GB",
                     f"{p['peak_mb']:.0f} MB allocated (whole worker process incl. Blender and the scene: "
                     f"{p.get('rss_mb', 0):.0f} MB RSS)", p["peak_mb"] < 2048))
     sc = scaling_summary(results)
     for key, label in (("scale-tris/project", "triangles"), ("scale-res/project", "covered pixels")):
         if key in sc:
-            out.append((f"cost grows at most linearly with {label} (log-log slope <= 1.1)",
+            out.append((r1, f"cost grows at most linearly with {label} (log-log slope <= 1.1)",
                         f"{sc[key]:.2f}", sc[key] <= 1.1))
     big = [r for r in results if r["case"]["width"] * r["case"]["height"] >= 1920 * 1080
            and r["median"].get("project")]
     if big:
         cpu = median([r["median"]["project"]["cpu_ratio"] for r in big])
-        out.append(("both CPU cores busy on large frames (median CPU time / wall >= 1.5)", f"{cpu:.2f}", cpu >= 1.5))
+        out.append((r1, "both CPU cores busy on large frames (median CPU time / wall >= 1.5)", f"{cpu:.2f}",
+                    cpu >= 1.5))
+
+    # Issue 14: speed, round two.
+    r2 = "14 (round 2)"
+    for sid, limit in (("S1", 4), ("S2", 3), ("S2p", 3), ("S4", 2.5)):
+        r = by_id.get(sid)
+        if r and r["ratio_gl"] is not None:
+            out.append((r2, f"{sid} render within {limit:g}x of OpenGL/llvmpipe", _fmt_x(r["ratio_gl"]),
+                        r["ratio_gl"] <= limit))
+    rows = [(r["case"]["id"], r["ratio_gl"]) for r in results if r["case"]["group"] == "S3" and r["ratio_gl"]]
+    if rows:
+        out.append((r2, "every S3 scene within 4x of OpenGL/llvmpipe", *_worst(rows, 4)))
+    rows = [(r["case"]["id"], r["ratio_gl"]) for r in results
+            if r["case"]["group"] in ("S1", "S2", "S2p", "S3", "S4") and r["ratio_gl"]]
+    if rows:
+        out.append((r2, "goal beyond: 3x of OpenGL everywhere", *_worst(rows, 3)))
+    for sid in ("S2", "S4"):
+        p = by_id.get(sid) and by_id[sid]["median"].get("project")
+        if p:
+            out.append((r2, f"{sid} peak memory of a plain render under 1 GB", f"{p['peak_mb']:.0f} MB",
+                        p["peak_mb"] < 1024))
+
+    # Issues 11 and 12: the frame debugger and the sorted reference against a plain render.
+    explained = [r for r in results if r.get("explain")]
+
+    def ratio_lines(issue, label, key, limit, fmt_limit):
+        for sid in ("S1", "S2"):
+            e = by_id.get(sid, {}).get("explain")
+            if e and e.get(key) is not None:
+                out.append((issue, f"{sid}: {label} {fmt_limit}", _fmt_x(e[key]), e[key] <= limit))
+        rows = [(r["case"]["id"], r["explain"][key]) for r in explained
+                if r["case"]["group"] == "S3" and r["explain"].get(key) is not None]
+        if rows:
+            out.append((issue, f"every S3 scene: {label} {fmt_limit}", *_worst(rows, limit)))
+
+    ratio_lines("11", "draw list", "drawlist_ratio", 1.25, "within about one plain render (<= 1.25x)")
+    ratio_lines("11", "pixel history", "pixel_ratio", 1.25, "within about one plain render (<= 1.25x)")
+    ratio_lines("11", "slider step to the middle draw from the nearest snapshot", "step_ratio", 1.0,
+                "cheaper than a render (< 1x)")
+    e = by_id.get("S2", {}).get("explain")
+    if e:
+        w, h = e["size"]
+        out.append(("11", f"S2 capture at {w}x{h} peak memory under 2 GB",
+                    f"{e['capture_peak_mb']:.0f} MB ({e['snapshots']} snapshots, {e['snapshot_mb']:.0f} MB)",
+                    e["capture_peak_mb"] < 2048))
+    ratio_lines("12", "analyze", "analyze_ratio", 3.0, "within 3x of a plain render")
+    if e:
+        out.append(("12", f"S2 analyze at {w}x{h} peak memory under 2 GB", f"{e['analyze_peak_mb']:.0f} MB",
+                    e["analyze_peak_mb"] < 2048))
+
+    # Issue 13: viewport frames of every S3 scene.
+    vps = [r for r in results if r.get("viewport")]
+    if vps:
+        w, h = vps[0]["viewport"]["size"]
+
+        def ms(v):
+            return f"{v * 1000:.0f} ms" if v >= 0.01 else f"{v * 1000:.1f} ms"
+
+        for key, limit, label in (("full_s", 0.060, f"viewport full frame {w}x{h} <= 60 ms median"),
+                                  ("reduced_s", 0.020, "viewport reduced frame (1/4 per side) <= 20 ms median")):
+            out.append(("13", f"every S3 scene: {label}",
+                        *_worst([(r["case"]["id"], r["viewport"][key]) for r in vps], limit, ms)))
+        # First frame after a change (extraction + reduced frame through the scheduler's thread)
+        # within one full-frame time plus extraction: the margin is scheduler_first - (full + extract).
+        rows = [(r["case"]["id"], r["viewport"]["scheduler_first_s"]
+                 - (r["viewport"]["full_s"] + r["viewport"]["extract_s"])) for r in vps]
+        name, margin = max(rows, key=lambda x: x[1])
+        first = next(r["viewport"] for r in vps if r["case"]["id"] == name)
+        out.append(("13", "every S3 scene: first frame after a change within one frame time plus extraction",
+                    f"worst {name}: {ms(first['scheduler_first_s'])} vs {ms(first['full_s'] + first['extract_s'])}",
+                    margin <= 0))
     return out
 
 
@@ -771,8 +1121,10 @@ def _scaling_series(results, group, xkey):
 
 
 def write_plot(results: list[dict], path: Path, title: str) -> Path:
-    """Three panels: time vs triangles and time vs covered pixels (log-log, the scaling groups),
-    and every scene's total time per backend (log bars). Written atomically as PNG."""
+    """One panel per kind of figure the run has: time vs triangles and time vs covered pixels
+    (log-log, the scaling groups), every scene's total time per backend (log bars), the frame
+    debugger's and the sorted reference's ratios to a plain render, and the viewport's frame
+    times. Written atomically as PNG, 16/3 x 5 inches per panel at 80 dpi."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -781,35 +1133,81 @@ def write_plot(results: list[dict], path: Path, title: str) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     tri = _scaling_series(results, "scale-tris", "triangles")
     res = _scaling_series(results, "scale-res", "covered_px")
-    bars = [r for r in results if r["case"]["group"] in ("S1", "S2", "S3", "S4")]
-    fig = Figure(figsize=(16, 5))
-    FigureCanvasAgg(fig)
-    axes = fig.subplots(1, 3)
-    for ax, series, xl, t in ((axes[0], tri, "triangles", "time vs triangles (1080p)"),
-                              (axes[1], res, "covered pixels", "time vs covered pixels (200k tris)")):
-        for name, color, s in series:
-            ax.loglog(*zip(*s, strict=True), "o-", color=color, label=name)
-        ax.set_xlabel(xl)
-        ax.set_ylabel("seconds (median)")
-        ax.set_title(t)
-        ax.grid(True, which="both", alpha=0.3)
-        if series:
+    bars = [r for r in results if r["case"]["group"] in ("S1", "S2", "S2p", "S3", "S4")]
+    explained = [r for r in results if r.get("explain")]
+    viewports = [r for r in results if r.get("viewport")]
+    panels = []
+
+    def scaling_panel(series, xl, t):
+        def draw(ax):
+            for name, color, s in series:
+                ax.loglog(*zip(*s, strict=True), "o-", color=color, label=name)
+            ax.set_xlabel(xl)
+            ax.set_ylabel("seconds (median)")
+            ax.set_title(t)
+            ax.grid(True, which="both", alpha=0.3)
             ax.legend()
-    ax = axes[2]
-    names = [r["case"]["id"] for r in bars]
-    for j, (kind, _key, color) in enumerate(SERIES):
-        vals = [(r["median"].get(kind) or {}).get("total_s") or 0 for r in bars]
-        ax.bar([i + j * 0.2 for i in range(len(bars))], vals, 0.2, color=color, label=kind)
-    ax.set_xticks([i + 0.3 for i in range(len(bars))], names, rotation=30, ha="right")
-    ax.set_yscale("log")
-    ax.set_ylabel("seconds (median)")
-    ax.set_title("scenes: total time")
+        return draw
+
+    def grouped_bars(ax, rs, series, value):
+        width = 0.8 / len(series)
+        for j, (label, key, color) in enumerate(series):
+            ax.bar([i + j * width for i in range(len(rs))], [value(r, key) or 0 for r in rs], width,
+                   color=color, label=label)
+        ax.set_xticks([i + 0.4 - width / 2 for i in range(len(rs))], [r["case"]["id"] for r in rs],
+                      rotation=30, ha="right")
+        ax.legend(fontsize=8)
+
+    def scenes_panel(ax):
+        grouped_bars(ax, bars, [(kind, kind, color) for kind, _key, color in SERIES],
+                     lambda r, kind: (r["median"].get(kind) or {}).get("total_s"))
+        ax.set_yscale("log")
+        ax.set_ylabel("seconds (median)")
+        ax.set_title("scenes: total time (project = extraction + render)")
+
+    def explain_panel(ax):
+        grouped_bars(ax, explained, [("draw list", "drawlist_ratio", "#1f77b4"), ("pixel history", "pixel_ratio",
+                                                                                   "#ff7f0e"),
+                                     ("capture", "capture_ratio", "#2ca02c"), ("step", "step_ratio", "#9467bd"),
+                                     ("analyze", "analyze_ratio", "#d62728")],
+                     lambda r, key: r["explain"].get(key))
+        ax.set_yscale("log")
+        # a one-draw scene's step returns the kept frame (~1e-5: off the axis); room for the legend
+        ax.set_ylim(0.01, 30)
+        ax.legend(fontsize=8, ncol=3, loc="upper left")
+        for y, style in ((1.0, "-"), (3.0, "--")):
+            ax.axhline(y, color="grey", linestyle=style, linewidth=0.8)
+        ax.set_ylabel("time / plain render (median)")
+        ax.set_title("frame debugger and analyze vs a plain render")
+
+    def viewport_panel(ax):
+        w, h = viewports[0]["viewport"]["size"]
+        grouped_bars(ax, viewports, [("reduced frame", "reduced_s", "#2ca02c"), ("full frame", "full_s", "#1f77b4"),
+                                     ("change -> first frame", "scheduler_first_s", "#ff7f0e")],
+                     lambda r, key: r["viewport"][key] * 1000)
+        for y in (20, 60):
+            ax.axhline(y, color="grey", linestyle="--", linewidth=0.8)
+        ax.set_ylabel("milliseconds (median)")
+        ax.set_title(f"viewport {w}x{h} (targets 20 / 60 ms)")
+
+    if tri:
+        panels.append(scaling_panel(tri, "triangles", "time vs triangles (1080p)"))
+    if res:
+        panels.append(scaling_panel(res, "covered pixels", "time vs covered pixels (200k tris)"))
     if bars:
-        ax.legend()
+        panels.append(scenes_panel)
+    if explained:
+        panels.append(explain_panel)
+    if viewports:
+        panels.append(viewport_panel)
+    n = max(len(panels), 1)
+    fig = Figure(figsize=(16 / 3 * n, 5))
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(1, n, squeeze=False)[0]
+    for ax, panel in zip(axes, panels, strict=False):
+        panel(ax)
     fig.suptitle(title)
-    fig.text(0.5, 0.01, "project = render_scene in the first two plots, extraction + render in the third",
-             ha="center", fontsize=9)
-    fig.tight_layout(rect=(0, 0.03, 1, 1))
+    fig.tight_layout()
     write_atomic(path, lambda fh: fig.savefig(fh, format="png", dpi=80))
     return path
 
@@ -823,8 +1221,8 @@ def parse_args(argv=None):
     ap = argparse.ArgumentParser(prog="python -m scripts.benchmark", description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true", help="small sizes (a smoke run of a minute or so)")
-    ap.add_argument("--scenes", default="S1,S2,S3,S4,scaling",
-                    help="comma-separated subset of S1,S2,S3,S4,scaling (default: all)")
+    ap.add_argument("--scenes", default="S1,S2,S2p,S3,S4,scaling",
+                    help="comma-separated subset of S1,S2,S2p,S3,S4,scaling (default: all)")
     ap.add_argument("--backends", default=",".join(BACKENDS),
                     help=f"comma-separated subset of {','.join(BACKENDS)} (default: all)")
     ap.add_argument("--repeats", type=int, default=3, help="timed runs per backend and scene (default 3)")
@@ -838,8 +1236,13 @@ def parse_args(argv=None):
     ap.add_argument("--workers", type=int, default=0, help="render_scene(workers=...) (default: its own)")
     ap.add_argument("--chunk-candidates", type=int, default=0, help="render_scene(chunk_candidates=...)")
     ap.add_argument("--profile", type=int, default=0, metavar="N",
-                    help="after the timed runs, cProfile one project render of S1, S2, S4 (workers=1) "
+                    help="after the timed runs, cProfile one project render of S1, S2, S2p, S4 (workers=1) "
                          "and print the top N functions by own time")
+    ap.add_argument("--no-explain", action="store_true",
+                    help="skip the frame debugger and sorted-reference series of S1, S2, S3 (issues 11, 12)")
+    ap.add_argument("--from-json", metavar="IN.json",
+                    help="run nothing: print the tables of a run saved with --json (and write --plot, "
+                         "--write-doc, --markdown from it)")
     ap.add_argument("--log", default=None, help="worker log file (default: a temporary file, path printed)")
     ap.add_argument("--worker", choices=BACKENDS, help=argparse.SUPPRESS)
     return ap.parse_args(argv)
@@ -849,6 +1252,9 @@ def main(argv=None) -> int:
     args = parse_args(argv)
     if args.worker:
         return worker_main(args.worker)
+    if args.from_json:
+        data = json.loads(Path(args.from_json).read_text())
+        return report(args, data["results"], data["env"], None)
     kinds = [k.strip().lower() for k in args.backends.split(",") if k.strip()]
     bad = [k for k in kinds if k not in BACKENDS]
     if bad or "project" not in kinds:
@@ -860,6 +1266,7 @@ def main(argv=None) -> int:
         return 2
     log_path = Path(args.log) if args.log else Path(tempfile.mkstemp(prefix="benchmark-", suffix=".log")[1])
     started = time.perf_counter()
+    load_start = _loadavg()
 
     def say(msg):
         print(msg, file=sys.stderr, flush=True)
@@ -883,7 +1290,7 @@ def main(argv=None) -> int:
             results = []
             for case in cases:
                 say(f"{case['id']}: {case['label']}, {case['width']}x{case['height']}")
-                profile = args.profile if case["group"] in ("S1", "S2", "S4") else 0
+                profile = args.profile if case["group"] in ("S1", "S2", "S2p", "S4") else 0
                 results.append(run_case(case, workers, args.repeats, say, profile))
         finally:
             addon = workers.get("project").addon if "project" in workers else False
@@ -897,11 +1304,22 @@ def main(argv=None) -> int:
         "python": platform.python_version(), "numpy": np.__version__, "cpus": os.cpu_count(),
         "machine": platform.machine(), "processor": _cpu_name(), "repeats": args.repeats,
         "quick": bool(args.quick), "addon_registered": addon, "elapsed_s": elapsed,
+        "loadavg": [load_start, _loadavg()] if load_start else None,
         "command": " ".join(["python", "-m", "scripts.benchmark", *(argv if argv is not None else sys.argv[1:])]),
     }
+    return report(args, results, env, log_path)
+
+
+def report(args, results: list[dict], env: dict, log_path: Path | None) -> int:
+    """Print the tables and targets of a run; write the JSON, the doc's results and the plot as asked."""
+    args.quick, args.repeats = env["quick"], env["repeats"]
+    elapsed = env["elapsed_s"]
     print()
     print(f"Unity Passes benchmark — {env['processor']}, {env['cpus']} CPUs, numpy {env['numpy']}, "
           f"{args.repeats} runs each (median){', QUICK sizes' if args.quick else ''}")
+    if env["loadavg"]:
+        print(f"load average (1, 5, 15 min): {_fmt_load(env['loadavg'][0])} at the start, "
+              f"{_fmt_load(env['loadavg'][1])} at the end")
     print("times in seconds; 'project s' = extract + render; proj/GL = render / OpenGL (draw + readback); "
           "proj/EEVEE = project / EEVEE;")
     print("peak MB = peak memory allocated during render_scene (tracemalloc: numpy buffers + Python objects, "
@@ -930,12 +1348,23 @@ def main(argv=None) -> int:
         print()
         print("Scaling (log-log slope of median time; 1.0 = linear): "
               + ", ".join(f"{k} {v:.2f}" for k, v in sc.items()))
+    if explain_rows(results):
+        print()
+        print("Frame debugger (issue 11) and sorted reference (issue 12): times as ratios to a plain render of the "
+              "same DrawScene, alternating runs, medians; MB = tracemalloc peak of one untimed call")
+        print(format_table(results, columns=EXPLAIN_COLUMNS, rows_of=explain_rows))
+    if viewport_rows(results):
+        print()
+        print("Viewport (issue 13), through the scene camera's matrices; medians in ms; change->first = "
+              "extraction + reduced frame; sched. = through ViewportScheduler, from the start of the extraction")
+        print(format_table(results, columns=VIEWPORT_COLUMNS, rows_of=viewport_rows))
     tg = targets(results, args.quick)
     if tg:
         print()
-        print("Targets of issue 5" + (" (QUICK sizes: not the real targets)" if args.quick else "") + ":")
-        for label, fig, ok in tg:
-            print(f"  [{'ok' if ok else 'MISS'}] {label}: {fig}")
+        print("Targets of issues 5, 14, 11, 12, 13" + (" (QUICK sizes: not the real targets)" if args.quick else "")
+              + ":")
+        for issue, label, fig, ok in tg:
+            print(f"  [{'ok' if ok else 'MISS'}] issue {issue}: {label}: {fig}")
     for r in results:
         prof = r.get("profile")
         if not prof:
@@ -949,7 +1378,7 @@ def main(argv=None) -> int:
                   f"{row['calls']:7d}  {row['function']}")
     if args.markdown:
         print()
-        print(format_table(results, markdown=True))
+        print(results_markdown(results, env, sc, tg, None))
     if args.json:
         Path(args.json).parent.mkdir(parents=True, exist_ok=True)
         Path(args.json).write_text(json.dumps({"env": env, "results": results, "scaling": sc,
@@ -962,8 +1391,8 @@ def main(argv=None) -> int:
         p = write_plot(results, Path(args.plot), f"Unity Passes benchmark, {env['cpus']} CPUs"
                        + (" (quick sizes)" if args.quick else ""))
         print(f"plot: {p}")
-    print(f"\n({elapsed:.0f} s in all; worker log {log_path})")
-    failed = any(r["errors"].get("project") for r in results)
+    print(f"\n({elapsed:.0f} s in all" + (f"; worker log {log_path})" if log_path else ")"))
+    failed = any(k.startswith("project") for r in results for k in r["errors"])
     return 1 if failed else 0
 
 
@@ -971,18 +1400,30 @@ RESULTS_START, RESULTS_END = "<!-- results:start -->", "<!-- results:end -->"
 
 
 def results_markdown(results, env, sc, tg, plot) -> str:
+    load = env.get("loadavg")
     lines = [
         f"Command: `{env['command']}`  ",
         f"Machine: {env['processor']}, {env['cpus']} CPUs; Python {env['python']}, numpy {env['numpy']}; "
         f"{env['repeats']} timed runs per backend, medians; {time.strftime('%Y-%m-%d')}; "
-        f"{env['elapsed_s'] / 60:.0f} min in all.",
+        f"{env['elapsed_s'] / 60:.0f} min in all."
+        + (f"  \nLoad average (1, 5, 15 min) at the start {_fmt_load(load[0])}, at the end {_fmt_load(load[1])} "
+           f"on {env['cpus']} CPUs: the machine was shared, absolute times are noisy; ratios come from "
+           "alternating runs." if load else ""),
         "",
         format_table(results, markdown=True),
         "",
     ]
+    if explain_rows(results):
+        lines += ["Frame debugger (issue 11) and sorted reference (issue 12): each time as a ratio to a plain "
+                  "`render_scene` of the same DrawScene, alternating runs, medians; MB = tracemalloc peak of one "
+                  "untimed call.", "",
+                  format_table(results, markdown=True, columns=EXPLAIN_COLUMNS, rows_of=explain_rows), ""]
+    if viewport_rows(results):
+        lines += ["Viewport (issue 13), through the scene camera's view and projection matrices; medians in ms.",
+                  "", format_table(results, markdown=True, columns=VIEWPORT_COLUMNS, rows_of=viewport_rows), ""]
     if tg:
-        lines += ["| target (issue 5) | figure | met |", "|---|---|---|"]
-        lines += [f"| {label} | {fig} | {'yes' if ok else '**no**'} |" for label, fig, ok in tg]
+        lines += ["| issue | target | figure | met |", "|---|---|---|---|"]
+        lines += [f"| {issue} | {label} | {fig} | {'yes' if ok else '**no**'} |" for issue, label, fig, ok in tg]
         lines.append("")
     if sc:
         lines.append("Log-log slope of the median time (1.0 = linear): "
@@ -1001,6 +1442,17 @@ def write_doc(doc: Path, results, env, sc, tg, plot) -> None:
     _, tail = rest.split(RESULTS_END, 1)
     body = results_markdown(results, env, sc, tg, plot)
     doc.write_text(f"{head}{RESULTS_START}\n{body}\n{RESULTS_END}{tail}")
+
+
+def _loadavg() -> list[float] | None:
+    try:
+        return [round(v, 2) for v in os.getloadavg()]
+    except OSError:
+        return None
+
+
+def _fmt_load(load) -> str:
+    return ", ".join(f"{v:.1f}" for v in load) if load else "-"
 
 
 def _cpu_name() -> str:

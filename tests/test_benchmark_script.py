@@ -2,6 +2,7 @@
 the table with the expected columns. Not a timed test: no figure is checked against a target."""
 
 import json
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -23,6 +24,9 @@ def _load_module():
 def test_quick_run_prints_the_table(tmp_path):
     out_json = tmp_path / "bench.json"
     out_png = tmp_path / "bench.png"
+    blend_dir = tmp_path / "blend"
+    blend_dir.mkdir()
+    shutil.copy(REPO / "blend_files" / "alpha_blend.blend", blend_dir)  # one S3 scene is enough here
     backends = "project,workbench"
     try:
         import moderngl  # noqa: F401
@@ -30,8 +34,9 @@ def test_quick_run_prints_the_table(tmp_path):
         backends = "project,opengl,workbench"
     except ImportError:
         pass
-    cmd = [sys.executable, "-m", "scripts.benchmark", "--quick", "--scenes", "S1,S2,S4", "--backends", backends,
-           "--repeats", "1", "--json", str(out_json), "--plot", str(out_png), "--log", str(tmp_path / "w.log")]
+    cmd = [sys.executable, "-m", "scripts.benchmark", "--quick", "--scenes", "S1,S2,S2p,S3,S4", "--backends", backends,
+           "--repeats", "1", "--json", str(out_json), "--plot", str(out_png), "--log", str(tmp_path / "w.log"),
+           "--blend-dir", str(blend_dir)]
     proc = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stdout + proc.stderr + (tmp_path / "w.log").read_text()
     out = proc.stdout
@@ -39,23 +44,62 @@ def test_quick_run_prints_the_table(tmp_path):
     for column in ("scene", "tris", "size", "extract s", "render s", "project s", "OpenGL s", "EEVEE s",
                    "Workbench s", "proj/GL", "proj/EEVEE", "peak MB", "CPU"):
         assert column in header
-    rows = {line.split()[0]: line for line in out.splitlines() if line.split()[:1] in (["S1"], ["S2"], ["S4"])}
-    assert set(rows) == {"S1", "S2", "S4"}
-    assert "Targets of issue 5" in out
+    ids = ("S1", "S2", "S2p", "S3:alpha_blend", "S4")
+    rows = {line.split()[0] for line in out.splitlines() if line.split()[:1] and line.split()[0] in ids}
+    assert rows == set(ids)
+    for title in ("Frame debugger (issue 11)", "Viewport (issue 13)", "Targets of issues 5, 14, 11, 12, 13",
+                  "issue 14 (round 2): S2p render within 3x", "issue 12: S2 analyze at 480x270 peak memory"):
+        assert title in out
+    assert "load average (1, 5, 15 min)" in out
     data = json.loads(out_json.read_text())
+    assert len(data["env"]["loadavg"]) == 2 and all(len(v) == 3 for v in data["env"]["loadavg"])
     by_id = {r["case"]["id"]: r for r in data["results"]}
     assert by_id["S1"]["setup"]["project"]["triangles"] == 4 * 71 * 71  # the quick sphere, 2k segments k+1 rings
     assert by_id["S4"]["setup"]["project"]["triangles"] == 62976  # Suzanne, subdivision level 3
+    assert by_id["S2p"]["setup"]["project"]["triangles"] == 20  # 10 planes of one quad
     for r in by_id.values():
         med = r["median"]["project"]
         assert med["render_s"] > 0 and med["extract_s"] > 0 and med["peak_mb"] >= 0
         assert not r["errors"], r["errors"]
-    # S1 fills about a third of the frame.
+    # S1 fills about a third of the frame; S2p's planes, each most of the frame, cover more than S2's.
     s1 = by_id["S1"]
     assert abs(s1["setup"]["project"]["covered_px"] / (480 * 270) - 1 / 3) < 0.02
+    assert by_id["S2p"]["setup"]["project"]["covered_px"] > 0.9 * 480 * 270
+
+    # Frame debugger and sorted reference: S1, S2 and S3, not S2p and S4.
+    assert {i for i, r in by_id.items() if "explain" in r} == {"S1", "S2", "S3:alpha_blend"}
+    for r in (by_id["S1"], by_id["S2"], by_id["S3:alpha_blend"]):
+        e = r["explain"]
+        assert e["size"] == [r["case"]["width"], r["case"]["height"]]
+        for key in ("plain_s", "drawlist_s", "pixel_s", "capture_s", "step_s", "analyze_s"):
+            assert e[key] > 0, key
+        for key in ("drawlist_ratio", "pixel_ratio", "capture_ratio", "step_ratio", "analyze_ratio"):
+            assert e[key] == pytest.approx(e[key.replace("_ratio", "_s")] / e["plain_s"])
+        assert 0 < e["plain_peak_mb"] and e["capture_peak_mb"] >= e["snapshot_mb"] and e["analyze_peak_mb"] > 0
+        # snapshots after every interval-th draw but the last (the final frame is kept anyway)
+        assert e["interval"] >= 1 and e["snapshots"] == (e["draws"] - 1) // e["interval"]
+        assert (e["snapshot_mb"] > 0) == (e["snapshots"] > 0)
+        assert 0 <= e["step_from"] < e["step_to"] <= e["draws"] and e["step_to"] == -(-e["draws"] // 2)
+        assert e["pixel"] == [e["size"][0] // 2, e["size"][1] // 2]
+    s2 = by_id["S2"]["explain"]
+    # 10 planes, each exactly half of the 480x270 frame, ZWrite Off over a cleared depth: all written.
+    assert s2["draws"] == 10 and s2["fragments"] == s2["written"] == 10 * 480 * 270 // 2
+    assert 1 <= s2["pixel_fragments"] <= 10
+    assert by_id["S1"]["explain"]["draws"] == 1 and by_id["S1"]["explain"]["step_to"] == 1
+
+    # Viewport: the S3 scene at the quick size, reduced frame 1/4 per side.
+    assert {i for i, r in by_id.items() if "viewport" in r} == {"S3:alpha_blend"}
+    v = by_id["S3:alpha_blend"]["viewport"]
+    assert v["size"] == [320, 180] and v["reduced_size"] == [80, 45] and v["runs"] == 5
+    for key in ("extract_s", "reduced_s", "full_s", "first_frame_s", "render_view_s", "scheduler_first_s",
+                "scheduler_full_s"):
+        assert 0 < v[key] < 60, key
+    assert v["scheduler_full_s"] >= v["scheduler_first_s"]
+    assert {t[0] for t in data["targets"]} >= {"5 (round 1)", "14 (round 2)", "11", "12", "13"}
+
     from blendlib.formats import images
 
-    plot = images.load(out_png)  # matplotlib's figure: 16 x 5 inches at 80 dpi, not blank
+    plot = images.load(out_png)  # scenes, frame debugger, viewport: 3 x 16/3 by 5 inches at 80 dpi, not blank
     assert plot.shape == (400, 1280, 4) and plot[..., :3].std() > 0.05
 
 
@@ -65,7 +109,7 @@ def test_running_the_file_directly_says_how_to_run_it():
     assert proc.returncode == 1 and proc.stderr.strip().endswith("python -m scripts.benchmark [options]")
 
 
-def test_plot_has_the_three_panels(tmp_path):
+def test_plot_has_one_panel_per_kind_of_figure(tmp_path):
     bench = _load_module()
     results = []
     for group, xkey, sizes in (("scale-tris", "triangles", (1e3, 1e4, 1e5)), ("scale-res", "covered_px", (1e4, 1e5))):
@@ -75,14 +119,21 @@ def test_plot_has_the_three_panels(tmp_path):
                                        "opengl": {"total_s": n * 1e-6}}})
     results.append({"case": {"group": "S1", "id": "S1"}, "setup": {"project": {}},
                     "median": {"project": {"total_s": 0.5}, "eevee": {"total_s": 2.0}}})
-    path = bench.write_plot(results, tmp_path / "p.png", "title")
     from blendlib.formats import images
 
+    path = bench.write_plot(results, tmp_path / "p.png", "title")
     plot = images.load(path)
     assert plot.shape == (400, 1280, 4)
     # each third of the figure has drawn (non-white) pixels: two line plots and the bars
     for third in np.array_split(plot[40:360, :, :3], 3, axis=1):
         assert (third < 0.9).any(axis=2).mean() > 0.01
+    results[-1]["explain"] = {"drawlist_ratio": 1.1, "pixel_ratio": 1.0, "capture_ratio": 1.2, "step_ratio": 0.1,
+                              "analyze_ratio": 2.5}
+    results[-1]["viewport"] = {"size": [960, 540], "reduced_s": 0.01, "full_s": 0.05, "scheduler_first_s": 0.02}
+    plot = images.load(bench.write_plot(results, tmp_path / "p5.png", "title"))
+    assert plot.shape == (400, 2133, 4)
+    for fifth in np.array_split(plot[40:360, :, :3], 5, axis=1):
+        assert (fifth < 0.9).any(axis=2).mean() > 0.01
 
 
 def test_table_and_slope_helpers():
@@ -96,7 +147,50 @@ def test_table_and_slope_helpers():
            "ratio_gl": 4.0, "ratio_eevee": None, "errors": {}}
     text = bench.format_table([res])
     assert "4.0x" in text and "S1" in text
-    assert bench.targets([res], quick=True)[0][2] is True  # 4x <= 8x
+    tg = {(issue, label): (fig, ok) for issue, label, fig, ok in bench.targets([res], quick=True)}
+    assert tg[("5 (round 1)", "S1 render within 8x of OpenGL/llvmpipe")] == ("4.0x", True)
+    assert tg[("14 (round 2)", "S1 render within 4x of OpenGL/llvmpipe")] == ("4.0x", True)
+
+
+def test_targets_of_the_frame_debugger_sorted_reference_and_viewport():
+    bench = _load_module()
+
+    def result(sid, group, ratio_gl, explain=None, viewport=None):
+        r = {"case": dict(id=sid, group=group, width=1920, height=1080), "setup": {"project": {}},
+             "median": {}, "ratio_gl": ratio_gl, "ratio_eevee": None, "errors": {}}
+        if explain:
+            r["explain"] = dict(size=[1920, 1080], snapshots=19, snapshot_mb=500.0, capture_peak_mb=900.0,
+                                analyze_peak_mb=2100.0, **explain)
+        if viewport:
+            r["viewport"] = dict(size=[960, 540], **viewport)
+        return r
+
+    results = [
+        result("S2", "S2", 3.5, explain=dict(drawlist_ratio=1.1, pixel_ratio=1.3, step_ratio=0.2, analyze_ratio=2.9)),
+        result("S2p", "S2p", 2.9),
+        result("S3:a", "S3", 3.0, explain=dict(drawlist_ratio=1.0, pixel_ratio=1.0, step_ratio=0.5, analyze_ratio=1.5),
+               viewport=dict(full_s=0.040, reduced_s=0.010, extract_s=0.002, scheduler_first_s=0.015)),
+        result("S3:b", "S3", 4.5, explain=dict(drawlist_ratio=1.2, pixel_ratio=1.0, step_ratio=0.4, analyze_ratio=3.2),
+               viewport=dict(full_s=0.070, reduced_s=0.025, extract_s=0.002, scheduler_first_s=0.080)),
+    ]
+    tg = {(issue, label): (fig, ok) for issue, label, fig, ok in bench.targets(results, quick=False)}
+    assert tg[("14 (round 2)", "S2 render within 3x of OpenGL/llvmpipe")] == ("3.5x", False)
+    assert tg[("14 (round 2)", "S2p render within 3x of OpenGL/llvmpipe")] == ("2.9x", True)
+    assert tg[("14 (round 2)", "every S3 scene within 4x of OpenGL/llvmpipe")] == (
+        "worst 4.5x (S3:b); range 3.0x–4.5x; 1 of 2 met", False)
+    assert tg[("11", "S2: pixel history within about one plain render (<= 1.25x)")] == ("1.3x", False)
+    assert tg[("11", "every S3 scene: draw list within about one plain render (<= 1.25x)")][1] is True
+    assert tg[("11", "S2 capture at 1920x1080 peak memory under 2 GB")] == ("900 MB (19 snapshots, 500 MB)", True)
+    assert tg[("12", "S2: analyze within 3x of a plain render")] == ("2.9x", True)
+    assert tg[("12", "every S3 scene: analyze within 3x of a plain render")] == (
+        "worst 3.2x (S3:b); range 1.5x–3.2x; 1 of 2 met", False)
+    assert tg[("12", "S2 analyze at 1920x1080 peak memory under 2 GB")] == ("2100 MB", False)
+    assert tg[("13", "every S3 scene: viewport full frame 960x540 <= 60 ms median")] == (
+        "worst 70 ms (S3:b); range 40 ms–70 ms; 1 of 2 met", False)
+    assert tg[("13", "every S3 scene: viewport reduced frame (1/4 per side) <= 20 ms median")][1] is False
+    # S3:b's first frame (80 ms) comes later than its full frame plus extraction (72 ms).
+    assert tg[("13", "every S3 scene: first frame after a change within one frame time plus extraction")] == (
+        "worst S3:b: 80 ms vs 72 ms", False)
 
 
 def test_write_doc_replaces_only_the_results_section(tmp_path):
@@ -114,3 +208,36 @@ def test_write_doc_replaces_only_the_results_section(tmp_path):
     text = doc.read_text()
     assert text.startswith("# B\n\nmethod\n") and text.rstrip().endswith("after")
     assert "old" not in text and "| S4 | 1.00M |" in text and "under 0.3 s | 0.100 s | yes" in text
+
+
+def test_from_json_prints_and_writes_a_saved_run_without_running_it(tmp_path, capsys):
+    bench = _load_module()
+    case = dict(id="S2", group="S2", width=1920, height=1080, explain=True)
+    explain = dict(size=[1920, 1080], draws=50, fragments=51_840_000, written=51_840_000, plain_s=2.0,
+                   drawlist_ratio=1.05, pixel_ratio=1.0, capture_ratio=1.4, step_ratio=0.05, step_to=25, step_from=24,
+                   analyze_ratio=2.5, plain_peak_mb=140.0, capture_peak_mb=560.0, analyze_peak_mb=1000.0,
+                   snapshots=16, snapshot_mb=411.0)
+    viewport = dict(size=[960, 540], extract_s=0.004, reduced_s=0.015, full_s=0.050, first_frame_s=0.019,
+                    render_view_s=0.055, scheduler_first_s=0.021, scheduler_full_s=0.072)
+    res = {"case": case, "setup": {"project": {"triangles": 100, "covered_px": 2_000_000, "first_s": 2.5}},
+           "median": {"project": {"extract_s": 0.01, "render_s": 2.0, "total_s": 2.01, "peak_mb": 140.0,
+                                  "cpu_ratio": 1.8}, "opengl": {"total_s": 0.8}},
+           "ratio_gl": 2.5, "ratio_eevee": None, "errors": {}, "explain": explain,
+           "viewport": viewport}
+    env = {"command": "python -m scripts.benchmark --scenes S2", "processor": "CPU", "cpus": 2, "python": "3",
+           "numpy": "1", "repeats": 3, "elapsed_s": 120.0, "quick": False, "loadavg": [[5.9, 4.7, 4.7], [4, 4.5, 4.7]]}
+    saved = tmp_path / "run.json"
+    saved.write_text(json.dumps({"env": env, "results": [res]}))
+    doc = tmp_path / "benchmark.md"
+    assert bench.main(["--from-json", str(saved), "--write-doc", str(doc)]) == 0
+    out = capsys.readouterr().out
+    assert "[ok] issue 14 (round 2): S2 render within 3x of OpenGL/llvmpipe: 2.5x" in out
+    assert "[ok] issue 12: S2: analyze within 3x of a plain render: 2.5x" in out
+    assert "5.9, 4.7, 4.7 at the start" in out
+    text = doc.read_text()
+    assert text.startswith(f"# Benchmark\n\n{bench.RESULTS_START}\nCommand: `python -m scripts.benchmark --scenes S2`")
+    assert ("| S2 | 1920x1080 | 50 | 51.84M | 2.00 | 1.1x | 1.0x | 1.4x | 0.050x (25<-24) | 2.5x | 140 | 560 | 1000 |"
+            in text)
+    assert "| S2 | 960x540 | 4.0 | 15.0 | 50.0 | 19.0 | 55.0 | 21.0 | 72.0 |" in text
+    assert "| 11 | S2 capture at 1920x1080 peak memory under 2 GB | 560 MB (16 snapshots, 411 MB) | yes |" in text
+    assert "Load average (1, 5, 15 min) at the start 5.9, 4.7, 4.7, at the end 4.0, 4.5, 4.7 on 2 CPUs" in text
