@@ -8,7 +8,7 @@ Passes of the render result:
 - ``Depth``: the depth buffer as OpenGL window depth 0..1 (not Blender's camera distance).
 - With ``ViewLayer.unity_analysis.use_passes`` (:mod:`addon.sort_analysis`): ``UnitySortedReference``
   (RGBA, like Combined but with its alpha), ``UnitySortError`` and ``UnityOverdraw`` (X rasterised,
-  Y written, Z 0) of SPEC §9.
+  Y written, Z 0) of docs/sorting.md.
 
 The viewport's Rendered shading (``view_update`` / ``view_draw``) lives in :mod:`addon.viewport`.
 """

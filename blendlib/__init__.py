@@ -61,7 +61,7 @@ def analyze(scene=None, **kwargs):
 def draw_list(scene=None, **kwargs):
     """The draw calls of a ``bpy.types.Scene`` (default: the context scene) in order, each a
     :class:`blendlib.explain.framedebug.DrawStats` (``.call``, ``.triangles``, ``.fragments``,
-    ``.written``; ``.to_json()`` gives the SPEC §8 item). Costs one render."""
+    ``.written``; ``.to_json()`` gives the JSON item of docs/json.md). Costs one render."""
     from .blender import framedebug
 
     return framedebug.draw_list(scene, **kwargs)
@@ -70,7 +70,7 @@ def draw_list(scene=None, **kwargs):
 def pixel_history(scene, x: int, y: int, **kwargs):
     """The history of pixel (``x`` from the left, ``y`` from the top) of a ``bpy.types.Scene``
     (None: the context scene): a :class:`blendlib.explain.framedebug.PixelHistory` of every
-    fragment rasterised there (``.to_json()`` gives the SPEC §8 object). Costs one render."""
+    fragment rasterised there (``.to_json()`` gives the JSON object of docs/json.md). Costs one render."""
     from .blender import framedebug
 
     return framedebug.pixel_history(scene, x, y, **kwargs)

@@ -33,14 +33,14 @@ time (all threads) over wall time of the same call: 2.0 means both cores busy.
 
 More series of the project worker (docs/benchmark.md, "What is timed"):
 
-- S1, S2 and every S3 scene (issues 11, 12): the frame debugger's draw list, the pixel history
+- S1, S2 and every S3 scene: the frame debugger's draw list, the pixel history
   of the frame centre, a capture with snapshots, a slider step to the middle draw, and
   ``analyze(draw, advice=False)``, each alternated with a plain ``render_scene`` of the same
   DrawScene and reported as a ratio to it; tracemalloc peaks of a render, a capture, an analysis;
-- every S3 scene (issue 13): the viewport through the scene camera's matrices at 960x540:
+- every S3 scene: the viewport through the scene camera's matrices at 960x540:
   extraction, the reduced (1/4 per side) and the full frame, change → first frame, and the
   same through :class:`blendlib.blender.viewport.ViewportScheduler`;
-- S2p (issue 14): S2's planes through a perspective camera, at varied depths and angles.
+- S2p: S2's planes through a perspective camera, at varied depths and angles.
 
 The load average at the start and the end of the run is printed and written to the doc: on a
 shared machine absolute times are noisy, ratios from alternating runs less so.
@@ -293,7 +293,7 @@ def build_case(case: dict):
             obj.location = (x, 0.0, i * 0.05)
         _add_camera(scene, (0.0, 0.0, 10.0), (0.0, 0.0, 0.0), ortho_scale=16.0 * max(1.0, (16 / 9) / (w / h)))
     elif case["kind"] == "planes-perspective":
-        # S2p (issue 14): the S2 planes through a 50 mm perspective camera at the origin looking
+        # S2p: the S2 planes through a 50 mm perspective camera at the origin looking
         # down -Z; each plane at a depth in [2, 8], tilted up to 35 degrees about X and Y and
         # turned up to 20 degrees about Z, sized to 90 % of the frustum at its depth and shifted
         # by up to 10 %: each covers most of the frame, with perspective-correct interpolation.
@@ -455,7 +455,7 @@ class ProjectWorker:
         return out
 
     def explain(self, repeats: int) -> dict:
-        """The frame debugger (issue 11) and the sorted reference (issue 12) on this scene's
+        """The frame debugger and the sorted reference on this scene's
         DrawScene, each timed against a plain ``render_scene`` of the same DrawScene in
         alternating runs (plain, draw list, pixel history, capture, step, analyze, plain, ...):
         medians in seconds, ratios to the plain render's median, and the tracemalloc peaks
@@ -514,7 +514,7 @@ class ProjectWorker:
         return {"explain": out}
 
     def viewport(self, width: int, height: int, repeats: int) -> dict:
-        """The viewport (issue 13) through the scene camera's view and projection matrices at
+        """The viewport through the scene camera's view and projection matrices at
         ``width`` x ``height``: extraction of the viewport template, the reduced first frame
         (1/4 per side) and the full frame, each timed directly; the time from a change to the
         first frame (extraction + reduced frame); :func:`render_view` end to end; and the same
@@ -931,7 +931,7 @@ VIEWPORT_COLUMNS = ("scene", "size", "extract ms", "reduced ms", "full ms", "cha
 
 
 def explain_rows(results: list[dict]) -> list[list[str]]:
-    """Frame debugger and sorted reference (issues 11, 12): ratios to a plain render of the same
+    """Frame debugger and sorted reference: ratios to a plain render of the same
     DrawScene in alternating runs, and tracemalloc peaks."""
     rows = []
     for res in results:
@@ -948,7 +948,7 @@ def explain_rows(results: list[dict]) -> list[list[str]]:
 
 
 def viewport_rows(results: list[dict]) -> list[list[str]]:
-    """Viewport frames (issue 13), medians in milliseconds."""
+    """Viewport frames, medians in milliseconds."""
     rows = []
     for res in results:
         v = res.get("viewport")
@@ -1239,7 +1239,7 @@ def parse_args(argv=None):
                     help="after the timed runs, cProfile one project render of S1, S2, S2p, S4 (workers=1) "
                          "and print the top N functions by own time")
     ap.add_argument("--no-explain", action="store_true",
-                    help="skip the frame debugger and sorted-reference series of S1, S2, S3 (issues 11, 12)")
+                    help="skip the frame debugger and sorted-reference series of S1, S2, S3")
     ap.add_argument("--from-json", metavar="IN.json",
                     help="run nothing: print the tables of a run saved with --json (and write --plot, "
                          "--write-doc, --markdown from it)")
@@ -1350,12 +1350,12 @@ def report(args, results: list[dict], env: dict, log_path: Path | None) -> int:
               + ", ".join(f"{k} {v:.2f}" for k, v in sc.items()))
     if explain_rows(results):
         print()
-        print("Frame debugger (issue 11) and sorted reference (issue 12): times as ratios to a plain render of the "
+        print("Frame debugger and sorted reference: times as ratios to a plain render of the "
               "same DrawScene, alternating runs, medians; MB = tracemalloc peak of one untimed call")
         print(format_table(results, columns=EXPLAIN_COLUMNS, rows_of=explain_rows))
     if viewport_rows(results):
         print()
-        print("Viewport (issue 13), through the scene camera's matrices; medians in ms; change->first = "
+        print("Viewport, through the scene camera's matrices; medians in ms; change->first = "
               "extraction + reduced frame; sched. = through ViewportScheduler, from the start of the extraction")
         print(format_table(results, columns=VIEWPORT_COLUMNS, rows_of=viewport_rows))
     tg = targets(results, args.quick)
@@ -1414,12 +1414,12 @@ def results_markdown(results, env, sc, tg, plot) -> str:
         "",
     ]
     if explain_rows(results):
-        lines += ["Frame debugger (issue 11) and sorted reference (issue 12): each time as a ratio to a plain "
+        lines += ["Frame debugger and sorted reference: each time as a ratio to a plain "
                   "`render_scene` of the same DrawScene, alternating runs, medians; MB = tracemalloc peak of one "
                   "untimed call.", "",
                   format_table(results, markdown=True, columns=EXPLAIN_COLUMNS, rows_of=explain_rows), ""]
     if viewport_rows(results):
-        lines += ["Viewport (issue 13), through the scene camera's view and projection matrices; medians in ms.",
+        lines += ["Viewport, through the scene camera's view and projection matrices; medians in ms.",
                   "", format_table(results, markdown=True, columns=VIEWPORT_COLUMNS, rows_of=viewport_rows), ""]
     if tg:
         lines += ["| issue | target | figure | met |", "|---|---|---|---|"]

@@ -6,7 +6,7 @@
 
 One row per example scene of ``blend_files/`` that has sorting problems (two transparent objects
 in both orders, cyclic overlap, self-overlap with and without a depth prepass): the frame Unity
-draws, the sorted reference (SPEC §9), the sort error (8-bit steps) and the overdraw (fragments
+draws, the sorted reference (docs/sorting.md), the sort error (8-bit steps) and the overdraw (fragments
 written per pixel) as heat maps on the scale of their legend. docs/sorting.md explains how to
 read them. Captions use Blender's font (see scripts/make_gallery.py).
 """

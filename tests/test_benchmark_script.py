@@ -1,4 +1,4 @@
-"""Smoke test of scripts/benchmark.py (issue 5): it runs in --quick mode on tiny sizes and prints
+"""Smoke test of scripts/benchmark.py: it runs in --quick mode on tiny sizes and prints
 the table with the expected columns. Not a timed test: no figure is checked against a target."""
 
 import json
@@ -47,7 +47,7 @@ def test_quick_run_prints_the_table(tmp_path):
     ids = ("S1", "S2", "S2p", "S3:alpha_blend", "S4")
     rows = {line.split()[0] for line in out.splitlines() if line.split()[:1] and line.split()[0] in ids}
     assert rows == set(ids)
-    for title in ("Frame debugger (issue 11)", "Viewport (issue 13)", "Targets of issues 5, 14, 11, 12, 13",
+    for title in ("Frame debugger", "Viewport", "Targets of issues 5, 14, 11, 12, 13",
                   "issue 14 (round 2): S2p render within 3x", "issue 12: S2 analyze at 480x270 peak memory"):
         assert title in out
     assert "load average (1, 5, 15 min)" in out

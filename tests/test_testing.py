@@ -1,4 +1,5 @@
-"""``blendlib.testing``: the pytest plugin for golden-image tests of users' own scenes (SPEC §10).
+"""``blendlib.testing``: the pytest plugin for golden-image tests of users' own scenes
+(README: "Viewport, animations, render farms").
 
 The comparison rules directly, and the plugin as users run it, through pytest's own ``pytester``.
 """

@@ -1,4 +1,4 @@
-"""The "Unity Frame Debugger" (SPEC §8): capture a frame, step through its draw calls, read a
+"""The "Unity Frame Debugger" (docs/framedebugger.md): capture a frame, step through its draw calls, read a
 pixel's history, in the Image Editor's sidebar (tab "Unity").
 
 - :mod:`.properties`: ``Scene.unity_frame_debugger`` (the captured draw list, the selected draw,

@@ -44,7 +44,7 @@ def _select_from_slider(self, context) -> None:
 
 
 class UnityFrameDebuggerDraw(bpy.types.PropertyGroup):
-    """One captured draw call (SPEC §8 draw list)"""
+    """One captured draw call (the draw list of docs/json.md)"""
 
     index: IntProperty(name="Draw", description="Draw-call number, from 1 in draw order")
     queue: IntProperty(name="Queue", description="Render-queue number")

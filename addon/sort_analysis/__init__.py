@@ -1,4 +1,4 @@
-"""Sort analysis in Blender (SPEC §9): view-layer passes and a panel of inversions and advice.
+"""Sort analysis in Blender (docs/sorting.md): view-layer passes and a panel of inversions and advice.
 
 - :mod:`.properties`: ``ViewLayer.unity_analysis`` (adds the ``UnitySortedReference``,
   ``UnitySortError`` and ``UnityOverdraw`` passes to F12's render result) and the last

@@ -48,7 +48,7 @@ CLASSES = (UnitySortAnalysisSettings, UnitySortAdvice, UnitySortResults)
 def attach() -> None:
     bpy.types.ViewLayer.unity_analysis = bpy.props.PointerProperty(
         type=UnitySortAnalysisSettings, name="Unity Sort Analysis",
-        description="Sorted reference, sort error and overdraw passes (SPEC §9)")
+        description="Sorted reference, sort error and overdraw passes (docs/sorting.md)")
     bpy.types.WindowManager.unity_sort_results = bpy.props.PointerProperty(
         type=UnitySortResults, name="Unity Sort Results", description="The last sort analysis of this session")
 

@@ -1,4 +1,4 @@
-"""The frame debugger's Blender side (SPEC §8): capture a scene, show a buffer after a draw call.
+"""The frame debugger's Blender side (docs/framedebugger.md): capture a scene, show a buffer after a draw call.
 
 The work itself is bpy-free (:mod:`blendlib.explain.framedebug`); here a Blender scene becomes a
 DrawScene and a chosen buffer of the frame after draw K becomes the image "Unity Frame Debugger".

@@ -20,7 +20,7 @@ def render(scene: Any = None, depsgraph: Any = None, progress: Callable[[float],
            should_cancel: Callable[[], bool] | None = None, until_draw: int | None = None) -> pipeline.Frame:
     """Render a Blender scene with the Unity pipeline; see :func:`blendlib.render`.
 
-    ``until_draw`` K: the frame after draw call K (SPEC §8; 0 = the cleared frame).
+    ``until_draw`` K: the frame after draw call K (docs/framedebugger.md; 0 = the cleared frame).
     The Frame's ``warnings`` hold the extraction warnings followed by the core's.
     Raises :class:`SceneError` (no camera, bad input) or :class:`pipeline.RenderCancelled`.
     """
@@ -91,7 +91,7 @@ def render_final(scene: Any = None, progress: Callable[[float], None] | None = N
     exactly as for F12 and ``blender -b -E UNITY_PASSES``. The scene's render engine is set
     for the call and restored; no image is written. ``frame``: the frame to set first (the
     scene's current frame is restored afterwards); ``until_draw``: stop after that draw call
-    (SPEC §8). A Render Region (``use_border``) gives what F12 writes: the region only with
+    (docs/framedebugger.md). A Render Region (``use_border``) gives what F12 writes: the region only with
     Crop, else the full size with only the region filled. Raises like :func:`render`.
     """
     import bpy

@@ -1,7 +1,7 @@
 """The viewport's Rendered shading: a view's matrices → Camera, and rendering off the main thread.
 
 - :func:`camera_from_matrices` / :func:`render_view`: a Frame through any 4x4 view and
-  projection matrices (the viewport's own view, SPEC §10).
+  projection matrices (the viewport's own view, README: Viewport, animations, render farms).
 - :func:`region_view`: what a 3D viewport region shows (through the scene camera in camera
   view, the camera frame only; otherwise the region's view and window matrices).
 - :class:`ViewportScheduler`: one worker thread that renders the newest request, a reduced

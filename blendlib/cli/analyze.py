@@ -1,4 +1,5 @@
-"""``python -m blendlib analyze``: the sorted reference, sort error, inversions, overdraw and advice (SPEC §9)."""
+"""``python -m blendlib analyze``: the sorted reference, sort error, inversions, overdraw and advice
+(docs/sorting.md)."""
 
 from __future__ import annotations
 

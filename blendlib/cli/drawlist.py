@@ -1,4 +1,4 @@
-"""``python -m blendlib drawlist``: the draw calls of a frame with their statistics (SPEC §8)."""
+"""``python -m blendlib drawlist``: the draw calls of a frame with their statistics (docs/framedebugger.md)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,5 @@
-"""Frame ranges and Blender's ``#`` output patterns for ``render --frames`` (SPEC §10)."""
+"""Frame ranges and Blender's ``#`` output patterns for ``render --frames``
+(README: "Viewport, animations, render farms")."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""``python -m blendlib pixel``: every fragment that touched one pixel, in order (SPEC §8)."""
+"""``python -m blendlib pixel``: every fragment that touched one pixel, in order (docs/framedebugger.md)."""
 
 from __future__ import annotations
 

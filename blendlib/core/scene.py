@@ -1,6 +1,6 @@
 """Plain data the renderer core takes: a draw scene of renderers, camera, light and frame settings.
 
-Nothing here imports bpy; the bridge (:mod:`blendlib.bridge`) builds these from a
+Nothing here imports bpy; the Blender layer (:mod:`blendlib.blender`) builds these from a
 Blender scene, tests build them by hand. Arrays are numpy; shapes and dtypes are
 stated per field and checked by :func:`validate_scene`.
 """

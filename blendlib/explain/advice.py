@@ -1,4 +1,4 @@
-"""Advice for inverted renderer pairs (SPEC §9), each checked by re-rendering with the change.
+"""Advice for inverted renderer pairs (docs/sorting.md), each checked by re-rendering with the change.
 
 For a pair of different renderers (A drawn before B although A lies in front of B) the
 candidates are: a render-queue offset that draws A after B (on A's material) or B before A
@@ -96,7 +96,7 @@ def _pair_candidates(scene: DrawScene, a: Renderer, b: Renderer) -> list[tuple[d
 
 
 def advise(scene: DrawScene, analysis, limit: int = 5, workers: int | None = None) -> list[dict]:
-    """Advice items for the ``limit`` largest inversion pairs (SPEC §9 fields), each checked."""
+    """Advice items for the ``limit`` largest inversion pairs (fields of docs/json.md), each checked."""
     items = []
     before_differing = analysis.differing
     for inv in analysis.inversions[:limit]:

@@ -1,4 +1,4 @@
-"""The frame debugger (SPEC §8): draw-call statistics, pixel history, and stepping through draws.
+"""The frame debugger (docs/framedebugger.md): draw-call statistics, pixel history, and stepping through draws.
 
 Everything here watches an ordinary render through :class:`blendlib.core.pipeline.FrameObserver`:
 
@@ -49,7 +49,7 @@ SNAPSHOT_MEMORY = 512 * 1024 * 1024
 
 def float32_json(value: float) -> float:
     """The float whose shortest repr is the shortest text that reads back to the same float32
-    (SPEC §8: JSON floats at full float32 precision)."""
+    (docs/json.md: JSON floats at full float32 precision)."""
     v = np.float32(value)
     if not np.isfinite(v):
         return float(v)
@@ -82,7 +82,7 @@ class DrawStats:
     written: int
 
     def to_json(self) -> dict:
-        """The SPEC §8 ``drawlist --json`` item."""
+        """The ``drawlist --json`` item (docs/json.md)."""
         out = _call_json(self.call)
         out.update(triangles=self.triangles, fragments=self.fragments, written=self.written)
         return out
@@ -142,7 +142,7 @@ def draw_list(scene: DrawScene, *, progress: Callable[[float], None] | None = No
 
 @dataclass(frozen=True)
 class PixelFragment:
-    """One fragment of a pixel history (SPEC §8).
+    """One fragment of a pixel history (docs/json.md).
 
     ``source`` (4,) float64: the shader's RGBA in shading space before the LDR clamp.
     ``before``/``after`` (4,): the stored pixel in ``frame.color`` units (float32 values);
@@ -193,7 +193,7 @@ class PixelHistory:
     fragments: list[PixelFragment] = field(default_factory=list)
 
     def to_json(self) -> dict:
-        """The SPEC §8 ``pixel --json`` object."""
+        """The ``pixel --json`` object (docs/json.md)."""
         return {"x": self.x, "y": self.y, "clear": _rgba_json(self.clear), "final": _rgba_json(self.final),
                 "fragments": [f.to_json() for f in self.fragments]}
 

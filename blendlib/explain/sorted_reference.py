@@ -1,4 +1,4 @@
-"""The sorted reference, sort errors, inversions and overdraw (SPEC §9), vectorised.
+"""The sorted reference, sort errors, inversions and overdraw (docs/sorting.md), vectorised.
 
 One observed render of the scene gives everything: the frame as drawn, the buffers after the
 last draw of queue ≤ 2500 (step 1), every fragment of queues 2501–3999 that survived culling
@@ -109,7 +109,7 @@ class Analysis:
         return 0
 
     def summary(self) -> dict:
-        """The JSON summary of SPEC §9 (``advice`` included)."""
+        """The JSON summary of docs/json.md (``advice`` included)."""
         return {
             "pixels": int(self.error.size),
             "differing": self.differing,
@@ -393,7 +393,7 @@ def analyze(
     progress: Callable[[float], None] | None = None,
     should_cancel: Callable[[], bool] | None = None,
 ) -> Analysis:
-    """Render ``scene`` and its sorted reference; sort error, inversions, overdraw (SPEC §9).
+    """Render ``scene`` and its sorted reference; sort error, inversions, overdraw (docs/sorting.md).
 
     ``advice``: also check a fix for each of the ``max_advice`` largest inversion pairs by
     re-rendering with it (:mod:`blendlib.explain.advice`). Raises :class:`SceneError` for input

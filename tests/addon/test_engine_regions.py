@@ -1,4 +1,4 @@
-"""The render engine and render_final with a Render Region, and no image after a failure (issue 10)."""
+"""The render engine and render_final with a Render Region, and no image after a failure."""
 
 from __future__ import annotations
 

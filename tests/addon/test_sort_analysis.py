@@ -1,4 +1,4 @@
-"""The add-on's sort analysis (SPEC §9): F12 passes, the Analyze / Apply Advice operators, registration."""
+"""The add-on's sort analysis (docs/sorting.md): F12 passes, the Analyze / Apply Advice operators, registration."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""``python -m blendlib analyze`` (SPEC §9): exact .npy arrays, heat-map PNGs, the JSON summary, bad input."""
+"""``python -m blendlib analyze`` (docs/sorting.md): exact .npy arrays, heat-map PNGs, the JSON summary, bad input."""
 
 from __future__ import annotations
 

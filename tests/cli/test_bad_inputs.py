@@ -1,4 +1,4 @@
-"""A corpus of bad input to the CLI (issue 10): each case gives its exact outcome.
+"""A corpus of bad input to the CLI: each case gives its exact outcome.
 
 For every case: the exit status, the one stderr line's gist (no traceback, no "internal
 error", no leaked numpy warning), no output file left, the inputs unchanged (sha256) and,

@@ -1,4 +1,4 @@
-"""``drawlist``, ``pixel`` and ``render --until-draw`` (SPEC §8) on a small .blend file: an opaque
+"""``drawlist``, ``pixel`` and ``render --until-draw`` (docs/framedebugger.md) on a small .blend file: an opaque
 plane behind a Cull Off alpha-blended cube, so the centre pixel sees two faces of the cube blended
 in the mesh's triangle order inside one draw call."""
 

@@ -1,5 +1,5 @@
 """``render --frames A-B[:STEP]``: Blender's ``#`` padding, ``Saved:`` lines, ``--skip-existing``,
-one-line errors, and the progress bar (quiet off a terminal) (SPEC §10)."""
+one-line errors, and the progress bar (quiet off a terminal) (README: Viewport, animations, render farms)."""
 
 from __future__ import annotations
 

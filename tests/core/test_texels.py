@@ -1,4 +1,4 @@
-"""Compact texel storage (issue 10): exactly the values of converting every texel, in far less memory."""
+"""Compact texel storage: exactly the values of converting every texel, in far less memory."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""SPEC §9 advice: a checked change per inverted pair; the prepass for self-overlap, with its price."""
+"""docs/sorting.md advice: a checked change per inverted pair; the prepass for self-overlap, with its price."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The frame debugger (SPEC §8) against the scalar reference: draw statistics, pixel histories
+"""The frame debugger (docs/framedebugger.md) against the scalar reference: draw statistics, pixel histories
 replayed fragment by fragment, stepping through draws from snapshots."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""SPEC §9: the sorted reference equals the scalar reference's sorted mode bit for bit; sort error,
+"""docs/sorting.md: the sorted reference equals the scalar reference's sorted mode bit for bit; sort error,
 inversions and overdraw have the values their definitions give on scenes where they are known."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""SPEC §9's sorted reference against OpenGL: :func:`blendlib.explain.sorted_reference.analyze`'s
+"""docs/sorting.md's sorted reference against OpenGL: :func:`blendlib.explain.sorted_reference.analyze`'s
 reference agrees with a depth-peeling render through the GL reference of the tests
 (:func:`tests.reference.glref.render_gl_sorted`: queues ≤ 2500 drawn, the fragments of queues
 2501–3999 peeled back to front one per pixel per peel, each applied with its own pass's state,

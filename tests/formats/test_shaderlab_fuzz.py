@@ -1,4 +1,4 @@
-"""Property-based fuzzing of the ShaderLab importer (issue 10).
+"""Property-based fuzzing of the ShaderLab importer.
 
 Inputs are mutations of the book's listings (shared/seeds) and of the exported presets:
 bytes deleted, duplicated, swapped, replaced by ShaderLab-ish fragments (huge and

@@ -7,7 +7,7 @@ perspective-correct interpolation, depth, polygon offset, stencil, depth test,
 blending, sRGB framebuffer conversion, the colour write mask and the clear.
 
     color, depth, stencil = render_gl(scene)       # row 0 = top, like Frame
-    color, depth, stencil = render_gl_sorted(scene)  # SPEC §9's sorted reference, by depth peeling
+    color, depth, stencil = render_gl_sorted(scene)  # docs/sorting.md's sorted reference, by depth peeling
 
 For timing the draw alone::
 
@@ -418,7 +418,7 @@ class GLRenderer:
 
         # Draw calls: (vao, vertex count, mirrored, texture, uniforms, pass).
         self.calls = []
-        self.call_numbers = []  # the 1-based draw-call number (SPEC §8) of each entry of ``calls``
+        self.call_numbers = []  # the 1-based draw-call number (docs/framedebugger.md) of each entry of ``calls``
         self.call_queues = []  # the render queue of each entry of ``calls``
         self._call_buffers = []  # the vertex buffer of each entry of ``calls``
         self._peel_vaos = {}  # (program, vertex buffer) → vertex array of render_sorted's programs
@@ -533,7 +533,7 @@ class GLRenderer:
                 prog["tex"].value = 0
 
     def render(self, max_calls: int | None = None, samples: dict | None = None) -> None:
-        """Clear and issue every draw call (or those numbered up to ``max_calls``, SPEC §8 numbering:
+        """Clear and issue every draw call (or those numbered up to ``max_calls``, docs/framedebugger.md numbering:
         renderers with no triangles count); no readback, no wait.
 
         ``samples``: a dict that receives, per draw-call number, the samples that passed the
@@ -557,7 +557,7 @@ class GLRenderer:
         self.gl.check("drawing")
 
     def render_sorted(self, max_peels: int = 10_000) -> int:
-        """Clear and draw SPEC §9's sorted reference by depth peeling; returns the number of peels.
+        """Clear and draw docs/sorting.md's sorted reference by depth peeling; returns the number of peels.
 
         1. The draw calls of queues ≤ 2500 are drawn as :meth:`render` draws them; the depth
            buffer they leave is the one step 2 tests against (nothing writes depth in step 2).
@@ -784,7 +784,7 @@ class GLRenderer:
 
 
 def render_gl_sorted(scene: DrawScene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """SPEC §9's sorted reference through OpenGL by depth peeling (:meth:`GLRenderer.render_sorted`);
+    """docs/sorting.md's sorted reference through OpenGL by depth peeling (:meth:`GLRenderer.render_sorted`);
     returns ``(color, depth, stencil)``, row 0 = top."""
     r = GLRenderer(scene)
     try:

@@ -642,11 +642,11 @@ def merge_fragment(px: int, py: int, d: int, rgba: list, p, buf: Buffers) -> str
     return "written"
 
 
-# ---------------------------------------------------------------- SPEC §9 sorted reference
+# ---------------------------------------------------------------- docs/sorting.md sorted reference
 
 
 def render_sorted_reference(scene: DrawScene):
-    """SPEC §9's sorted reference, one fragment at a time; returns ``(color, depth, stencil)``.
+    """docs/sorting.md's sorted reference, one fragment at a time; returns ``(color, depth, stencil)``.
 
     Queues up to 2500 draw as usual; every fragment of queues 2501..3999 that survives culling
     and the alpha test (passes with ColorMask 0 left out: they write nothing) is kept, then
