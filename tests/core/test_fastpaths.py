@@ -9,6 +9,8 @@ reference of tests/reference/scalar.py.
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pytest
 
@@ -190,3 +192,25 @@ def test_equal_corner_values_are_not_interpolated():
         assert np.all(frame.color[covered][:, 1] == 0.0) and np.all(frame.color[covered][:, 0] > 0.0), lighting
         color, _, _ = render_reference(scene)
         np.testing.assert_array_equal(frame.color, color)
+
+
+def test_small_frames_render_in_one_thread_by_default(monkeypatch):
+    """The default worker count follows the frame size; the result does not depend on it."""
+    from blendlib.core import pipeline
+
+    created = []
+    real = pipeline.ThreadPoolExecutor
+
+    def counting(*args, **kwargs):
+        created.append(kwargs.get("max_workers"))
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(pipeline, "ThreadPoolExecutor", counting)
+    cam = sc.screen_camera(64, 48)
+    scene = sc.scene(cam, sc.renderer(sc.quad(4, 4, 60, 44), sc.unlit((1, 0, 0, 1))))
+    small = render_scene(scene)
+    assert created == []  # 64x48 < SMALL_FRAME_PIXELS: no thread pool
+    monkeypatch.setattr(pipeline, "SMALL_FRAME_PIXELS", 64 * 48)
+    big = render_scene(scene)
+    assert created == [min(2, os.cpu_count() or 1)] if (os.cpu_count() or 1) > 1 else created == []
+    assert np.array_equal(small.color, big.color) and np.array_equal(small.depth, big.depth)

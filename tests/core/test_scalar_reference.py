@@ -25,10 +25,13 @@ PROPERTY = settings(max_examples=120, deadline=None, database=None,
 
 
 def assert_same(scene):
-    """Core frame == scalar reference, bit for bit; the message names the first differing pixels."""
+    """Core frame == scalar reference, bit for bit; the message names the first differing pixels.
+
+    Two worker threads (screen bands), as large frames render: these small frames would otherwise
+    render in one thread by default (``SMALL_FRAME_PIXELS``)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        frame = render_scene(scene)
+        frame = render_scene(scene, workers=2)
     color, depth, stencil = render_reference(scene)
     assert frame.color.dtype == np.float32 and frame.depth.dtype == np.float32 and frame.stencil.dtype == np.uint8
     assert frame.color.shape == color.shape and frame.depth.shape == depth.shape
