@@ -22,8 +22,10 @@ left out of it and of the inversion counts.
 
 from __future__ import annotations
 
+import os
 import threading
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -424,29 +426,35 @@ def analyze(
         buf = collector.step1
         by_index = {c.index: c for c in calls}
         step2 = _Step2(collector, by_index, buf)
-        for blocks in collector.bands():
+
+        def band_inversions(blocks: list[int]) -> np.ndarray:
+            """Step 2 of one band (its pixels are its own), then its inverted pairs' keys."""
             if should_cancel is not None and should_cancel():
                 raise RenderCancelled("render cancelled")
             pix, depth, call, key, wrote = collector.take_band(blocks)
             suspects = step2.apply_band(pix, depth, call, key, wrote)
             del key
-            if suspects.size:
-                lo = int(suspects[0])
-                marked = np.zeros(int(suspects[-1]) - lo + 1, dtype=bool)
-                marked[suspects - lo] = True
-                inside = (pix >= lo) & (pix <= int(suspects[-1]))
-                inside[inside] = marked[pix[inside] - lo]
-                wrote &= inside
-                keys = _band_inversions(pix, depth, call, wrote, renderer_of_call, nrend)
-            else:
-                keys = np.zeros(0, dtype=np.int64)
-            del pix, depth, call, wrote
-            if keys.size:
-                pixel = keys // (nrend * nrend)
-                np.add.at(inverted, pixel, 1)
-                pairs, counts = np.unique(keys % (nrend * nrend), return_counts=True)
-                for pair, count in zip(pairs.tolist(), counts.tolist(), strict=True):
-                    pair_counts[pair] = pair_counts.get(pair, 0) + count
+            if not suspects.size:
+                return np.zeros(0, dtype=np.int64)
+            lo = int(suspects[0])
+            marked = np.zeros(int(suspects[-1]) - lo + 1, dtype=bool)
+            marked[suspects - lo] = True
+            inside = (pix >= lo) & (pix <= int(suspects[-1]))
+            inside[inside] = marked[pix[inside] - lo]
+            wrote &= inside
+            return _band_inversions(pix, depth, call, wrote, renderer_of_call, nrend)
+
+        # Bands own disjoint pixels: two at a time on the two cores (numpy releases the GIL),
+        # at most ``threads`` bands' fragments in memory at once.
+        threads = workers if workers is not None else min(2, os.cpu_count() or 1)
+        with ThreadPoolExecutor(max_workers=max(1, threads)) as pool:
+            for keys in pool.map(band_inversions, collector.bands()):
+                if keys.size:
+                    pixel = keys // (nrend * nrend)
+                    np.add.at(inverted, pixel, 1)
+                    pairs, counts = np.unique(keys % (nrend * nrend), return_counts=True)
+                    for pair, count in zip(pairs.tolist(), counts.tolist(), strict=True):
+                        pair_counts[pair] = pair_counts.get(pair, 0) + count
         last_sorted = max(c.index for c in calls if c.queue <= LAST_SORTED_QUEUE)
         if any(c.queue > LAST_SORTED_QUEUE for c in calls):
             reference = render_scene(scene, resume=(buf, last_sorted), workers=workers).color
