@@ -257,20 +257,44 @@ def _ranks(sorted_pix: np.ndarray) -> np.ndarray:
 
 
 class _Step2:
-    """Applies a band's fragments far to near with their passes' state (no depth writes)."""
+    """Applies a band's fragments far to near with their passes' state (no depth writes).
+
+    Draw calls whose passes have the same state share one group: one blend table over their
+    palettes laid end to end, so a layer costs one merge per distinct state, not one per draw
+    call (a layer's fragments lie on distinct pixels, so the grouping cannot change the result).
+    """
 
     def __init__(self, collector: _Collector, calls: dict[int, DrawCall], buf: FrameBuffers) -> None:
         self.c = collector
         self.buf = buf
-        self.passes = {i: replace(calls[i].state, zwrite=False) for i in collector.sorted_calls}
-        self.luts: dict[int, np.ndarray] = {}
         self.table = np.concatenate(collector.table) if collector.table else np.zeros((0, 4), np.float64)
+        size = max(calls, default=0) + 1
+        self.group_of_call = np.zeros(size, dtype=np.int64)
+        self.base_of_call = np.zeros(size, dtype=np.int64)  # offset of the call's palette in its group's
+        self.group_pass: list = []
+        self.group_calls: list[list[int]] = []
+        groups: dict = {}
+        filled: list[int] = []
+        for index in sorted(collector.sorted_calls):
+            state = replace(calls[index].state, zwrite=False)
+            g = groups.setdefault(state, len(groups))
+            if g == len(self.group_pass):
+                self.group_pass.append(state)
+                self.group_calls.append([])
+                filled.append(0)
+            self.group_of_call[index] = g
+            self.base_of_call[index] = filled[g]
+            self.group_calls[g].append(index)
+            filled[g] += collector.palette_size.get(index, 0)
+        self.luts: dict[int, np.ndarray] = {}
+        self.lock = threading.Lock()
 
-    def lut(self, index: int) -> np.ndarray:
-        if index not in self.luts:
-            palette = np.concatenate(self.c.palettes[index])
-            self.luts[index] = blend_lut(self.buf, self.passes[index], palette)
-        return self.luts[index]
+    def lut(self, group: int) -> np.ndarray:
+        with self.lock:  # bands run on two threads: build each table once
+            if group not in self.luts:
+                palette = np.concatenate([p for i in self.group_calls[group] for p in self.c.palettes.get(i, ())])
+                self.luts[group] = blend_lut(self.buf, self.group_pass[group], palette)
+            return self.luts[group]
 
     def apply_band(self, pix, depth, call, key, written) -> np.ndarray:
         """Apply a band (arrays in draw order, ``pix``/``depth`` int64); returns the pixels (sorted,
@@ -297,31 +321,31 @@ class _Step2:
         return suspects
 
     def apply_layer(self, pix, depth, call, key) -> None:
-        first, last = int(call.min()), int(call.max())
+        group = self.group_of_call[call]
+        first, last = int(group.min()), int(group.max())
         if first == last:
             groups = [(first, slice(None))]
         else:
-            order = np.argsort(call, kind="stable")
-            sc = call[order]
-            cuts = np.flatnonzero(sc[1:] != sc[:-1]) + 1
-            bounds = np.concatenate([[0], cuts, [sc.size]])
-            groups = [(int(sc[a]), order[a:b]) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
-        for index, sel in groups:
+            order = np.argsort(group, kind="stable")
+            sg = group[order]
+            cuts = np.flatnonzero(sg[1:] != sg[:-1]) + 1
+            bounds = np.concatenate([[0], cuts, [sg.size]])
+            groups = [(int(sg[a]), order[a:b]) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+        for g, sel in groups:
             k = key[sel]
             n = k.size
             tabled = k >= 0
             rgba = np.empty((n, 4), dtype=np.float64)
             ids = lut = None
             if tabled.any():
-                ids = np.where(tabled, k, -1).astype(np.int32)
-                lut = self.lut(index)
+                ids = np.where(tabled, k + self.base_of_call[call[sel]], -1).astype(np.int32)
+                lut = self.lut(g)
                 plain = ~tabled
                 if plain.any():
                     rgba[plain] = self.table[-1 - k[plain].astype(np.int64)]
             else:
                 rgba = self.table[-1 - k.astype(np.int64)]
-            apply_layer(self.buf, self.passes[index], pix[sel], depth[sel], rgba, ids, lut)
-
+            apply_layer(self.buf, self.group_pass[g], pix[sel], depth[sel], rgba, ids, lut)
 
 
 def _band_inversions(pix, depth, call, written, renderer_of_call: np.ndarray, nrend: int) -> np.ndarray:
