@@ -13,11 +13,12 @@ import numpy as np
 LEGEND_HEIGHT = 34
 
 
-def colour_map(values: np.ndarray, peak: float) -> np.ndarray:
-    """(H, W) values → (H, W, 4) float32 RGBA: 0 black, ``peak`` white; any non-zero value shows."""
+def colour_map(values: np.ndarray, peak: float, floor: float = 0.08) -> np.ndarray:
+    """(H, W) values → (H, W, 4) float32 RGBA: 0 black → red → yellow → ``peak`` white; any
+    non-zero value shows at least at ``floor`` of the ramp."""
     v = np.asarray(values, np.float64)
     t = np.clip(v / peak, 0.0, 1.0) if peak > 0 else np.zeros_like(v)
-    t = np.where(v > 0, np.maximum(t, 0.08), 0.0)
+    t = np.where(v > 0, np.maximum(t, floor), 0.0)
     rgba = np.ones(v.shape + (4,), np.float32)
     rgba[..., 0] = np.clip(3 * t, 0, 1)
     rgba[..., 1] = np.clip(3 * t - 1, 0, 1)

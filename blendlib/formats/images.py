@@ -36,6 +36,7 @@ from typing import Any, BinaryIO
 import numpy as np
 
 from .atomic import write_atomic
+from .heatmap import colour_map
 
 FORMATS = (".png", ".exr", ".npy")
 
@@ -403,14 +404,7 @@ class Comparison:
 def heat_map(diff: np.ndarray) -> np.ndarray:
     """Per-pixel difference (H, W) → RGBA heat map: black (equal) → red → yellow → white (largest)."""
     d = np.asarray(diff, np.float64)
-    peak = float(d.max()) if d.size else 0.0
-    t = d / peak if peak > 0 else np.zeros_like(d)
-    t = np.where(d > 0, np.maximum(t, 0.1), 0.0)  # any difference is visible
-    rgba = np.ones(d.shape + (4,), np.float32)
-    rgba[..., 0] = np.clip(3 * t, 0, 1)
-    rgba[..., 1] = np.clip(3 * t - 1, 0, 1)
-    rgba[..., 2] = np.clip(3 * t - 2, 0, 1)
-    return rgba
+    return colour_map(d, float(d.max()) if d.size else 0.0, floor=0.1)  # any difference is visible
 
 
 def compare(a: np.ndarray, b: np.ndarray, diff_path: str | os.PathLike | None = None,
