@@ -24,7 +24,7 @@ import numpy as np
 
 from ..core import pipeline
 from ..core.pipeline import Frame, RenderCancelled
-from ..core.scene import Camera, DrawScene, SceneError
+from ..core.scene import Camera, DrawScene, SceneError, affine_inverse
 
 #: The reduced frame is 1/REDUCED_FACTOR of the full one per side (1/16 of the pixels).
 REDUCED_FACTOR = 4
@@ -64,8 +64,10 @@ def camera_from_matrices(view_matrix: Any, projection_matrix: Any, width: int, h
     if isinstance(width, bool) or isinstance(height, bool) or not (
             isinstance(width, (int, np.integer)) and isinstance(height, (int, np.integer))):
         raise SceneError(f"view size must be integers, got {width!r}x{height!r}")
-    if abs(np.linalg.det(view)) < 1e-300:
-        raise SceneError("view_matrix is singular")
+    try:
+        affine_inverse(view)  # no LAPACK here: see affine_inverse
+    except np.linalg.LinAlgError:
+        raise SceneError("view_matrix is singular") from None
     return Camera(view_matrix=view, projection=proj, width=int(width), height=int(height),
                   orthographic=is_orthographic(proj))
 
@@ -173,7 +175,7 @@ def region_view(scene: Any, depsgraph: Any, region: Any, region_data: Any) -> Vi
     rx, ry = render_size(scene)
     proj = cam_eval.calc_matrix_camera(depsgraph, x=rx, y=ry, scale_x=float(r.pixel_aspect_x),
                                        scale_y=float(r.pixel_aspect_y))
-    camera = Camera(view_matrix=np.linalg.inv(world), projection=_matrix(proj), width=rw, height=rh,
+    camera = Camera(view_matrix=affine_inverse(world), projection=_matrix(proj), width=rw, height=rh,
                     orthographic=cam_eval.data.type == "ORTHO")
     return ViewRequest(camera, x, y, w, h)
 

@@ -39,6 +39,12 @@ _COMPARE = {
 _CHANNEL_INDEX = {"R": 0, "G": 1, "B": 2, "A": 3}
 #: float32(q / 255.0) for the 256 8-bit codes (the output value of an LDR code).
 _CODE_VALUES = (np.arange(256) / 255.0).astype(np.float32)
+#: One LDR pixel (four 8-bit codes, R in the low byte) and one HDR pixel (four float32) as a
+#: single element: fancy indexing of whole pixels is several times faster than of (N, 4) rows.
+_PIXEL4 = np.dtype("<u4")
+_PIXEL16 = np.dtype((np.void, 16))
+#: ColorMask letters → the bits of their channel in a packed LDR pixel.
+_MASK_BITS = {"R": 0x000000FF, "G": 0x0000FF00, "B": 0x00FF0000, "A": 0xFF000000}
 
 
 def compare(func: CompareFunction, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -90,6 +96,13 @@ class FrameBuffers:
         self.color[:] = self.encode(clear)
         self.depth = np.full(n, DEPTH_MAX, dtype=np.int64)
         self.stencil = np.zeros(n, dtype=np.uint8)
+
+    def packed(self) -> np.ndarray:
+        """The colour buffer with one element per pixel, for gathers and scatters of whole pixels:
+        LDR (H*W,) little-endian uint32 (R in the low byte), HDR (H*W,) 16-byte void. A view."""
+        if self.hdr:
+            return self.color.view(_PIXEL16).reshape(-1)
+        return self.color.view(_PIXEL4).reshape(-1)
 
     def copy(self) -> FrameBuffers:
         """An independent copy (a snapshot to resume from)."""
@@ -213,79 +226,130 @@ def blend_lut(buf: FrameBuffers, p: Pass, palette: np.ndarray) -> np.ndarray:
     return buf.encode(result).reshape(k, 256, 4)
 
 
+#: A table of two channels (65536 destination pairs, 256 KB) per colour pays once a chunk
+#: holds this many fragments of the colour; below it, four 256-entry channel tables per colour.
+PAIR_TABLE_FRAGMENTS = 1 << 15
+
+
+class BlendTable:
+    """A :func:`blend_lut` table in the packed form the lookups read (LDR buffers only).
+
+    ``pairs`` False: four tables of (K*256,) uint32, channel ``c``'s result code already
+    shifted to its byte, indexed ``id*256 + code_c``. ``pairs`` True: two tables of
+    (K*65536,) uint32 for channels (R, G) and (B, A), indexed ``id*65536 + (code_lo |
+    code_hi << 8)`` — two lookups per fragment instead of four.
+    """
+
+    def __init__(self, lut: np.ndarray, pairs: bool = False) -> None:
+        self.size = int(lut.shape[0])
+        self.pairs = bool(pairs)
+        t = lut.astype(np.uint32)
+        if self.pairs:
+            self.tables = [((t[:, None, :, c] << (8 * c)) | (t[:, :, None, c + 1] << (8 * c + 8))).reshape(-1)
+                           for c in (0, 2)]
+        else:
+            self.tables = [(t[:, :, c] << (8 * c)).reshape(-1) for c in range(4)]
+
+    def lookup(self, stored: np.ndarray, ids: np.ndarray) -> np.ndarray:
+        """New packed pixels (N,) uint32 for ``stored`` (N,) uint32 and palette ``ids`` (N,) >= 0."""
+        base = None
+        if self.size > 1:
+            base = ids.astype(np.intp) << (16 if self.pairs else 8)
+        out = None
+        if self.pairs:
+            parts = (np.bitwise_and(stored, 0xFFFF).astype(np.intp), (stored >> 16).astype(np.intp))
+        else:
+            parts = [np.bitwise_and(stored, 0xFF).astype(np.intp)] + [
+                np.bitwise_and(stored >> (8 * c), 0xFF).astype(np.intp) for c in (1, 2, 3)]
+        for table, index in zip(self.tables, parts, strict=True):
+            if base is not None:
+                index += base
+            value = np.take(table, index)
+            if out is None:
+                out = value
+            else:
+                out |= value
+        return out
+
+
 def apply_layer(
-    buf: FrameBuffers, p: Pass, pix: np.ndarray, depth: np.ndarray, rgba: np.ndarray,
-    ids: np.ndarray | None = None, lut: np.ndarray | None = None, outcome: np.ndarray | None = None,
+    buf: FrameBuffers, p: Pass, pix: np.ndarray, depth: np.ndarray | None, rgba: np.ndarray | None,
+    ids: np.ndarray | None = None, lut: BlendTable | np.ndarray | None = None, outcome: np.ndarray | None = None,
 ) -> None:
     """Apply fragments on *distinct* pixels: stencil → depth → stencil op → depth write → blend → mask.
 
     ``pix`` (N,) int64, ``depth`` (N,) int64, ``rgba`` (N, 4) float64 shading-space colours.
-    With ``ids`` (N,) int32 and ``lut`` from :func:`blend_lut`, fragments with ``ids >= 0``
-    take their stored codes from the table (their ``rgba`` rows are not read).
+    ``depth`` None: every fragment is known to pass the depth test (the caller proved it) and
+    the pass does not write depth. With ``ids`` (N,) int32 and ``lut`` (a :class:`BlendTable`
+    or a :func:`blend_lut` array), fragments with ``ids >= 0`` take their stored codes from
+    the table (their ``rgba`` rows are not read; ``rgba`` may be None when all are tabled).
     ``outcome`` (N,) int8, optional: receives each fragment's :class:`Outcome`.
     """
-    d_old = buf.depth[pix]
-    passed = compare(p.ztest, depth, d_old)
-    if outcome is not None:
-        outcome[:] = np.where(passed, Outcome.WRITTEN, Outcome.DEPTH)
+    if depth is None:
+        passed = None
+        if outcome is not None:
+            outcome[:] = Outcome.WRITTEN
+    else:
+        passed = compare(p.ztest, depth, buf.depth[pix])
+        if outcome is not None:
+            outcome[:] = np.where(passed, Outcome.WRITTEN, Outcome.DEPTH)
     if p.stencil:
         s_old = buf.stencil[pix]
         rm, wm, ref = p.stencil_read_mask, p.stencil_write_mask, p.stencil_ref
         s_pass = compare(p.stencil_comp, np.int64(ref & rm), s_old.astype(np.int64) & rm)
-        z_pass = passed & s_pass
-        new = np.where(
-            ~s_pass, stencil_op(p.stencil_fail, s_old, ref),
-            np.where(z_pass, stencil_op(p.stencil_pass, s_old, ref), stencil_op(p.stencil_zfail, s_old, ref)),
-        )
+        z_pass = s_pass if passed is None else passed & s_pass
+        zfail = s_old if passed is None else stencil_op(p.stencil_zfail, s_old, ref)
+        new = np.where(~s_pass, stencil_op(p.stencil_fail, s_old, ref),
+                       np.where(z_pass, stencil_op(p.stencil_pass, s_old, ref), zfail))
         buf.stencil[pix] = ((s_old.astype(np.int64) & (~wm & 255)) | (new & wm)).astype(np.uint8)
         passed = z_pass
         if outcome is not None:
             outcome[~s_pass] = Outcome.STENCIL
-    if not np.any(passed):
-        return
-    if not passed.all():
-        pix, depth, rgba = pix[passed], depth[passed], rgba[passed]
-        if ids is not None:
-            ids = ids[passed]
+    if passed is not None:
+        if not np.any(passed):
+            return
+        if not passed.all():
+            pix = pix[passed]
+            depth = None if depth is None else depth[passed]
+            rgba = None if rgba is None else rgba[passed]
+            ids = None if ids is None else ids[passed]
     if p.zwrite:
         buf.depth[pix] = depth
-    mask = [_CHANNEL_INDEX[c] for c in ("R", "G", "B", "A") if c in p.color_mask]
-    if not mask:
+    if not p.color_mask:
         return
+    packed = buf.packed()
+    stored = packed[pix]
     if ids is not None:
+        table = lut if isinstance(lut, BlendTable) else BlendTable(lut)
         tabled = ids >= 0
         if tabled.all():
-            result = _lookup(buf, lut, pix, ids)
+            result = table.lookup(stored, ids)
         else:
-            result = np.empty((pix.shape[0], 4), dtype=buf.color.dtype)
-            result[tabled] = _lookup(buf, lut, pix[tabled], ids[tabled])
+            result = np.empty_like(stored)
+            result[tabled] = table.lookup(stored[tabled], ids[tabled])
             plain = ~tabled
-            result[plain] = _blend_fragments(buf, p, pix[plain], rgba[plain])
+            result[plain] = _blend_fragments(buf, p, stored[plain], rgba[plain])
     else:
-        result = _blend_fragments(buf, p, pix, rgba)
-    if len(mask) == 4:
-        buf.color[pix] = result
-    else:
-        buf.color[pix[:, None], np.array(mask)[None, :]] = result[:, mask]
+        result = _blend_fragments(buf, p, stored, rgba)
+    if len(p.color_mask) < 4:
+        if buf.hdr:
+            merged = result.view(np.float32).reshape(-1, 4)
+            old = stored.view(np.float32).reshape(-1, 4)
+            keep = [_CHANNEL_INDEX[c] for c in "RGBA" if c not in p.color_mask]
+            merged[:, keep] = old[:, keep]
+        else:
+            bits = np.uint32(sum(_MASK_BITS[c] for c in p.color_mask))
+            result = (stored & ~bits) | (result & bits)
+    packed[pix] = result
 
 
-def _blend_fragments(buf: FrameBuffers, p: Pass, pix: np.ndarray, rgba: np.ndarray) -> np.ndarray:
-    """Stored values (N, 4) of blending ``rgba`` over the buffer at ``pix``."""
+def _blend_fragments(buf: FrameBuffers, p: Pass, stored: np.ndarray, rgba: np.ndarray) -> np.ndarray:
+    """Packed stored values (N,) of blending ``rgba`` (N, 4) float64 over the packed ``stored`` (N,)."""
     src = rgba if buf.hdr else np.minimum(np.maximum(rgba, 0.0), 1.0)
     if p.blend:
-        return buf.encode(blend(p, src, buf.decode(buf.color[pix])))
-    return buf.encode(src)
-
-
-def _lookup(buf: FrameBuffers, lut: np.ndarray, pix: np.ndarray, ids: np.ndarray) -> np.ndarray:
-    """Stored codes (N, 4) uint8 from the table: channel c of ``lut[ids, stored_c, c]``."""
-    stored = buf.color[pix]
-    base = ids.astype(np.int64) * 1024
-    flat = lut.reshape(-1)
-    out = np.empty_like(stored)
-    for c in range(4):
-        out[:, c] = flat[base + stored[:, c].astype(np.int64) * 4 + c]
-    return out
+        dst = stored.view(np.float32 if buf.hdr else np.uint8).reshape(-1, 4)
+        src = blend(p, src, buf.decode(dst))
+    return np.ascontiguousarray(buf.encode(src)).view(stored.dtype).reshape(-1)
 
 
 #: Up to this many fragments per pixel, layers are peeled (one ``minimum.at`` per layer);
@@ -294,8 +358,9 @@ PEEL_LAYERS = 8
 
 
 def merge(
-    buf: FrameBuffers, p: Pass, pix: np.ndarray, depth: np.ndarray, rgba: np.ndarray,
+    buf: FrameBuffers, p: Pass, pix: np.ndarray, depth: np.ndarray | None, rgba: np.ndarray | None,
     ids: np.ndarray | None = None, palette: np.ndarray | None = None, outcome: np.ndarray | None = None,
+    disjoint: bool = False, tables: dict | None = None,
 ) -> int:
     """Apply a chunk of fragments (in draw order) exactly as one-by-one; returns the layer count.
 
@@ -303,21 +368,37 @@ def merge(
     have the colour ``palette[ids]`` (constant over their triangle) and blend through a
     lookup table (:func:`blend_lut`); only valid when :func:`lut_eligible`.
     Optional ``outcome`` (N,) int8 receives each fragment's :class:`Outcome`.
+    ``depth`` None: all fragments pass the depth test and the pass writes no depth (see
+    :func:`apply_layer`). ``disjoint``: the caller knows the fragments hit distinct pixels.
+    ``tables``: a dict the caller keeps for the chunks of one draw call (same pass and
+    buffer kind): blend tables are built once per palette there instead of once per chunk.
     """
     n = pix.shape[0]
     if n == 0:
         return 0
-    lut = blend_lut(buf, p, palette) if ids is not None else None
+    lut = None
+    if ids is not None:
+        pairs = palette.shape[0] * PAIR_TABLE_FRAGMENTS <= n
+        key = (palette.tobytes(), pairs)
+        lut = None if tables is None else tables.get(key)
+        if lut is None:
+            lut = BlendTable(blend_lut(buf, p, palette), pairs=pairs)
+            if tables is not None:
+                tables[key] = lut
 
     def layer(sel) -> None:
         if sel is None:
             apply_layer(buf, p, pix, depth, rgba, ids, lut, outcome)
             return
         codes = None if outcome is None else np.empty(sel.shape[0], dtype=np.int8)
-        apply_layer(buf, p, pix[sel], depth[sel], rgba[sel], None if ids is None else ids[sel], lut, codes)
+        apply_layer(buf, p, pix[sel], None if depth is None else depth[sel], None if rgba is None else rgba[sel],
+                    None if ids is None else ids[sel], lut, codes)
         if codes is not None:
             outcome[sel] = codes
 
+    if disjoint:
+        layer(None)
+        return 1
     lo = int(pix.min())
     local = pix - lo
     counts = np.bincount(local, minlength=int(pix.max()) - lo + 1)

@@ -20,10 +20,10 @@ from . import merger, raster, shade, vertex
 from .drawlist import DrawCall, draw_calls
 from .merger import FrameBuffers, merge
 from .scene import DrawScene, SceneError, validate_scene
-from .vocabulary import ColorSpace, Lighting, Material, Pass
+from .vocabulary import ColorSpace, CompareFunction, Lighting, Material, Pass
 
 #: Candidate pixels per chunk: bounds the memory of one chunk's arrays to a few hundred MB.
-CHUNK_CANDIDATES = 1 << 20
+CHUNK_CANDIDATES = 1 << 17
 #: Frames with fewer pixels render in one thread by default: below this, handing screen bands to
 #: a second thread costs more than it saves (the viewport's 240x135 first frames of the example
 #: scenes took 12-59 ms in one thread against 21-86 ms in two; at 960x540 two threads win).
@@ -67,10 +67,32 @@ class DrawState:
     color_space: ColorSpace
     hdr: bool
     width: int
+    #: An observer receives every fragment: depth and source triangle are always computed.
+    observed: bool = False
+    #: ``zbound`` (T,) int64 per setup triangle (:func:`raster.depth_upper_codes`) and ``zfloor``
+    #: (H,) int64 the smallest depth code stored in each buffer row: rows whose bound is at or
+    #: below (``Less``: below) the floor pass the depth test, so a pass without ZWrite needs no
+    #: per-fragment depth there (a hierarchical-Z test per row, exact). None: not applicable.
+    zbound: np.ndarray | None = None
+    zfloor: np.ndarray | None = None
 
     @property
     def pass_state(self) -> Pass:
         return self.call.state
+
+    def depth_needed(self, rows, start: int, stop: int) -> bool:
+        """Whether the fragments of rows ``[start, stop)`` need their depth codes."""
+        p = self.pass_state
+        if self.observed or p.zwrite:
+            return True
+        if p.ztest is CompareFunction.Always:
+            return False
+        if self.zbound is None or self.zfloor is None:
+            return True
+        bound = self.zbound[rows.tri[start:stop]]
+        floor = self.zfloor[rows.y[start:stop]]
+        trivial = bound < floor if p.ztest is CompareFunction.Less else bound <= floor
+        return not bool(np.all(trivial))
 
 
 @dataclass(eq=False)
@@ -78,21 +100,25 @@ class ShadedFragments:
     """A chunk of one draw call's fragments after shading, in primitive order.
 
     - ``pix`` (N,) int64: window pixel index ``y * W + x`` with y up (row 0 = bottom).
-    - ``depth`` (N,) int64: 24-bit depth code after Offset.
+    - ``depth`` (N,) int64: 24-bit depth code after Offset; None when not observed and the
+      chunk provably passes the depth test of a pass without ZWrite (:meth:`DrawState.depth_needed`).
     - ``rgba`` (N, 4) float64: shader output in shading space (rows with ``ids >= 0`` unset).
     - ``ids`` (N,) int32 or None, ``palette`` (K, 4) float64 or None: fragments with
       ``ids >= 0`` have the colour ``palette[ids]`` (shaded once per triangle).
-    - ``triangle`` (N,) int64: the source mesh triangle (index in the renderer's mesh).
+    - ``triangle`` (N,) int64: the source mesh triangle (index in the renderer's mesh); None
+      when not observed.
     - ``alive`` (N,) bool or None: passed the alpha test (None: the pass has no alpha test).
+    - ``disjoint``: the fragments hit pairwise distinct pixels (one merge layer).
     """
 
     pix: np.ndarray
-    depth: np.ndarray
+    depth: np.ndarray | None
     rgba: np.ndarray
     ids: np.ndarray | None
     palette: np.ndarray | None
-    triangle: np.ndarray
+    triangle: np.ndarray | None
     alive: np.ndarray | None
+    disjoint: bool = False
 
     @property
     def count(self) -> int:
@@ -109,9 +135,11 @@ class ShadedFragments:
 
     def select(self, keep: np.ndarray) -> ShadedFragments:
         """The fragments where ``keep`` (bool (N,) or indices) holds."""
-        return ShadedFragments(
-            self.pix[keep], self.depth[keep], self.rgba[keep], None if self.ids is None else self.ids[keep],
-            self.palette, self.triangle[keep], None if self.alive is None else self.alive[keep])
+        def take(a):
+            return None if a is None else a[keep]
+
+        return ShadedFragments(self.pix[keep], take(self.depth), take(self.rgba), take(self.ids), self.palette,
+                               take(self.triangle), take(self.alive), self.disjoint)
 
 
 class FrameObserver:
@@ -138,17 +166,19 @@ def _shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> Shaded
 
     Triangles whose inputs to shading are constant (no texture or flat UVs, Unlit or flat
     normals: docs/pipeline.md §6) are shaded once per triangle; the others once per fragment.
+    Work per source triangle (runs, flatness, table ids) is done per row and expanded.
     """
     p, material, texels = state.pass_state, state.material, state.texels
-    frags = raster.rasterize_rows(rows, start, stop, state.width)
-    if frags.count == 0:
+    length = rows.length[start:stop]
+    n = int(length.sum())
+    if n == 0:
         return None
-    # Fragments come in triangle order: each source triangle's fragments form one run.
-    src = setup.src[frags.tri]
-    first = np.ones(src.size, dtype=bool)
-    first[1:] = src[1:] != src[:-1]
-    run = np.cumsum(first) - 1
-    tris = src[first]  # (K,) the source triangles of this chunk
+    # Rows come in triangle order: each source triangle's rows (so fragments) form one run.
+    row_src = setup.src[rows.tri[start:stop]]
+    first = np.ones(row_src.size, dtype=bool)
+    first[1:] = row_src[1:] != row_src[:-1]
+    run_of_row = np.cumsum(first) - 1
+    tris = row_src[first]  # (K,) the source triangles of this chunk
     uvs = setup.uvs_of(tris) if texels is not None and setup.object_uvs is not None else None
     normals = setup.world_normals_of(tris) if setup.object_normals is not None else None
     flat = np.ones(tris.size, dtype=bool)  # shading inputs constant over the triangle (§6)
@@ -159,53 +189,67 @@ def _shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> Shaded
     if normals is not None:
         normal_flat = raster.flat_corners(normals)
         flat &= normal_flat
-    constant = flat[run]
-    varying = ~constant
-    any_varying = bool(np.any(varying))
-    depth, weights = raster.interpolate(setup, frags, p.offset_factor, p.offset_units, weights=any_varying)
-    rgba = np.empty((frags.count, 4), dtype=np.float64)
+    any_varying = not bool(np.all(flat))
+    want_depth = state.depth_needed(rows, start, stop)
+    frags = raster.rasterize_rows(rows, start, stop, state.width, bary=want_depth or any_varying)
+    depth = weights = None
+    if frags.bary is not None:
+        depth, weights = raster.interpolate(setup, frags, p.offset_factor, p.offset_units,
+                                            weights=any_varying, depth=want_depth)
+    rgba = np.empty((n, 4), dtype=np.float64)
     ids = palette = None
+    row_flat = flat[run_of_row]
+    constant = None if not any_varying else np.repeat(row_flat, length)
 
-    def shade_at(uv: np.ndarray | None, normal: np.ndarray | None, n: int) -> np.ndarray:
-        uv = np.zeros((n, 2), dtype=np.float64) if uv is None else uv
-        normal = np.zeros((n, 3), dtype=np.float64) if normal is None else normal
+    def shade_at(uv: np.ndarray | None, normal: np.ndarray | None, count: int) -> np.ndarray:
+        uv = np.zeros((count, 2), dtype=np.float64) if uv is None else uv
+        normal = np.zeros((count, 3), dtype=np.float64) if normal is None else normal
         return shade.shade(material, texels, state.lights, state.color_space, uv, normal)
 
-    if np.any(constant):
+    if np.any(flat):
         const_tris = np.nonzero(flat)[0]
-        palette = shade_at(None if uvs is None else uvs[const_tris, 0],
-                           None if normals is None else normals[const_tris, 0], const_tris.size)
+        colors = shade_at(None if uvs is None else uvs[const_tris, 0],
+                          None if normals is None else normals[const_tris, 0], const_tris.size)
+        # Triangles of one colour (an unlit mesh, a flat-lit plane) share one palette entry.
+        palette, inverse = np.unique(colors, axis=0, return_inverse=True)
         slot = np.full(tris.size, -1, dtype=np.int32)
-        slot[const_tris] = np.arange(const_tris.size, dtype=np.int32)
-        ids = slot[run]
+        slot[const_tris] = inverse.reshape(-1).astype(np.int32)
+        ids = np.repeat(slot[run_of_row], length)
         # 8-bit blending of a constant colour is a function of the destination code: tabulate
         # it (256 rows per colour) when that is cheaper than blending every fragment.
-        if not (merger.lut_eligible(p, state.hdr) and palette.shape[0] * 256 <= np.count_nonzero(constant)):
-            rgba[constant] = palette[ids[constant]]
+        tabled_count = n if constant is None else int(np.count_nonzero(constant))
+        if not (merger.lut_eligible(p, state.hdr) and palette.shape[0] * 256 <= tabled_count):
+            if constant is None:
+                rgba = palette[ids]
+            else:
+                rgba[constant] = palette[ids[constant]]
             ids = palette = None
     if any_varying:
         # Varying fragments are exactly those of the non-flat triangles: whole runs.
-        counts = np.diff(np.append(np.flatnonzero(first), src.size))
-        every = not np.any(constant)  # e.g. a smooth mesh: no masked copies needed
+        counts = np.add.reduceat(length, np.flatnonzero(first))
+        every = not np.any(flat)  # e.g. a smooth mesh: no masked copies needed
         keep = slice(None) if every else ~flat
-        w = weights if every else weights[:, varying]
+        w = weights if every else weights[:, ~constant]
         uv = None if uvs is None else raster.interpolate_runs(w, uvs[keep], counts[keep], uv_flat[keep])
         normal = None if normals is None else \
             raster.interpolate_runs(w, normals[keep], counts[keep], normal_flat[keep])
         if every:
             rgba = shade_at(uv, normal, w.shape[1])
         else:
-            rgba[varying] = shade_at(uv, normal, w.shape[1])
+            rgba[~constant] = shade_at(uv, normal, w.shape[1])
     alive = None
     if p.alpha_test:
         alpha = rgba[:, 3] if ids is None else np.where(ids >= 0, palette[np.maximum(ids, 0), 3], rgba[:, 3])
         alive = ~(alpha - float(material.cutoff) < 0)
-    return ShadedFragments(frags.pix, depth, rgba, ids, palette, src, alive)
+    triangle = np.repeat(row_src, length) if state.observed else None
+    disjoint = raster.rows_disjoint(rows, start, stop, state.width)
+    return ShadedFragments(frags.pix, depth, rgba, ids, palette, triangle, alive, disjoint)
 
 
 def _draw_band(buf, setup, rows, chunk_candidates: int, state: DrawState, stop_flag, observer) -> None:
     """Raster, shade and merge one screen band of a draw call, chunk by chunk in draw order."""
     p = state.pass_state
+    tables: dict = {}  # blend tables of this band's palettes, shared by its chunks
     for a, b in raster.row_chunks(rows, chunk_candidates):
         if stop_flag.is_set():
             return
@@ -214,11 +258,13 @@ def _draw_band(buf, setup, rows, chunk_candidates: int, state: DrawState, stop_f
             continue
         merged = shaded if shaded.alive is None else shaded.select(shaded.alive)
         if observer is None:
-            merge(buf, p, merged.pix, merged.depth, merged.rgba, merged.ids, merged.palette)
+            merge(buf, p, merged.pix, merged.depth, merged.rgba, merged.ids, merged.palette,
+                  disjoint=merged.disjoint, tables=tables)
             continue
         outcome = np.full(shaded.count, merger.Outcome.ALPHA_TEST, dtype=np.int8)
         written = np.empty(merged.count, dtype=np.int8)
-        merge(buf, p, merged.pix, merged.depth, merged.rgba, merged.ids, merged.palette, outcome=written)
+        merge(buf, p, merged.pix, merged.depth, merged.rgba, merged.ids, merged.palette, outcome=written,
+              disjoint=merged.disjoint, tables=tables)
         if shaded.alive is None:
             outcome = written
         else:
@@ -290,6 +336,7 @@ def render_scene(
     stop_flag = threading.Event()
     pool = ThreadPoolExecutor(max_workers=workers) if workers > 1 else None
     setup = setup_of = None
+    zfloor_rows = None  # per buffer row, the smallest stored depth code (while no pass writes depth)
     try:
         for done, call in enumerate(todo, start=1):
             cancelled()
@@ -318,7 +365,16 @@ def render_scene(
                 if key not in texel_cache:
                     texel_cache[key] = shade.texture_texels(material.main_tex, cs)
                 texels = texel_cache[key]
-            state = DrawState(call, material, texels, lights, cs, scene.hdr, width)
+            zbound = zfloor = None
+            p = call.state
+            if observer is None and not p.zwrite and p.ztest in (CompareFunction.Less, CompareFunction.LEqual):
+                if zfloor_rows is None:  # recomputed only after a pass wrote depth
+                    zfloor_rows = buf.depth.reshape(height, width).min(axis=1)
+                zbound, zfloor = raster.depth_upper_codes(setup, p.offset_factor, p.offset_units), zfloor_rows
+            state = DrawState(call, material, texels, lights, cs, scene.hdr, width, observed=observer is not None,
+                              zbound=zbound, zfloor=zfloor)
+            if p.zwrite:
+                zfloor_rows = None
             selected = vertex.cull_select(setup, call.state.cull)
             rows = raster.coverage_rows(setup, selected, width, height, pool=pool, parts=workers)
             bands = rows.split_bands(workers, height) if pool is not None else [rows]

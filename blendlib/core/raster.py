@@ -167,65 +167,88 @@ class Fragments:
 
     ``pix`` (N,) int64 window pixel index ``y*W + x`` (y from the bottom);
     ``tri`` (N,) int64 setup triangle index; ``bary`` (3, N) float64 screen-space
-    barycentrics in the triangle's own vertex order (channels first: each row contiguous).
+    barycentrics in the triangle's own vertex order (channels first: each row contiguous),
+    or None when not asked for (nothing of the chunk needs them).
     """
 
     pix: np.ndarray
     tri: np.ndarray
-    bary: np.ndarray
+    bary: np.ndarray | None
 
     @property
     def count(self) -> int:
         return int(self.pix.shape[0])
 
 
-def rasterize_rows(rows: Rows, start: int, stop: int, width: int) -> Fragments:
-    """The covered pixels of rows ``[start, stop)`` with their barycentrics (docs/pipeline.md §4)."""
+def rasterize_rows(rows: Rows, start: int, stop: int, width: int, bary: bool = True) -> Fragments:
+    """The covered pixels of rows ``[start, stop)`` with their barycentrics (docs/pipeline.md §4).
+
+    ``bary`` False: only pixels and triangles (a chunk that needs neither depth nor weights).
+    """
     length = rows.length[start:stop]
     n = int(length.sum())
     sl = slice(start, stop)
-    # Per-row values are expanded with repeat (sequential) rather than gathered per fragment.
-    offsets = np.arange(n, dtype=np.int64) - np.repeat(np.cumsum(length) - length, length)
-    x = np.repeat(rows.x0[sl], length) + offsets
+    # Per-row values are expanded with repeat (sequential) rather than gathered per fragment;
+    # a fragment's pixel is its index in the chunk plus its row's (first pixel - first index).
+    first = np.cumsum(length) - length
+    pix = np.arange(n, dtype=np.int64)
+    pix += np.repeat(rows.y[sl] * width + rows.x0[sl] - first, length)
+    tri = np.repeat(rows.tri[sl], length)
+    if not bary:
+        return Fragments(pix=pix, tri=tri, bary=None)
+    x = np.arange(n, dtype=np.int64)
+    x += np.repeat(rows.x0[sl] - first, length)
     px = x * SUBPIXEL + HALF
     area = np.repeat(rows.area[sl], length)
     ea = np.repeat(rows.c0[sl], length) - np.repeat(rows.dy0[sl], length) * px
     eb = np.repeat(rows.c1[sl], length) - np.repeat(rows.dy1[sl], length) * px
     ec = area - ea - eb  # the three edge functions sum to the doubled area
     farea = area.astype(np.float64)
-    bary = np.empty((3, n), dtype=np.float64)
-    np.divide(ea, farea, out=bary[0])
+    weights = np.empty((3, n), dtype=np.float64)
+    np.divide(ea, farea, out=weights[0])
     swap = np.repeat(rows.swap[sl], length)
     if np.any(swap):
-        bary[1] = np.where(swap, ec, eb) / farea
-        bary[2] = np.where(swap, eb, ec) / farea
+        weights[1] = np.where(swap, ec, eb) / farea
+        weights[2] = np.where(swap, eb, ec) / farea
     else:
-        np.divide(eb, farea, out=bary[1])
-        np.divide(ec, farea, out=bary[2])
-    pix = np.repeat(rows.y[sl] * width, length) + x
-    return Fragments(pix=pix, tri=np.repeat(rows.tri[sl], length), bary=bary)
+        np.divide(eb, farea, out=weights[1])
+        np.divide(ec, farea, out=weights[2])
+    return Fragments(pix=pix, tri=tri, bary=weights)
+
+
+def depth_upper_codes(setup: TriangleSetup, offset_factor: float = 0.0, offset_units: float = 0.0) -> np.ndarray:
+    """(T,) int64: a code no fragment of each setup triangle exceeds (its vertices' largest
+    depth after Offset, plus one code for rounding: depth is a convex combination of them)."""
+    z = setup.zw.max(axis=1)
+    if offset_factor != 0.0 or offset_units != 0.0:
+        z = z + (float(offset_factor) * setup.slope() + float(offset_units) * 2.0**-24)
+    z = np.minimum(np.maximum(z, 0.0), 1.0)
+    z[np.isnan(z)] = 1.0  # no bound known: the farthest code (only proves Always-like cases)
+    return np.floor(z * DEPTH_MAX + 0.5).astype(np.int64) + 1
 
 
 def interpolate(
     setup: TriangleSetup, frags: Fragments, offset_factor: float = 0.0, offset_units: float = 0.0,
-    weights: bool = True,
-) -> tuple[np.ndarray, np.ndarray | None]:
+    weights: bool = True, depth: bool = True,
+) -> tuple[np.ndarray | None, np.ndarray | None]:
     """Depth and perspective-correct source-triangle weights of fragments (§5, §6).
 
     Returns ``depth`` (N,) int64 in 0..2**24-1 and ``weights`` (3, N) float64 (channels
     first) — the weights of the *source* mesh triangle's corners (clipping undone) — or
-    None when ``weights`` is False (no attribute needs them).
+    None for either when not asked for (``depth`` / ``weights`` False).
     """
     t = frags.tri
     b0, b1, b2 = frags.bary
-    zw = setup.zw[t]
-    z = (b0 * zw[:, 0] + b1 * zw[:, 1]) + b2 * zw[:, 2]
-    if offset_factor != 0.0 or offset_units != 0.0:
-        z = z + (float(offset_factor) * setup.slope()[t] + float(offset_units) * 2.0**-24)
-    z = np.minimum(np.maximum(z, 0.0), 1.0)
-    depth = np.floor(z * DEPTH_MAX + 0.5).astype(np.int64)
+    codes = None
+    if depth:
+        zw = setup.zw[t]
+        z = (b0 * zw[:, 0] + b1 * zw[:, 1]) + b2 * zw[:, 2]
+        if offset_factor != 0.0 or offset_units != 0.0:
+            z = z + (float(offset_factor) * setup.slope()[t] + float(offset_units) * 2.0**-24)
+        z = np.minimum(np.maximum(z, 0.0), 1.0)
+        codes = np.floor(z * DEPTH_MAX + 0.5).astype(np.int64)
     if not weights:
-        return depth, None
+        return codes, None
 
     iw = setup.iw[t]
     t0, t1, t2 = b0 * iw[:, 0], b1 * iw[:, 1], b2 * iw[:, 2]
@@ -240,7 +263,23 @@ def interpolate(
             w = setup.weights[t[clipped]]  # (M, 3 vertices, 3 source corners)
             pc = p[:, clipped]
             p[:, clipped] = ((pc[0][:, None] * w[:, 0] + pc[1][:, None] * w[:, 1]) + pc[2][:, None] * w[:, 2]).T
-    return depth, p
+    return codes, p
+
+
+def rows_disjoint(rows: Rows, start: int, stop: int, width: int) -> bool:
+    """Whether rows ``[start, stop)`` cover pairwise distinct pixels (then a chunk's fragments
+    form one layer and need no per-pixel counting). False also means "not checked": rows
+    shorter than 16 pixels on average are left to the merger's count."""
+    if stop - start <= 1:
+        return True
+    sl = slice(start, stop)
+    if (stop - start) * 16 > int(rows.length[sl].sum()):
+        return False  # short rows (small triangles): counting fragments per pixel is as cheap
+    first = rows.y[sl] * width + rows.x0[sl]
+    order = np.argsort(first, kind="stable")
+    begin = first[order]
+    end = begin + rows.length[sl][order]
+    return bool(np.all(begin[1:] >= end[:-1]))
 
 
 def flat_corners(corners: np.ndarray) -> np.ndarray:
