@@ -174,10 +174,20 @@ class Fragments:
     pix: np.ndarray
     tri: np.ndarray
     bary: np.ndarray | None
+    #: The chunk's rows: setup triangle (R,) int64 and covered pixels (R,) int64 of each.
+    row_tri: np.ndarray | None = None
+    row_length: np.ndarray | None = None
 
     @property
     def count(self) -> int:
         return int(self.pix.shape[0])
+
+    def per_fragment(self, per_triangle: np.ndarray) -> np.ndarray:
+        """A per-setup-triangle array (T,) → its value at every fragment (N,): expanded from the
+        rows with ``repeat`` (sequential copies) when rows are long, else gathered."""
+        if self.row_tri is None or self.row_tri.shape[0] * 4 > self.pix.shape[0]:
+            return per_triangle[self.tri]  # short rows (small triangles): one gather is cheaper
+        return np.repeat(per_triangle[self.row_tri], self.row_length)
 
 
 def rasterize_rows(rows: Rows, start: int, stop: int, width: int, bary: bool = True) -> Fragments:
@@ -193,9 +203,10 @@ def rasterize_rows(rows: Rows, start: int, stop: int, width: int, bary: bool = T
     first = np.cumsum(length) - length
     pix = np.arange(n, dtype=np.int64)
     pix += np.repeat(rows.y[sl] * width + rows.x0[sl] - first, length)
-    tri = np.repeat(rows.tri[sl], length)
+    row_tri = rows.tri[sl]
+    tri = np.repeat(row_tri, length)
     if not bary:
-        return Fragments(pix=pix, tri=tri, bary=None)
+        return Fragments(pix=pix, tri=tri, bary=None, row_tri=row_tri, row_length=length)
     x = np.arange(n, dtype=np.int64)
     x += np.repeat(rows.x0[sl] - first, length)
     px = x * SUBPIXEL + HALF
@@ -213,7 +224,7 @@ def rasterize_rows(rows: Rows, start: int, stop: int, width: int, bary: bool = T
     else:
         np.divide(eb, farea, out=weights[1])
         np.divide(ec, farea, out=weights[2])
-    return Fragments(pix=pix, tri=tri, bary=weights)
+    return Fragments(pix=pix, tri=tri, bary=weights, row_tri=row_tri, row_length=length)
 
 
 def depth_upper_codes(setup: TriangleSetup, offset_factor: float = 0.0, offset_units: float = 0.0) -> np.ndarray:
@@ -238,27 +249,28 @@ def interpolate(
     None for either when not asked for (``depth`` / ``weights`` False).
     """
     t = frags.tri
+    each = frags.per_fragment
     b0, b1, b2 = frags.bary
     codes = None
     if depth:
-        zw = setup.zw[t]
-        z = (b0 * zw[:, 0] + b1 * zw[:, 1]) + b2 * zw[:, 2]
+        zw = setup.zw
+        z = (b0 * each(zw[:, 0]) + b1 * each(zw[:, 1])) + b2 * each(zw[:, 2])
         if offset_factor != 0.0 or offset_units != 0.0:
-            z = z + (float(offset_factor) * setup.slope()[t] + float(offset_units) * 2.0**-24)
+            z = z + (float(offset_factor) * each(setup.slope()) + float(offset_units) * 2.0**-24)
         z = np.minimum(np.maximum(z, 0.0), 1.0)
         codes = np.floor(z * DEPTH_MAX + 0.5).astype(np.int64)
     if not weights:
         return codes, None
 
-    iw = setup.iw[t]
-    t0, t1, t2 = b0 * iw[:, 0], b1 * iw[:, 1], b2 * iw[:, 2]
+    iw = setup.iw
+    t0, t1, t2 = b0 * each(iw[:, 0]), b1 * each(iw[:, 1]), b2 * each(iw[:, 2])
     s = (t0 + t1) + t2
     p = np.empty((3, t.size), dtype=np.float64)  # channels first: each weight row contiguous
     np.divide(t0, s, out=p[0])
     np.divide(t1, s, out=p[1])
     np.divide(t2, s, out=p[2])
     if setup.weights is not None:
-        clipped = setup.clipped[t]
+        clipped = each(setup.clipped)
         if np.any(clipped):
             w = setup.weights[t[clipped]]  # (M, 3 vertices, 3 source corners)
             pc = p[:, clipped]

@@ -106,10 +106,12 @@ class Texels:
         """Texels at flat indices ``index`` (N,) int64 (row * w + column) → (N, 4) float64."""
         if self.codes is None:
             return self.values[index].astype(np.float64, copy=False)
-        c = self.codes[index]
+        # Whole texels gathered as one uint32 each (fancy indexing of (N, 4) rows is slower),
+        # then one table per channel.
+        c = self.codes.view(np.uint32).reshape(-1)[index].view(np.uint8).reshape(-1, 4)
         out = np.empty((len(index), 4), np.float64)
-        out[:, :3] = self.lut_rgb[c[:, :3]]
-        out[:, 3] = self.lut_alpha[c[:, 3]]
+        for k, lut in enumerate((self.lut_rgb, self.lut_rgb, self.lut_rgb, self.lut_alpha)):
+            np.take(lut, c[:, k], out=out[:, k])
         return out
 
 

@@ -214,3 +214,21 @@ def test_small_frames_render_in_one_thread_by_default(monkeypatch):
     big = render_scene(scene)
     assert created == [min(2, os.cpu_count() or 1)] if (os.cpu_count() or 1) > 1 else created == []
     assert np.array_equal(small.color, big.color) and np.array_equal(small.depth, big.depth)
+
+
+def test_frame_output_division_equals_float64_rounding_for_every_code():
+    """``FrameBuffers.output`` divides in float32: exhaustively the same as the float64 quotient
+    rounded to float32 (the definition: colour ``q / 255``, depth ``d / (2**24 - 1)``)."""
+    from blendlib.core.vertex import DEPTH_MAX
+    from blendlib.core.vocabulary import ColorSpace
+
+    buf = merger.FrameBuffers(256, 1, False, ColorSpace.Gamma, (0, 0, 0, 0))
+    buf.color[:] = np.arange(256, dtype=np.uint8)[:, None]
+    color, _, _ = buf.output()
+    np.testing.assert_array_equal(color[0, :, 0], (np.arange(256) / 255.0).astype(np.float32))
+    width = 1 << 12
+    buf = merger.FrameBuffers(width, (DEPTH_MAX + 1) // width, False, ColorSpace.Gamma, (0, 0, 0, 0))
+    buf.depth[:] = np.arange(DEPTH_MAX + 1, dtype=np.int64)
+    _, depth, _ = buf.output()
+    want = (np.arange(DEPTH_MAX + 1, dtype=np.int64) / float(DEPTH_MAX)).astype(np.float32)
+    np.testing.assert_array_equal(depth[::-1].reshape(-1), want)
