@@ -117,20 +117,29 @@ def _coverage_rows(setup: TriangleSetup, selected: np.ndarray, width: int, heigh
     nrows = y_hi - y_lo + 1
     total = int(nrows.sum())
     starts = np.cumsum(nrows) - nrows
-    y = np.repeat(y_lo, nrows) + (np.arange(total, dtype=np.int64) - np.repeat(starts, nrows))
+    # Per-triangle values are expanded to rows through one row -> triangle index and gathers
+    # (np.repeat with counts of one or two, the common case, is three times slower).
+    of_row = np.repeat(np.arange(nrows.size, dtype=np.int64), nrows)
+
+    def each(per_triangle: np.ndarray) -> np.ndarray:
+        return np.take(per_triangle, of_row)
+
+    y = each(y_lo - starts)
+    y += np.arange(total, dtype=np.int64)
     py = y * SUBPIXEL + HALF
-    x0 = np.repeat(x_lo, nrows)
-    x1 = np.repeat(x_hi, nrows)
+    x0 = each(x_lo)
+    x1 = each(x_hi)
     # Edges p -> q: b->c (opposite a), c->a (opposite b), a->b (opposite c).
     c_rows, dy_rows = [], []
     for xp, yp, xq, yq in ((bx, by, cx, cy), (cx, cy, ax, ay), (ax, ay, bx, by)):
         dx_t, dy_t = xq - xp, yq - yp
         top_left = (dy_t < 0) | ((dy_t == 0) & (dx_t < 0))
         k_t = dy_t * xp - dx_t * yp  # E = dx*(Py - yp) - dy*(Px - xp) = (dx*Py + k) - dy*Px
-        dy = np.repeat(dy_t, nrows)
-        c = np.repeat(dx_t, nrows) * py + np.repeat(k_t, nrows)
-        rhs = c - np.repeat(np.where(top_left, 0, 1), nrows)
-        q = (rhs - HALF * dy) // (SUBPIXEL * np.maximum(np.abs(dy), 1))
+        dy = each(dy_t)
+        c = each(dx_t) * py
+        c += each(k_t)
+        rhs = c - each(np.where(top_left, 0, 1))
+        q = (rhs - HALF * dy) // each(SUBPIXEL * np.maximum(np.abs(dy_t), 1))
         x1 = np.where(dy > 0, np.minimum(x1, q), x1)
         x0 = np.where(dy < 0, np.maximum(x0, -q), x0)
         x1 = np.where((dy == 0) & (rhs < 0), x0 - 1, x1)
@@ -138,9 +147,9 @@ def _coverage_rows(setup: TriangleSetup, selected: np.ndarray, width: int, heigh
         dy_rows.append(dy)
     length = np.maximum(x1 - x0 + 1, 0)
     keep = length > 0
-    area = np.repeat(np.abs(setup.area2[selected]), nrows)
-    rows = Rows(tri=np.repeat(selected, nrows), y=y, x0=x0, length=length, c0=c_rows[0], c1=c_rows[1],
-                dy0=dy_rows[0], dy1=dy_rows[1], swap=np.repeat(swap, nrows), area=area)
+    area = each(np.abs(setup.area2[selected]))
+    rows = Rows(tri=each(selected), y=y, x0=x0, length=length, c0=c_rows[0], c1=c_rows[1],
+                dy0=dy_rows[0], dy1=dy_rows[1], swap=each(swap), area=area)
     return rows if np.all(keep) else rows.take(keep)
 
 
@@ -201,23 +210,31 @@ def rasterize_rows(rows: Rows, start: int, stop: int, width: int, bary: bool = T
     # Per-row values are expanded with repeat (sequential) rather than gathered per fragment;
     # a fragment's pixel is its index in the chunk plus its row's (first pixel - first index).
     first = np.cumsum(length) - length
+    if (stop - start) * 4 > n:  # short rows: one fragment -> row index, then gathers
+        of_frag = np.repeat(np.arange(stop - start, dtype=np.int64), length)
+
+        def each(per_row: np.ndarray) -> np.ndarray:
+            return np.take(per_row, of_frag)
+    else:
+        def each(per_row: np.ndarray) -> np.ndarray:
+            return np.repeat(per_row, length)
     pix = np.arange(n, dtype=np.int64)
-    pix += np.repeat(rows.y[sl] * width + rows.x0[sl] - first, length)
+    pix += each(rows.y[sl] * width + rows.x0[sl] - first)
     row_tri = rows.tri[sl]
-    tri = np.repeat(row_tri, length)
+    tri = each(row_tri)
     if not bary:
         return Fragments(pix=pix, tri=tri, bary=None, row_tri=row_tri, row_length=length)
     x = np.arange(n, dtype=np.int64)
-    x += np.repeat(rows.x0[sl] - first, length)
+    x += each(rows.x0[sl] - first)
     px = x * SUBPIXEL + HALF
-    area = np.repeat(rows.area[sl], length)
-    ea = np.repeat(rows.c0[sl], length) - np.repeat(rows.dy0[sl], length) * px
-    eb = np.repeat(rows.c1[sl], length) - np.repeat(rows.dy1[sl], length) * px
+    area = each(rows.area[sl])
+    ea = each(rows.c0[sl]) - each(rows.dy0[sl]) * px
+    eb = each(rows.c1[sl]) - each(rows.dy1[sl]) * px
     ec = area - ea - eb  # the three edge functions sum to the doubled area
     farea = area.astype(np.float64)
     weights = np.empty((3, n), dtype=np.float64)
     np.divide(ea, farea, out=weights[0])
-    swap = np.repeat(rows.swap[sl], length)
+    swap = each(rows.swap[sl])
     if np.any(swap):
         weights[1] = np.where(swap, ec, eb) / farea
         weights[2] = np.where(swap, eb, ec) / farea

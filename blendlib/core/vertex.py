@@ -20,6 +20,10 @@ HALF = SUBPIXEL // 2
 GUARD_BAND = 4.0
 DEPTH_MAX = 2**24 - 1
 _MAX_POLY = 3 + 6  # a triangle clipped by six planes has at most nine vertices
+#: Per-vertex code bits: 0-5 outside clip plane k (§2 order), 6 non-finite, 7 no window position.
+_NONFINITE_BIT, _NO_WINDOW_BIT = 6, 7
+_PLANES_MASK = np.uint8(0x3F)
+_NONFINITE_MASK = np.uint8(1 << _NONFINITE_BIT)
 
 
 def matmul4(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -248,8 +252,12 @@ def setup_triangles(
         code = np.zeros(hi - lo, dtype=np.uint8)
         for k in range(6):
             code |= (_plane_distance(cv, k) < 0).astype(np.uint8) << np.uint8(k)
-        outcode_v[lo:hi] = code
         Xv[lo:hi], Yv[lo:hi], zwv[lo:hi], iwv[lo:hi], okv[lo:hi] = _to_window(cv, camera)
+        # Bits 6 and 7 carry "not finite" and "no window position", so one gather per corner
+        # answers every per-triangle question below.
+        code |= (~finite_v[lo:hi]).astype(np.uint8) << np.uint8(_NONFINITE_BIT)
+        code |= (~okv[lo:hi]).astype(np.uint8) << np.uint8(_NO_WINDOW_BIT)
+        outcode_v[lo:hi] = code
 
     run_parts(pool, parts, v_count, vertex_part)
 
@@ -258,22 +266,26 @@ def setup_triangles(
     finite = np.empty(t_count, dtype=bool)
     degenerate_t = np.empty(t_count, dtype=bool)
 
+    pos_columns = np.ascontiguousarray(pos.T)  # (3, V): 1-D gathers per axis below
+
     def triangle_part(lo: int, hi: int) -> None:
         t = tris[lo:hi]
         a, b, c = t[:, 0], t[:, 1], t[:, 2]
-        ok = finite_v[a] & finite_v[b] & finite_v[c]
-        out_or = outcode_v[a] | outcode_v[b] | outcode_v[c]
-        out_and = outcode_v[a] & outcode_v[b] & outcode_v[c]
+        ca, cb, cc = outcode_v[a], outcode_v[b], outcode_v[c]
+        out_or = ca | cb | cc
+        out_and = ca & cb & cc
+        ok = (out_or & _NONFINITE_MASK) == 0
+        planes_or = out_or & _PLANES_MASK
         finite[lo:hi] = ok
-        keep_whole[lo:hi] = ok & (out_or == 0) & okv[a] & okv[b] & okv[c]
-        to_clip[lo:hi] = ok & (out_or != 0) & (out_and == 0)
+        keep_whole[lo:hi] = out_or == 0  # finite, inside every plane, with window positions
+        to_clip[lo:hi] = ok & (planes_or != 0) & ((out_and & _PLANES_MASK) == 0)
         # Object-space degenerate triangles (zero area) are reported; they draw nothing.
-        e1 = pos[b] - pos[a]
-        e2 = pos[c] - pos[a]
+        e1 = [pos_columns[k][b] - pos_columns[k][a] for k in range(3)]
+        e2 = [pos_columns[k][c] - pos_columns[k][a] for k in range(3)]
         with np.errstate(over="ignore", invalid="ignore"):
-            degenerate_t[lo:hi] = ok & ((e1[:, 1] * e2[:, 2] - e1[:, 2] * e2[:, 1]) == 0) & \
-                ((e1[:, 2] * e2[:, 0] - e1[:, 0] * e2[:, 2]) == 0) & \
-                ((e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]) == 0)
+            degenerate_t[lo:hi] = ok & ((e1[1] * e2[2] - e1[2] * e2[1]) == 0) & \
+                ((e1[2] * e2[0] - e1[0] * e2[2]) == 0) & \
+                ((e1[0] * e2[1] - e1[1] * e2[0]) == 0)
 
     run_parts(pool, parts, t_count, triangle_part)
     skipped = int(t_count - np.count_nonzero(finite))
