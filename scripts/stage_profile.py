@@ -1,0 +1,108 @@
+"""Where a render's time goes: the share of each pipeline stage in a one-thread render.
+
+    .venv/bin/python -m scripts.stage_profile --scenes S1,S2,S4 [--quick] [--markdown]
+
+Builds the benchmark's scenes (``scripts.benchmark``), extracts each DrawScene once, renders it
+once untimed and once under cProfile with ``workers=1`` (cProfile sees one thread only), and
+maps the cumulative time of the pipeline's stage functions to stages:
+
+- setup: ``vertex.setup_triangles`` (transform, clipping, snapping, areas)
+- coverage: ``raster.coverage_rows`` / ``rasterize_rows`` / ``row_chunks`` / ``split_bands``
+- interpolation: ``raster.interpolate`` / ``interpolate_runs`` (depth, weights, attributes)
+- shading: ``shade.shade`` (texture sampling, lighting)
+- ordering: ``merger.merge`` minus the layers it applies and the tables it builds (counting
+  fragments per pixel, peeling layers)
+- merge: ``merger.apply_layer`` and blend-table building (tests, blending, writes)
+- output: ``FrameBuffers`` creation and ``output`` (clear, conversion to the Frame's float32)
+- other: the rest (draw list, per-chunk bookkeeping in ``pipeline``, Python overhead)
+
+cProfile adds a per-call cost, so shares of call-heavy stages read a little high. Run it from
+the repository root; it is not a test.
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import pstats
+from pathlib import Path
+
+STAGES = {
+    "setup": [("vertex.py", "setup_triangles")],
+    "coverage": [("raster.py", "coverage_rows"), ("raster.py", "rasterize_rows"), ("raster.py", "row_chunks"),
+                 ("raster.py", "split_bands")],
+    "interpolation": [("raster.py", "interpolate"), ("raster.py", "interpolate_runs")],
+    "shading": [("shade.py", "shade")],
+    "merge": [("merger.py", "apply_layer")],
+    "tables": [("merger.py", "blend_lut"), ("merger.py", "__init__")],
+    "output": [("merger.py", "output")],
+}
+ORDER = ("setup", "coverage", "interpolation", "shading", "ordering", "merge", "output", "other")
+
+
+def stage_shares(stats: pstats.Stats) -> tuple[float, dict[str, float]]:
+    """(total render seconds, seconds per stage) from the stats of one ``render_scene`` call."""
+    cum: dict[tuple[str, str], float] = {}
+    total = 0.0
+    for (file, _line, func), (_cc, _nc, _tt, ct, _callers) in stats.stats.items():
+        key = (Path(file).name, func)
+        cum[key] = cum.get(key, 0.0) + ct
+        if func == "render_scene":
+            total = max(total, ct)
+    seconds = {stage: sum(cum.get(k, 0.0) for k in keys) for stage, keys in STAGES.items()}
+    # merger.py __init__ covers FrameBuffers (output) and BlendTable (tables): split by caller below.
+    buffers_init = 0.0
+    for (file, _line, func), (_cc, _nc, _tt, ct, callers) in stats.stats.items():
+        if Path(file).name == "merger.py" and func == "__init__":
+            if any(c[2] == "render_scene" for c in callers):
+                buffers_init += ct
+    seconds["tables"] -= buffers_init
+    seconds["output"] += buffers_init
+    merge_total = cum.get(("merger.py", "merge"), 0.0)
+    seconds["ordering"] = max(merge_total - seconds["merge"] - seconds["tables"], 0.0)
+    seconds["merge"] += seconds.pop("tables")
+    seconds["other"] = max(total - sum(seconds.values()), 0.0)
+    return total, {k: seconds[k] for k in ORDER}
+
+
+def profile_draw(draw) -> tuple[float, dict[str, float]]:
+    from blendlib.core.pipeline import render_scene
+
+    render_scene(draw, workers=1)
+    prof = cProfile.Profile()
+    prof.enable()
+    render_scene(draw, workers=1)
+    prof.disable()
+    return stage_shares(pstats.Stats(prof))
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m scripts.stage_profile", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--scenes", default="S1,S2,S4", help="benchmark scene ids (default S1,S2,S4)")
+    ap.add_argument("--quick", action="store_true", help="the benchmark's small sizes")
+    ap.add_argument("--markdown", action="store_true", help="print a markdown table")
+    args = ap.parse_args(argv)
+    from blendlib import blender
+    from scripts import benchmark
+
+    bench_args = benchmark.parse_args(["--scenes", args.scenes] + (["--quick"] if args.quick else []))
+    rows = []
+    for case in benchmark.plan_cases(bench_args):
+        if case["group"] == "scaling":
+            continue
+        draw = blender.build_draw_scene(benchmark.build_case(case))
+        total, seconds = profile_draw(draw)
+        rows.append((case["id"], total, seconds))
+        print(f"{case['id']:>16} {total:7.3f} s  " + "  ".join(f"{k} {v / total:4.0%}" for k, v in seconds.items()),
+              flush=True)
+    if args.markdown:
+        print()
+        print("| scene | one-thread s | " + " | ".join(ORDER) + " |")
+        print("|---|---|" + "---|" * len(ORDER))
+        for name, total, seconds in rows:
+            print(f"| {name} | {total:.2f} | " + " | ".join(f"{seconds[k] / total:.0%}" for k in ORDER) + " |")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
