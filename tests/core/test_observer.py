@@ -120,3 +120,48 @@ def test_draw_calls_are_numbered_with_euclidean_distance_and_culling_counts():
     # edge-on in perspective and count as culled for both): back + front never exceed 12
     assert rec.triangles[1] + rec.triangles[2] <= 12 and rec.triangles[3] + rec.triangles[4] <= 12
     assert rec.triangles[2] >= 2 and rec.triangles[4] >= 2
+
+
+class DepthRecorder(FrameObserver):
+    """Keeps (pixel, depth) of every fragment and whether its depth arrived deferred."""
+
+    def __init__(self):
+        self.lock = threading.Lock()
+        self.records: list[tuple[np.ndarray, np.ndarray]] = []
+        self.deferred = 0
+
+    def fragments(self, call, frags, outcome):
+        with self.lock:
+            self.deferred += frags.stored_depth is None
+            self.records.append((frags.pix.copy(), frags.depth.copy()))
+
+    def arrays(self):
+        pix = np.concatenate([p for p, _ in self.records])
+        depth = np.concatenate([d for _, d in self.records])
+        order = np.lexsort((depth, pix))
+        return pix[order], depth[order]
+
+
+@pytest.mark.parametrize("offset", [(0.0, 0.0), (1.5, 4.0)])
+def test_deferred_depth_of_a_provably_passing_pass_equals_the_computed_depth(offset):
+    """A ZWrite Off pass over an empty depth buffer passes its LEqual test everywhere (the per-row
+    hierarchical-Z bound), so the merge needs no depth; an observer reading ``depth`` gets the same
+    codes as a pass that must compute them (ZWrite On), Offset included."""
+    def scene(zwrite: bool):
+        p = Pass(zwrite=zwrite, ztest=CompareFunction.LEqual, blend=True, cull=Cull.Off,
+                 offset_factor=offset[0], offset_units=offset[1])
+        tilt = np.eye(4)
+        tilt[2, 0] = 0.3  # z grows with x: depth varies across the quad
+        material = sc.unlit((0.2, 0.6, 0.9, 0.5), queue=Queue.Transparent, passes=(p,))
+        return sc.scene(sc.camera(48, 40, eye=(0, 0, 6)),
+                        sc.renderer(sc.quad(-2, -2, 2, 2, uv=False), material, matrix=tilt))
+
+    deferred, computed = DepthRecorder(), DepthRecorder()
+    render_scene(scene(False), observer=deferred, workers=1)
+    render_scene(scene(True), observer=computed, workers=1)
+    assert deferred.deferred > 0 and computed.deferred == 0
+    got, want = deferred.arrays(), computed.arrays()
+    assert got[0].size > 300
+    np.testing.assert_array_equal(got[0], want[0])
+    np.testing.assert_array_equal(got[1], want[1])
+    assert np.unique(got[1]).size > 10  # a tilted plane: depth varies across it
