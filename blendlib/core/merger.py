@@ -278,14 +278,14 @@ class BlendTable:
 
 def apply_layer(
     buf: FrameBuffers, p: Pass, pix: np.ndarray, depth: np.ndarray | None, rgba: np.ndarray | None,
-    ids: np.ndarray | None = None, lut: BlendTable | np.ndarray | None = None, outcome: np.ndarray | None = None,
+    ids: np.ndarray | None = None, lut: BlendTable | None = None, outcome: np.ndarray | None = None,
 ) -> None:
     """Apply fragments on *distinct* pixels: stencil → depth → stencil op → depth write → blend → mask.
 
     ``pix`` (N,) int64, ``depth`` (N,) int64, ``rgba`` (N, 4) float64 shading-space colours.
     ``depth`` None: every fragment is known to pass the depth test (the caller proved it) and
-    the pass does not write depth. With ``ids`` (N,) int32 and ``lut`` (a :class:`BlendTable`
-    or a :func:`blend_lut` array), fragments with ``ids >= 0`` take their stored codes from
+    the pass does not write depth. With ``ids`` (N,) int32 and a :class:`BlendTable` ``lut``
+    (built once per palette by the caller), fragments with ``ids >= 0`` take their stored codes from
     the table (their ``rgba`` rows are not read; ``rgba`` may be None when all are tabled).
     ``outcome`` (N,) int8, optional: receives each fragment's :class:`Outcome`.
     """
@@ -324,13 +324,12 @@ def apply_layer(
     packed = buf.packed()
     stored = packed[pix]
     if ids is not None:
-        table = lut if isinstance(lut, BlendTable) else BlendTable(lut)
         tabled = ids >= 0
         if tabled.all():
-            result = table.lookup(stored, ids)
+            result = lut.lookup(stored, ids)
         else:
             result = np.empty_like(stored)
-            result[tabled] = table.lookup(stored[tabled], ids[tabled])
+            result[tabled] = lut.lookup(stored[tabled], ids[tabled])
             plain = ~tabled
             result[plain] = _blend_fragments(buf, p, stored[plain], rgba[plain])
     else:

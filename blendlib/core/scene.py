@@ -95,6 +95,16 @@ class Camera:
         return axis / math.sqrt(float(axis[0] * axis[0] + axis[1] * axis[1] + axis[2] * axis[2]))
 
 
+def cofactors3(matrix) -> tuple[list[list[float]], float]:
+    """Cofactor matrix (3x3 nested lists of Python floats) of ``matrix``'s upper-left 3x3 and its
+    determinant, with the explicit sums of docs/pipeline.md §1."""
+    a = [[float(v) for v in row[:3]] for row in np.asarray(matrix, dtype=np.float64)[:3]]
+    c = [[a[(i + 1) % 3][(j + 1) % 3] * a[(i + 2) % 3][(j + 2) % 3]
+          - a[(i + 1) % 3][(j + 2) % 3] * a[(i + 2) % 3][(j + 1) % 3] for j in range(3)] for i in range(3)]
+    det = (a[0][0] * c[0][0] + a[0][1] * c[0][1]) + a[0][2] * c[0][2]
+    return c, det
+
+
 def affine_inverse(matrix) -> np.ndarray:
     """Inverse (4, 4) float64 of an affine 4x4 matrix (last row 0 0 0 1), by cofactors.
 
@@ -105,10 +115,7 @@ def affine_inverse(matrix) -> np.ndarray:
     m = np.asarray(matrix, dtype=np.float64)
     if not np.array_equal(m[3], (0.0, 0.0, 0.0, 1.0)):
         return np.linalg.inv(m)
-    a = [[float(v) for v in row[:3]] for row in m[:3]]
-    c = [[a[(i + 1) % 3][(j + 1) % 3] * a[(i + 2) % 3][(j + 2) % 3]
-          - a[(i + 1) % 3][(j + 2) % 3] * a[(i + 2) % 3][(j + 1) % 3] for j in range(3)] for i in range(3)]
-    det = (a[0][0] * c[0][0] + a[0][1] * c[0][1]) + a[0][2] * c[0][2]
+    c, det = cofactors3(m)
     if det == 0.0 or not math.isfinite(det):
         raise np.linalg.LinAlgError("Singular matrix")
     out = np.eye(4, dtype=np.float64)

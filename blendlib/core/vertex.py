@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .scene import Camera, Mesh
+from .scene import Camera, Mesh, cofactors3
 from .vocabulary import Cull
 
 SUBPIXEL = 256
@@ -37,10 +37,7 @@ def matmul4(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def normal_matrix(matrix_world: np.ndarray) -> tuple[np.ndarray, float]:
     """Sign-corrected cofactor matrix of the upper 3x3 and its determinant (docs/pipeline.md §1)."""
-    m = [[float(v) for v in row[:3]] for row in np.asarray(matrix_world, dtype=np.float64)[:3]]
-    c = [[m[(i + 1) % 3][(j + 1) % 3] * m[(i + 2) % 3][(j + 2) % 3]
-          - m[(i + 1) % 3][(j + 2) % 3] * m[(i + 2) % 3][(j + 1) % 3] for j in range(3)] for i in range(3)]
-    det = (m[0][0] * c[0][0] + m[0][1] * c[0][1]) + m[0][2] * c[0][2]
+    c, det = cofactors3(matrix_world)
     if det < 0:
         c = [[-v for v in row] for row in c]
     return np.array(c, dtype=np.float64), det

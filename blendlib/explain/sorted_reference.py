@@ -31,7 +31,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..core.drawlist import DrawCall, draw_calls
-from ..core.merger import FrameBuffers, Outcome, apply_layer, blend_lut
+from ..core.merger import BlendTable, FrameBuffers, Outcome, apply_layer, blend_lut
 from ..core.pipeline import Frame, FrameObserver, RenderCancelled, ShadedFragments, render_scene
 from ..core.scene import DrawScene, SceneError, validate_scene
 from ..core.vertex import DEPTH_MAX
@@ -286,14 +286,14 @@ class _Step2:
             self.base_of_call[index] = filled[g]
             self.group_calls[g].append(index)
             filled[g] += collector.palette_size.get(index, 0)
-        self.luts: dict[int, np.ndarray] = {}
+        self.luts: dict[int, BlendTable] = {}
         self.lock = threading.Lock()
 
-    def lut(self, group: int) -> np.ndarray:
+    def lut(self, group: int) -> BlendTable:
         with self.lock:  # bands run on two threads: build each table once
             if group not in self.luts:
                 palette = np.concatenate([p for i in self.group_calls[group] for p in self.c.palettes.get(i, ())])
-                self.luts[group] = blend_lut(self.buf, self.group_pass[group], palette)
+                self.luts[group] = BlendTable(blend_lut(self.buf, self.group_pass[group], palette))
             return self.luts[group]
 
     def apply_band(self, pix, depth, call, key, written) -> np.ndarray:
