@@ -12,7 +12,7 @@ import os
 import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor, wait
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -20,7 +20,7 @@ from . import merger, raster, shade, vertex
 from .drawlist import DrawCall, draw_calls
 from .merger import FrameBuffers, merge
 from .scene import DrawScene, SceneError, validate_scene
-from .vocabulary import ColorSpace, CompareFunction, Lighting, Material, Pass
+from .vocabulary import ColorSpace, CompareFunction, Lighting, Material, Pass, TextureFilter
 
 #: Candidate pixels per chunk. Small enough that a chunk's per-fragment arrays (1 MB each for
 #: int64) stay in a core's cache while a chunk passes through the stages, large enough that the
@@ -179,12 +179,41 @@ class FrameObserver:
         rasteriser (neither culled nor degenerate nor entirely clipped away)."""
 
 
+#: A texel palette (one colour per normal and texel, :func:`shade.texel_palette`) replaces
+#: per-fragment shading when it has at most this share of the fragments it serves.
+TEXEL_PALETTE_SHARE = 4
+
+
+def _texel_groups(state: DrawState, candidates: np.ndarray, normals, counts) -> tuple[np.ndarray, np.ndarray] | None:
+    """Point-filtered triangles whose normal is constant: their colour is a function of
+    (normal, texel). Returns ``(normals (G, 3), group (K,) int64 per triangle)`` when a palette
+    of G * texels colours is cheaper than shading the candidates' fragments, else None."""
+    texel_count = state.texels.shape[0] * state.texels.shape[1]
+    served = int(counts[candidates].sum())
+    if texel_count * TEXEL_PALETTE_SHARE > served:
+        return None
+    if normals is None:  # Unlit: the colour depends on the texel alone
+        return np.zeros((1, 3), dtype=np.float64), np.zeros(candidates.size, dtype=np.int64)
+    corner = np.ascontiguousarray(normals[candidates, 0])
+    # Distinct by bytes, not value: -0.0 and 0.0 (or NaNs) stay apart, so each group's normal is
+    # bit for bit the one its fragments would be shaded with.
+    _, where, inverse = np.unique(corner.view(np.dtype((np.void, corner.itemsize * 3))).reshape(-1),
+                                  return_index=True, return_inverse=True)
+    if where.size * texel_count * TEXEL_PALETTE_SHARE > served:
+        return None
+    group = np.zeros(candidates.size, dtype=np.int64)
+    group[candidates] = inverse.reshape(-1)
+    return corner[where], group
+
+
 def _shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedFragments | None:
     """Raster + interpolate + shade + alpha test of rows [start, stop), in draw order.
 
     Triangles whose inputs to shading are constant (no texture or flat UVs, Unlit or flat
-    normals: docs/pipeline.md §6) are shaded once per triangle; the others once per fragment.
-    Work per source triangle (runs, flatness, table ids) is done per row and expanded.
+    normals: docs/pipeline.md §6) are shaded once per triangle; Point-filtered textured
+    triangles with a constant normal take their colour from a palette shaded once per
+    (normal, texel); the others are shaded once per fragment. Work per source triangle
+    (runs, flatness, table ids) is done per row and expanded.
     """
     p, material, texels = state.pass_state, state.material, state.texels
     length = rows.length[start:stop]
@@ -208,6 +237,13 @@ def _shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> Shaded
         normal_flat = raster.flat_corners(normals)
         flat &= normal_flat
     any_varying = not bool(np.all(flat))
+    counts = np.add.reduceat(length, np.flatnonzero(first))  # (K,) fragments per triangle
+    groups = None  # texel-palette groups (normals (G, 3), group (K,)) and the triangles they serve
+    if any_varying and uvs is not None and material.main_tex_filter is TextureFilter.Point:
+        candidates = ~uv_flat if normal_flat is None else ~uv_flat & normal_flat
+        if np.any(candidates):
+            groups = _texel_groups(state, candidates, normals, counts)
+            tabled = candidates
     want_depth = state.depth_needed(rows, start, stop)
     frags = raster.rasterize_rows(rows, start, stop, state.width, bary=want_depth or any_varying)
     depth = weights = None
@@ -215,7 +251,8 @@ def _shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> Shaded
         depth, weights = raster.interpolate(setup, frags, p.offset_factor, p.offset_units,
                                             weights=any_varying, depth=want_depth)
     rgba = np.empty((n, 4), dtype=np.float64)
-    ids = palette = None
+    palettes: list[np.ndarray] = []  # colours fragments take by id: per flat triangle, per texel
+    ids = None
     row_flat = flat[run_of_row]
     constant = None if not any_varying else np.repeat(row_flat, length)
 
@@ -226,35 +263,58 @@ def _shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> Shaded
 
     if np.any(flat):
         const_tris = np.nonzero(flat)[0]
-        colors = shade_at(None if uvs is None else uvs[const_tris, 0],
-                          None if normals is None else normals[const_tris, 0], const_tris.size)
-        # Triangles of one colour (an unlit mesh, a flat-lit plane) share one palette entry.
-        palette, inverse = np.unique(colors, axis=0, return_inverse=True)
-        slot = np.full(tris.size, -1, dtype=np.int32)
-        slot[const_tris] = inverse.reshape(-1).astype(np.int32)
+        palettes.append(shade_at(None if uvs is None else uvs[const_tris, 0],
+                                 None if normals is None else normals[const_tris, 0], const_tris.size))
+        slot = np.full(tris.size, -1, dtype=np.int64)
+        slot[const_tris] = np.arange(const_tris.size, dtype=np.int64)
         ids = np.repeat(slot[run_of_row], length)
-        # 8-bit blending of a constant colour is a function of the destination code: tabulate
-        # it (256 rows per colour) when that is cheaper than blending every fragment.
-        tabled_count = n if constant is None else int(np.count_nonzero(constant))
-        if not (merger.lut_eligible(p, state.hdr) and palette.shape[0] * 256 <= tabled_count):
-            if constant is None:
-                rgba = palette[ids]
-            else:
-                rgba[constant] = palette[ids[constant]]
-            ids = palette = None
     if any_varying:
         # Varying fragments are exactly those of the non-flat triangles: whole runs.
-        counts = np.add.reduceat(length, np.flatnonzero(first))
         every = not np.any(flat)  # e.g. a smooth mesh: no masked copies needed
         keep = slice(None) if every else ~flat
+        at = slice(None) if every else np.flatnonzero(~constant)  # their places in the chunk
         w = weights if every else weights[:, ~constant]
         uv = None if uvs is None else raster.interpolate_runs(w, uvs[keep], counts[keep], uv_flat[keep])
-        normal = None if normals is None else \
-            raster.interpolate_runs(w, normals[keep], counts[keep], normal_flat[keep])
-        if every:
-            rgba = shade_at(uv, normal, w.shape[1])
+        shaded = slice(None)  # of the non-flat fragments, those shaded one by one
+        if groups is not None:
+            palette_normals, group = groups
+            texel_count = texels.shape[0] * texels.shape[1]
+            by_texel = np.repeat(tabled[keep], counts[keep])
+            texel = shade.point_texel_index(texels, shade.texture_uv(material, uv[by_texel]), material.main_tex_wrap)
+            base = sum(part.shape[0] for part in palettes) + group * texel_count  # (K,)
+            if ids is None:
+                ids = np.full(n, -1, dtype=np.int64)
+            ids[np.arange(n)[at][by_texel]] = np.repeat(base[tabled], counts[tabled]) + texel
+            palettes.append(shade.texel_palette(material, texels, state.lights, state.color_space, palette_normals))
+            keep = ~flat & ~tabled
+            shaded = ~by_texel
+            at = np.arange(n)[at][shaded]
+            w = w[:, shaded]
+            uv = None if uv is None else uv[shaded]
+        if w.shape[1]:
+            normal = None if normals is None else \
+                raster.interpolate_runs(w, normals[keep], counts[keep], normal_flat[keep])
+            rgba[at] = shade_at(uv, normal, w.shape[1])
+    palette = None
+    if palettes:
+        palette = palettes[0] if len(palettes) == 1 else np.concatenate(palettes)
+        tabled_at = ids >= 0
+        tabled_count = int(np.count_nonzero(tabled_at))
+        eligible = merger.lut_eligible(p, state.hdr)
+        if eligible and palette.shape[0] <= tabled_count:
+            # One entry per distinct colour (an unlit mesh, a flat-lit plane, a two-colour texture).
+            palette, inverse = np.unique(palette, axis=0, return_inverse=True)
+            ids = np.where(tabled_at, inverse.reshape(-1)[np.maximum(ids, 0)], -1)
+        # 8-bit blending of a constant colour is a function of the destination code: tabulate
+        # it (256 rows per colour) when that is cheaper than blending every fragment.
+        if eligible and palette.shape[0] * 256 <= tabled_count:
+            ids = ids.astype(np.int32)
         else:
-            rgba[~constant] = shade_at(uv, normal, w.shape[1])
+            if tabled_count == n:
+                rgba = palette[ids]
+            else:
+                rgba[tabled_at] = palette[ids[tabled_at]]
+            ids = palette = None
     alive = None
     if p.alpha_test:
         alpha = rgba[:, 3] if ids is None else np.where(ids >= 0, palette[np.maximum(ids, 0), 3], rgba[:, 3])
@@ -308,6 +368,239 @@ def _wait(futures, should_cancel, stop_flag) -> None:
             return
 
 
+@dataclass(eq=False)
+class _FrameContext:
+    """What the draw calls of one render share: buffers, camera, lights, pool, caches, notes."""
+
+    buf: FrameBuffers
+    camera: object
+    lights: shade.Lights
+    color_space: ColorSpace
+    hdr: bool
+    chunk_candidates: int
+    pool: ThreadPoolExecutor | None
+    workers: int
+    stop_flag: threading.Event
+    observed: bool = False
+    texels: dict = field(default_factory=dict)  # id(texture) -> shade.Texels
+    warnings: list[str] = field(default_factory=list)
+    degenerate: list[tuple[str, int]] = field(default_factory=list)  # (object, zero-area triangles)
+
+    @property
+    def width(self) -> int:
+        return self.buf.width
+
+    @property
+    def height(self) -> int:
+        return self.buf.height
+
+    def texels_of(self, material: Material):
+        """The material's texture in shading space, converted once per render (main thread only)."""
+        if material.main_tex is None:
+            return None
+        key = id(material.main_tex)
+        if key not in self.texels:
+            self.texels[key] = shade.texture_texels(material.main_tex, self.color_space)
+        return self.texels[key]
+
+
+@dataclass(eq=False)
+class _Prepared:
+    """A draw call ready to draw: its renderer's triangle setup, the triangles its Cull keeps,
+    their covered rows and its :class:`DrawState` (``zfloor`` filled in by whoever draws it)."""
+
+    call: DrawCall
+    setup: object
+    selected: np.ndarray
+    rows: raster.Rows
+    state: DrawState
+
+
+def _setup(frame: _FrameContext, renderer, pool, parts: int) -> tuple[object, list[str], tuple[str, int] | None]:
+    """Vertex setup of one renderer (shared by its passes) and what to tell the user about it."""
+    material = renderer.material
+    setup = vertex.setup_triangles(
+        renderer.mesh, renderer.matrix_world, frame.camera,
+        need_normals=material.lighting is not Lighting.Unlit, need_uvs=material.main_tex is not None,
+        pool=pool, parts=parts,
+    )
+    notes = []
+    if setup.skipped_nonfinite:
+        label = f"object {renderer.name!r} slot {renderer.slot}"
+        notes.append(f"{label}: skipped {setup.skipped_nonfinite} triangles with non-finite vertices")
+    return setup, notes, ((renderer.name, setup.degenerate) if setup.degenerate else None)
+
+
+def _prepare(frame: _FrameContext, call: DrawCall, setup, texels, pool, parts: int) -> _Prepared:
+    """Cull, coverage and derived state of one draw call."""
+    p = call.state
+    zbound = None
+    if not p.zwrite and p.ztest in (CompareFunction.Less, CompareFunction.LEqual):
+        zbound = raster.depth_upper_codes(setup, p.offset_factor, p.offset_units)
+    state = DrawState(call, call.renderer.material, texels, frame.lights, frame.color_space, frame.hdr,
+                      frame.width, observed=frame.observed, zbound=zbound)
+    selected = vertex.cull_select(setup, p.cull)
+    rows = raster.coverage_rows(setup, selected, frame.width, frame.height, pool=pool, parts=parts)
+    return _Prepared(call, setup, selected, rows, state)
+
+
+def _renderer_runs(calls: list[DrawCall]) -> list[list[DrawCall]]:
+    """Consecutive draw calls of one renderer (its passes), which share one vertex setup."""
+    runs: list[list[DrawCall]] = []
+    for call in calls:
+        if runs and runs[-1][-1].renderer is call.renderer:
+            runs[-1].append(call)
+        else:
+            runs.append([call])
+    return runs
+
+
+#: Without an observer, consecutive draw calls are prepared (vertex setup and coverage, one
+#: renderer per task) as a batch of up to this many source triangles and draw calls; then each
+#: worker draws its screen band of the whole batch in draw order, with no wait between calls.
+BATCH_TRIANGLES = 1 << 18
+BATCH_DRAWS = 64
+
+
+
+def _batches(calls: list[DrawCall]) -> list[list[list[DrawCall]]]:
+    """Renderer runs grouped into batches (a run is never split; at least one run a batch)."""
+    batches: list[list[list[DrawCall]]] = []
+    triangles = draws = 0
+    for run in _renderer_runs(calls):
+        count = int(run[0].renderer.mesh.triangle_count)
+        if batches and triangles + count <= BATCH_TRIANGLES and draws + len(run) <= BATCH_DRAWS:
+            batches[-1].append(run)
+            triangles += count
+            draws += len(run)
+        else:
+            batches.append([run])
+            triangles, draws = count, len(run)
+    return batches
+
+
+def _prepare_batch(frame: _FrameContext, runs: list[list[DrawCall]]) -> list[_Prepared]:
+    """Prepare a batch's draw calls in draw order: renderers in parallel on the pool, or one
+    renderer with its per-vertex and per-triangle work split over the pool."""
+    runs = [run for run in runs if run[0].renderer.mesh.triangle_count > 0]
+    texels = [[frame.texels_of(call.renderer.material) for call in run] for run in runs]
+
+    def prepare_run(k: int, pool, parts: int):
+        setup, notes, degenerate = _setup(frame, runs[k][0].renderer, pool, parts)
+        return notes, degenerate, [_prepare(frame, call, setup, tex, pool, parts)
+                                   for call, tex in zip(runs[k], texels[k], strict=True)]
+
+    if frame.pool is None or len(runs) <= 1:
+        results = [prepare_run(k, frame.pool, frame.workers) for k in range(len(runs))]
+    else:
+        results = list(frame.pool.map(lambda k: prepare_run(k, None, 1), range(len(runs))))
+    prepared: list[_Prepared] = []
+    for notes, degenerate, items in results:
+        frame.warnings.extend(notes)
+        if degenerate is not None:
+            frame.degenerate.append(degenerate)
+        prepared.extend(items)
+    return prepared
+
+
+def _band_floor(buf: FrameBuffers, y0: int, y1: int) -> np.ndarray:
+    """(H,) int64: the smallest stored depth code of each buffer row in ``[y0, y1)`` (others 0)."""
+    floor = np.zeros(buf.height, dtype=np.int64)
+    floor[y0:y1] = buf.depth.reshape(buf.height, buf.width)[y0:y1].min(axis=1)
+    return floor
+
+
+def _draw_batch_band(frame: _FrameContext, items, y0: int, y1: int, between: Callable[[], None]) -> None:
+    """Draw one screen band ``[y0, y1)`` of a batch: ``items`` (prepared call, its rows in the
+    band) in draw order; ``between()`` runs before each call (a cancellation check)."""
+    zfloor = None  # the band's smallest stored depth per row, valid until a pass writes depth
+    for prepared, rows in items:
+        between()
+        if frame.stop_flag.is_set():
+            return
+        state = prepared.state
+        if state.zbound is not None and rows.count:
+            if zfloor is None:
+                zfloor = _band_floor(frame.buf, y0, y1)
+            state = replace(state, zfloor=zfloor)
+        if rows.count:
+            _draw_band(frame.buf, prepared.setup, rows, frame.chunk_candidates, state, frame.stop_flag, None)
+        if state.pass_state.zwrite:
+            zfloor = None
+
+
+def _render_batched(frame: _FrameContext, todo, cancelled, should_cancel, progress) -> None:
+    """Draw calls without an observer: batch by batch; within a batch the workers' screen
+    bands (cut at equal fragment counts of the whole batch) proceed independently."""
+    done = 0
+    for runs in _batches(todo):
+        cancelled()
+        prepared = _prepare_batch(frame, runs)
+        cuts = None if frame.pool is None else raster.band_cuts([pr.rows for pr in prepared], frame.workers,
+                                                               frame.height)
+        if cuts is None:
+            _draw_batch_band(frame, [(pr, pr.rows) for pr in prepared], 0, frame.height, cancelled)
+        else:
+            splits = [pr.rows.split_at(cuts) for pr in prepared]
+            edges = [0, *(int(c) for c in cuts), frame.height]
+            futures = [frame.pool.submit(_draw_batch_band, frame, [(pr, split[k]) for pr, split in
+                                                                   zip(prepared, splits, strict=True)],
+                                         edges[k], min(max(edges[k + 1], edges[k]), frame.height), _no_check)
+                       for k in range(cuts.size + 1)]
+            _wait(futures, should_cancel, frame.stop_flag)
+        if frame.stop_flag.is_set():
+            raise RenderCancelled("render cancelled")
+        done += sum(len(run) for run in runs)
+        if progress is not None:
+            progress(done / max(len(todo), 1))
+
+
+def _no_check() -> None:
+    """Band workers poll the stop flag instead (set by the thread that polls ``should_cancel``)."""
+
+
+def _render_observed(frame: _FrameContext, todo, cancelled, should_cancel, progress, observer) -> None:
+    """Draw calls one at a time, each split into screen bands, with the observer told of every
+    draw call (buffers before and after) and fragment."""
+    buf, pool, workers = frame.buf, frame.pool, frame.workers
+    setup = setup_of = None
+    zfloor_rows = None  # per buffer row, the smallest stored depth code (while no pass writes depth)
+    for done, call in enumerate(todo, start=1):
+        cancelled()
+        renderer = call.renderer
+        observer.draw_begin(call, buf)
+        if renderer.mesh.triangle_count == 0:
+            observer.draw_end(call, buf, 0)
+            continue
+        if setup_of is not renderer:  # one vertex setup per renderer, shared by its passes
+            setup_of = renderer
+            setup, notes, degenerate = _setup(frame, renderer, pool, workers)
+            frame.warnings.extend(notes)
+            if degenerate is not None:
+                frame.degenerate.append(degenerate)
+        prepared = _prepare(frame, call, setup, frame.texels_of(renderer.material), pool, workers)
+        state = prepared.state
+        if state.zbound is not None:
+            if zfloor_rows is None:  # recomputed only after a pass wrote depth
+                zfloor_rows = _band_floor(buf, 0, buf.height)
+            state = replace(state, zfloor=zfloor_rows)
+        if call.state.zwrite:
+            zfloor_rows = None
+        rows = prepared.rows
+        bands = rows.split_bands(workers, buf.height) if pool is not None else [rows]
+        if len(bands) == 1:
+            _draw_band(buf, setup, bands[0], frame.chunk_candidates, state, frame.stop_flag, observer)
+        else:
+            futures = [pool.submit(_draw_band, buf, setup, band, frame.chunk_candidates, state, frame.stop_flag,
+                                   observer) for band in bands]
+            _wait(futures, should_cancel, frame.stop_flag)
+        if frame.stop_flag.is_set():
+            raise RenderCancelled("render cancelled")
+        observer.draw_end(call, buf, int(np.unique(setup.src[prepared.selected]).size))
+        if progress is not None:
+            progress(done / max(len(todo), 1))
+
+
 def render_scene(
     scene: DrawScene,
     *,
@@ -321,7 +614,8 @@ def render_scene(
 ) -> Frame:
     """Render a draw scene exactly as Unity's built-in pipeline would (docs/pipeline.md).
 
-    ``progress(fraction)`` is called between draw calls; ``should_cancel()`` is polled
+    ``progress(fraction)`` is called as draw calls complete (after each batch of them, see
+    ``BATCH_TRIANGLES``; with an observer after each call); ``should_cancel()`` is polled
     between draw calls and chunks, and a True answer raises :class:`RenderCancelled`.
     ``until_draw`` K: stop after draw call K (numbered from 1; 0 = the cleared frame).
     ``resume`` (buffers, K0): start from a copy of ``buffers`` as left after draw call K0
@@ -347,75 +641,27 @@ def render_scene(
         raise SceneError(str(exc)) from None
     last = len(calls) if until_draw is None else min(int(until_draw), len(calls))
     todo = [c for c in calls if first < c.index <= last]
-    texel_cache: dict[int, np.ndarray] = {}
     if workers is None:
         workers = 1 if width * height < SMALL_FRAME_PIXELS else min(2, os.cpu_count() or 1)
+    stop_flag = threading.Event()
+    pool = ThreadPoolExecutor(max_workers=workers) if workers > 1 else None
+    frame = _FrameContext(buf, cam, lights, cs, scene.hdr, chunk_candidates, pool, workers, stop_flag,
+                          observed=observer is not None)
 
     def cancelled() -> None:
         if should_cancel is not None and should_cancel():
             raise RenderCancelled("render cancelled")
 
-    degenerate: list[tuple[str, int]] = []  # (object, zero-area triangles): one summary warning
-    stop_flag = threading.Event()
-    pool = ThreadPoolExecutor(max_workers=workers) if workers > 1 else None
-    setup = setup_of = None
-    zfloor_rows = None  # per buffer row, the smallest stored depth code (while no pass writes depth)
     try:
-        for done, call in enumerate(todo, start=1):
-            cancelled()
-            renderer, material = call.renderer, call.renderer.material
-            if observer is not None:
-                observer.draw_begin(call, buf)
-            if renderer.mesh.triangle_count == 0:
-                if observer is not None:
-                    observer.draw_end(call, buf, 0)
-                continue
-            if setup_of is not renderer:  # one vertex setup per renderer, shared by its passes
-                setup_of = renderer
-                setup = vertex.setup_triangles(
-                    renderer.mesh, renderer.matrix_world, cam,
-                    need_normals=material.lighting is not Lighting.Unlit, need_uvs=material.main_tex is not None,
-                    pool=pool, parts=workers,
-                )
-                label = f"object {renderer.name!r} slot {renderer.slot}"
-                if setup.skipped_nonfinite:
-                    warnings.append(f"{label}: skipped {setup.skipped_nonfinite} triangles with non-finite vertices")
-                if setup.degenerate:
-                    degenerate.append((renderer.name, setup.degenerate))
-            texels = None
-            if material.main_tex is not None:
-                key = id(material.main_tex)
-                if key not in texel_cache:
-                    texel_cache[key] = shade.texture_texels(material.main_tex, cs)
-                texels = texel_cache[key]
-            zbound = zfloor = None
-            p = call.state
-            if not p.zwrite and p.ztest in (CompareFunction.Less, CompareFunction.LEqual):
-                if zfloor_rows is None:  # recomputed only after a pass wrote depth
-                    zfloor_rows = buf.depth.reshape(height, width).min(axis=1)
-                zbound, zfloor = raster.depth_upper_codes(setup, p.offset_factor, p.offset_units), zfloor_rows
-            state = DrawState(call, material, texels, lights, cs, scene.hdr, width, observed=observer is not None,
-                              zbound=zbound, zfloor=zfloor)
-            if p.zwrite:
-                zfloor_rows = None
-            selected = vertex.cull_select(setup, call.state.cull)
-            rows = raster.coverage_rows(setup, selected, width, height, pool=pool, parts=workers)
-            bands = rows.split_bands(workers, height) if pool is not None else [rows]
-            if len(bands) == 1:
-                _draw_band(buf, setup, bands[0], chunk_candidates, state, stop_flag, observer)
-            else:
-                futures = [pool.submit(_draw_band, buf, setup, band, chunk_candidates, state, stop_flag, observer)
-                           for band in bands]
-                _wait(futures, should_cancel, stop_flag)
-            if stop_flag.is_set():
-                raise RenderCancelled("render cancelled")
-            if observer is not None:
-                observer.draw_end(call, buf, int(np.unique(setup.src[selected]).size))
-            if progress is not None:
-                progress(done / max(len(todo), 1))
+        if observer is None:
+            _render_batched(frame, todo, cancelled, should_cancel, progress)
+        else:
+            _render_observed(frame, todo, cancelled, should_cancel, progress, observer)
     finally:
         if pool is not None:
             pool.shutdown(wait=True, cancel_futures=True)
+    warnings.extend(frame.warnings)
+    degenerate = frame.degenerate
     if degenerate:
         total = sum(n for _, n in degenerate)
         names = sorted({name for name, _ in degenerate})

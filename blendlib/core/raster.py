@@ -56,13 +56,29 @@ class Rows:
         """
         if bands <= 1 or self.count == 0:
             return [self]
-        per_y = np.bincount(self.y, weights=self.length, minlength=height)
-        total = per_y.sum()
-        if total == 0:
+        cuts = band_cuts([self], bands, height)
+        if cuts is None:
             return [self]
-        cuts = np.searchsorted(np.cumsum(per_y), total * np.arange(1, bands) / bands, side="right")
+        return [part for part in self.split_at(cuts) if part.count]
+
+    def split_at(self, cuts: np.ndarray) -> list[Rows]:
+        """One :class:`Rows` per band of :func:`band_cuts` (band k: ``cuts[k-1] <= y < cuts[k]``),
+        empty ones included, order kept within each."""
         band = np.searchsorted(cuts, self.y, side="right")
-        return [part for k in range(bands) if (part := self.take(band == k)).count]
+        return [self.take(band == k) for k in range(cuts.size + 1)]
+
+
+def band_cuts(parts: list[Rows], bands: int, height: int) -> np.ndarray | None:
+    """Row cuts (bands - 1,) int64 splitting the fragments of ``parts`` (rows of one or more
+    draw calls) into ``bands`` screen bands of about equal counts; None when there are none."""
+    per_y = np.zeros(height, dtype=np.float64)
+    for rows in parts:
+        if rows.count:
+            per_y += np.bincount(rows.y, weights=rows.length, minlength=height)
+    total = per_y.sum()
+    if total == 0:
+        return None
+    return np.searchsorted(np.cumsum(per_y), total * np.arange(1, bands) / bands, side="right")
 
 
 def _ceil_div(a: np.ndarray, b: int) -> np.ndarray:

@@ -133,17 +133,27 @@ def _wrap(i: np.ndarray, size: int, wrap: TextureWrap) -> np.ndarray:
     return np.minimum(np.maximum(i, 0.0), float(size - 1)).astype(np.int64)
 
 
+def point_texel_index(texels: Texels, uv: np.ndarray, wrap: TextureWrap) -> np.ndarray:
+    """Point filtering's texel: flat indices (N,) int64 (row * w + column) of the texels that
+    :func:`sample` with ``TextureFilter.Point`` fetches at uv (N, 2) float64 (§7)."""
+    h, w = texels.shape[:2]
+    u, v = uv[:, 0], uv[:, 1]
+    finite = np.isfinite(u) & np.isfinite(v)
+    with np.errstate(invalid="ignore", over="ignore"):
+        i = np.where(finite, np.floor(u * w), 0.0)
+        j = np.where(finite, np.floor(v * h), 0.0)
+    return _wrap(j, h, wrap) * w + _wrap(i, w, wrap)
+
+
 def sample(texels: Texels, uv: np.ndarray, filt: TextureFilter, wrap: TextureWrap) -> np.ndarray:
     """Sample texels at uv (N, 2) float64 → (N, 4) float64 (§7; non-finite uv → texel (0, 0))."""
+    if filt is TextureFilter.Point:
+        return texels.fetch(point_texel_index(texels, uv, wrap))
     h, w = texels.shape[:2]
     fetch = texels.fetch
     u, v = uv[:, 0], uv[:, 1]
     finite = np.isfinite(u) & np.isfinite(v)
     with np.errstate(invalid="ignore", over="ignore"):
-        if filt is TextureFilter.Point:
-            i = np.where(finite, np.floor(u * w), 0.0)
-            j = np.where(finite, np.floor(v * h), 0.0)
-            return fetch(_wrap(j, h, wrap) * w + _wrap(i, w, wrap))
         fu = u * w - 0.5
         fv = v * h - 0.5
         i0 = np.where(finite, np.floor(fu), 0.0)
@@ -157,9 +167,19 @@ def sample(texels: Texels, uv: np.ndarray, filt: TextureFilter, wrap: TextureWra
     return lo * (1.0 - av) + hi * av
 
 
+def texture_uv(material: Material, uv: np.ndarray) -> np.ndarray:
+    """Mesh uv (N, 2) float64 → texture coordinates after ``_MainTex``'s tiling and offset."""
+    tu, tv = (float(v) for v in material.main_tex_tiling)
+    ou, ov = (float(v) for v in material.main_tex_offset)
+    uvp = np.empty_like(uv)
+    uvp[:, 0] = uv[:, 0] * tu + ou
+    uvp[:, 1] = uv[:, 1] * tv + ov
+    return uvp
+
+
 def shade(
     material: Material,
-    texels: np.ndarray | None,
+    texels: Texels | None,
     lights: Lights,
     color_space: ColorSpace,
     uv: np.ndarray,
@@ -170,20 +190,38 @@ def shade(
     ``uv`` (N, 2) float64 interpolated mesh UVs; ``normal`` (N, 3) float64
     interpolated (unnormalised) world normals; ``texels`` (:class:`Texels`) from :func:`texture_texels`.
     """
-    n = uv.shape[0]
+    tex = None
+    if texels is not None:
+        tex = sample(texels, texture_uv(material, uv), material.main_tex_filter, material.main_tex_wrap)
+    return shade_texels(material, tex, lights, color_space, normal)
+
+
+def texel_palette(
+    material: Material, texels: Texels, lights: Lights, color_space: ColorSpace, normals: np.ndarray,
+) -> np.ndarray:
+    """Point filtering's colours for every (normal, texel): (G * h * w, 4) float64, row
+    ``g * h * w + texel`` = what :func:`shade` gives a fragment with normal ``normals[g]``
+    (G, 3) float64 whose :func:`point_texel_index` is ``texel`` (the same arithmetic per
+    element, so equal bit for bit)."""
+    texel_count = texels.shape[0] * texels.shape[1]
+    groups = normals.shape[0]
+    tex = np.tile(texels.fetch(np.arange(texel_count, dtype=np.int64)), (groups, 1))
+    return shade_texels(material, tex, lights, color_space, np.repeat(normals, texel_count, axis=0))
+
+
+def shade_texels(
+    material: Material, tex: np.ndarray | None, lights: Lights, color_space: ColorSpace, normal: np.ndarray,
+) -> np.ndarray:
+    """The fragment program after the texture fetch: ``tex`` (N, 4) float64 sampled texels
+    (None: no texture), ``normal`` (N, 3) float64 → colours (N, 4) float64, straight alpha."""
+    n = normal.shape[0]
     color = gamma_color_to_shading(material.color[:3], color_space) + (float(material.color[3]),)
     out = np.empty((n, 4), dtype=np.float64)
-    if texels is None:
+    if tex is None:
         # tex = (1, 1, 1, 1): 1.0 * c == c exactly, so albedo and alpha are the material's.
         albedo = np.array(color[:3], dtype=np.float64)[None, :]
         out[:, 3] = color[3] * float(material.alpha_scale)
     else:
-        tu, tv = (float(v) for v in material.main_tex_tiling)
-        ou, ov = (float(v) for v in material.main_tex_offset)
-        uvp = np.empty_like(uv)
-        uvp[:, 0] = uv[:, 0] * tu + ou
-        uvp[:, 1] = uv[:, 1] * tv + ov
-        tex = sample(texels, uvp, material.main_tex_filter, material.main_tex_wrap)
         albedo = tex[:, :3] * np.array(color[:3], dtype=np.float64)
         out[:, 3] = (tex[:, 3] * color[3]) * float(material.alpha_scale)
     if material.lighting is Lighting.Unlit:

@@ -232,3 +232,112 @@ def test_frame_output_division_equals_float64_rounding_for_every_code():
     _, depth, _ = buf.output()
     want = (np.arange(DEPTH_MAX + 1, dtype=np.int64) / float(DEPTH_MAX)).astype(np.float32)
     np.testing.assert_array_equal(depth[::-1].reshape(-1), want)
+
+
+def _texel_palette_scene(lighting: Lighting, p: Pass, *, hdr: bool = False, cutoff: float = 0.0) -> DrawScene:
+    """A 4x4 Point-filtered texture (repeated 3x, offset) over a cube seen at an angle: every face
+    has a constant normal and varying UVs, so its colour is a function of (face normal, texel)."""
+    from blendlib.core.vocabulary import Texture
+
+    rng = np.random.default_rng(11)
+    px = rng.uniform(0, 1, size=(4, 4, 4)).astype(np.float32)
+    px[0, 0] = (0.5, 0.25, 0.75, 0.0)  # a transparent texel for the alpha test
+    mat = Material(name="Checker", queue=Queue.Transparent, lighting=lighting, color=(0.9, 0.7, 1.0, 0.8),
+                   main_tex=Texture(px, encoding="sRGB", name="checker"), main_tex_filter=TextureFilter.Point,
+                   main_tex_wrap=TextureWrap.Repeat, main_tex_tiling=(3.0, 3.0), main_tex_offset=(0.1, -0.2),
+                   cutoff=cutoff, passes=(p,))
+    shape = sc.cube(2.0)
+    face_uvs = [[(0, 0), (1, 0), (1, 1)], [(0, 0), (1, 1), (0, 1)]] * 6
+    mesh = sc.make_mesh(shape.positions, shape.triangles, normals=shape.normals, uvs=face_uvs)
+    cube = sc.renderer(mesh, mat, name="Cube", matrix=sc.translate(0.1, 0.0, 0.0))
+    return DrawScene(camera=sc.camera(48, 40, eye=(2.5, 2.0, 4.0)), color_space=ColorSpace.Linear, hdr=hdr,
+                     ambient=(0.3, 0.2, 0.1), renderers=(_background(3), cube),
+                     light=sc.Light(direction=(0.3, -0.5, -0.8), color=(1, 0.9, 0.8), energy=1.5))
+
+
+@pytest.mark.parametrize("lighting", [Lighting.Unlit, Lighting.Lambert])
+@pytest.mark.parametrize("hdr", [False, True])
+def test_point_texture_palette_equals_reference(lighting, hdr, monkeypatch):
+    """Point-filtered triangles with a constant normal take colours from a palette shaded once
+    per (normal, texel) (``shade.texel_palette``): equal to the scalar reference, blended through
+    the table in LDR and gathered in HDR, with an alpha test on the palette's alpha."""
+    from blendlib.core import shade
+
+    palettes = []
+    original = shade.texel_palette
+
+    def counting(material, texels, lights, color_space, normals):
+        palettes.append(normals.shape[0])
+        return original(material, texels, lights, color_space, normals)
+
+    monkeypatch.setattr(shade, "texel_palette", counting)
+    p = Pass(cull=Cull.Off, zwrite=False, blend=True, src_blend=BlendFactor.SrcAlpha,
+             dst_blend=BlendFactor.OneMinusSrcAlpha, alpha_test=True)
+    scene = _texel_palette_scene(lighting, p, hdr=hdr, cutoff=0.3)
+    frame = render_scene(scene, workers=1)
+    color, depth, stencil = render_reference(scene)
+    assert palettes, "the texel palette was not used"
+    # Unlit: one group; Lambert: one per distinct face normal of the chunk (Cull Off: up to 6).
+    assert max(palettes) == 1 if lighting is Lighting.Unlit else 2 <= max(palettes) <= 6
+    np.testing.assert_array_equal(frame.color, color)
+    np.testing.assert_array_equal(frame.depth, depth)
+    np.testing.assert_array_equal(frame.stencil, stencil)
+
+
+def test_texel_palette_is_left_when_the_texture_is_large(monkeypatch):
+    """A texture with more texels than a quarter of the fragments it serves is shaded per fragment."""
+    from blendlib.core import pipeline, shade
+
+    def refuse(*_args):
+        raise AssertionError("texel palette used for a large texture")
+
+    monkeypatch.setattr(shade, "texel_palette", refuse)
+    scene = _texel_palette_scene(Lighting.Unlit, Pass())
+    monkeypatch.setattr(pipeline, "TEXEL_PALETTE_SHARE", 10_000)
+    frame = render_scene(scene, workers=1)
+    np.testing.assert_array_equal(frame.color, render_reference(scene)[0])
+
+
+def test_batched_bands_equal_per_draw_bands_and_reference(monkeypatch):
+    """Without an observer, draw calls are prepared as batches (renderers in parallel) and each
+    worker draws its screen band of a whole batch with no wait between calls: the frame, depth,
+    stencil and warnings equal one thread, per-draw bands (the observed driver) and the reference.
+    Opaque ZWrite On draws between ZWrite Off ones make each band recompute its depth floor."""
+    from blendlib.core import pipeline
+
+    blend = dict(blend=True, src_blend=BlendFactor.SrcAlpha, dst_blend=BlendFactor.OneMinusSrcAlpha)
+    opaque = Material(name="Opaque", color=(0.3, 0.8, 0.4, 1.0), passes=(Pass(),))
+    glass = Material(name="Glass", queue=Queue.Transparent, color=(0.9, 0.3, 0.2, 0.5),
+                     passes=(Pass(zwrite=True, color_mask=""), Pass(zwrite=False, **blend)))
+    thin = Material(name="Thin", queue=Queue.Transparent, color=(0.2, 0.4, 0.9, 0.35), lighting=Lighting.Unlit,
+                    passes=(Pass(cull=Cull.Off, zwrite=False, **blend),))
+    renderers = [sc.renderer(sc.uv_sphere(0.8, 20, 12), opaque, name="Ball", matrix=sc.translate(-0.9, 0.3, -0.5))]
+    for k in range(4):
+        renderers.append(sc.renderer(sc.uv_sphere(0.5, 16, 10), glass, name=f"Glass{k}",
+                                     matrix=sc.translate(-1.2 + 0.8 * k, -0.4 + 0.25 * k, 0.2 * k)))
+        renderers.append(sc.renderer(sc.quad(-2 + k, -1.5, -0.5 + k, 1.5, z=0.4 - 0.3 * k), thin, name=f"Sheet{k}"))
+    degenerate = sc.make_mesh([(0, 0, 0), (1, 1, 0), (2, 2, 0)], [(0, 1, 2)])
+    renderers.append(sc.renderer(degenerate, thin, name="Line"))
+    scene = DrawScene(camera=sc.camera(120, 96, eye=(0.3, 0.4, 4.0)), renderers=tuple(renderers),
+                      light=sc.Light(direction=(0.2, 0.5, 0.8)))
+    batches = []
+    original = pipeline._prepare_batch
+
+    def counting(frame, runs):
+        batches.append(sum(len(run) for run in runs))
+        return original(frame, runs)
+
+    monkeypatch.setattr(pipeline, "_prepare_batch", counting)
+    batched = render_scene(scene, workers=2)
+    assert batches == [14]  # every draw call in one batch
+    observed = render_scene(scene, workers=2, observer=pipeline.FrameObserver())
+    one = render_scene(scene, workers=1, chunk_candidates=211)
+    monkeypatch.setattr(pipeline, "BATCH_DRAWS", 1)
+    unbatched = render_scene(scene, workers=2)
+    color, depth, stencil = render_reference(scene)
+    assert any("degenerate" in w for w in batched.warnings)
+    for frame in (batched, observed, one, unbatched):
+        np.testing.assert_array_equal(frame.color, color)
+        np.testing.assert_array_equal(frame.depth, depth)
+        np.testing.assert_array_equal(frame.stencil, stencil)
+        assert frame.warnings == batched.warnings
