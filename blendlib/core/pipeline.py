@@ -108,7 +108,8 @@ class ShadedFragments:
       depth test of a pass without ZWrite (:meth:`DrawState.depth_needed`), the codes are only
       computed when an observer reads ``depth`` (``stored_depth`` None, ``depth_fn`` set), or
       never (no observer: ``depth`` None).
-    - ``rgba`` (N, 4) float64: shader output in shading space (rows with ``ids >= 0`` unset).
+    - ``rgba`` (N, 4) float64: shader output in shading space (rows with ``ids >= 0`` unset),
+      or None when every fragment has an id.
     - ``ids`` (N,) int32 or None, ``palette`` (K, 4) float64 or None: fragments with
       ``ids >= 0`` have the colour ``palette[ids]`` (shaded once per triangle).
     - ``triangle`` (N,) int64: the source mesh triangle (index in the renderer's mesh); None
@@ -142,6 +143,8 @@ class ShadedFragments:
         """(N, 4) float64 shader colours, table entries filled in."""
         if self.ids is None:
             return self.rgba
+        if self.rgba is None:
+            return self.palette[self.ids]
         out = self.rgba.copy()
         tabled = self.ids >= 0
         out[tabled] = self.palette[self.ids[tabled]]
@@ -187,8 +190,8 @@ TEXEL_PALETTE_SHARE = 4
 def _texel_groups(state: DrawState, candidates: np.ndarray, normals, counts) -> tuple[np.ndarray, np.ndarray] | None:
     """Point-filtered triangles whose normal is constant: their colour is a function of
     (normal, texel). Returns ``(normals (G, 3), group (K,) int64 per triangle)`` when a palette
-    of G * texels colours is cheaper than shading the candidates' fragments, else None."""
-    texel_count = state.texels.shape[0] * state.texels.shape[1]
+    of G * (distinct texels) colours is cheaper than shading the candidates' fragments, else None."""
+    texel_count = state.texels.distinct()[0].size
     served = int(counts[candidates].sum())
     if texel_count * TEXEL_PALETTE_SHARE > served:
         return None
@@ -263,10 +266,13 @@ def _shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> Shaded
 
     if np.any(flat):
         const_tris = np.nonzero(flat)[0]
-        palettes.append(shade_at(None if uvs is None else uvs[const_tris, 0],
-                                 None if normals is None else normals[const_tris, 0], const_tris.size))
+        colors = shade_at(None if uvs is None else uvs[const_tris, 0],
+                          None if normals is None else normals[const_tris, 0], const_tris.size)
+        # Triangles of one colour (an unlit mesh, a flat-lit plane) share one palette entry.
+        colors, inverse = np.unique(colors, axis=0, return_inverse=True)
+        palettes.append(colors)
         slot = np.full(tris.size, -1, dtype=np.int64)
-        slot[const_tris] = np.arange(const_tris.size, dtype=np.int64)
+        slot[const_tris] = inverse.reshape(-1)
         ids = np.repeat(slot[run_of_row], length)
     if any_varying:
         # Varying fragments are exactly those of the non-flat triangles: whole runs.
@@ -278,10 +284,11 @@ def _shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> Shaded
         shaded = slice(None)  # of the non-flat fragments, those shaded one by one
         if groups is not None:
             palette_normals, group = groups
-            texel_count = texels.shape[0] * texels.shape[1]
+            first_texel, of_texel = texels.distinct()
             by_texel = np.repeat(tabled[keep], counts[keep])
             texel = shade.point_texel_index(texels, shade.texture_uv(material, uv[by_texel]), material.main_tex_wrap)
-            base = sum(part.shape[0] for part in palettes) + group * texel_count  # (K,)
+            texel = np.take(of_texel, texel)
+            base = sum(part.shape[0] for part in palettes) + group * first_texel.size  # (K,)
             if ids is None:
                 ids = np.full(n, -1, dtype=np.int64)
             ids[np.arange(n)[at][by_texel]] = np.repeat(base[tabled], counts[tabled]) + texel
@@ -300,15 +307,12 @@ def _shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> Shaded
         palette = palettes[0] if len(palettes) == 1 else np.concatenate(palettes)
         tabled_at = ids >= 0
         tabled_count = int(np.count_nonzero(tabled_at))
-        eligible = merger.lut_eligible(p, state.hdr)
-        if eligible and palette.shape[0] <= tabled_count:
-            # One entry per distinct colour (an unlit mesh, a flat-lit plane, a two-colour texture).
-            palette, inverse = np.unique(palette, axis=0, return_inverse=True)
-            ids = np.where(tabled_at, inverse.reshape(-1)[np.maximum(ids, 0)], -1)
         # 8-bit blending of a constant colour is a function of the destination code: tabulate
         # it (256 rows per colour) when that is cheaper than blending every fragment.
-        if eligible and palette.shape[0] * 256 <= tabled_count:
+        if merger.lut_eligible(p, state.hdr) and palette.shape[0] * 256 <= tabled_count:
             ids = ids.astype(np.int32)
+            if tabled_count == n:
+                rgba = None  # every colour comes from the palette
         else:
             if tabled_count == n:
                 rgba = palette[ids]
@@ -317,7 +321,12 @@ def _shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> Shaded
             ids = palette = None
     alive = None
     if p.alpha_test:
-        alpha = rgba[:, 3] if ids is None else np.where(ids >= 0, palette[np.maximum(ids, 0), 3], rgba[:, 3])
+        if ids is None:
+            alpha = rgba[:, 3]
+        elif rgba is None:
+            alpha = np.take(palette[:, 3], ids)
+        else:
+            alpha = np.where(ids >= 0, palette[np.maximum(ids, 0), 3], rgba[:, 3])
         alive = ~(alpha - float(material.cutoff) < 0)
     triangle = np.repeat(row_src, length) if state.observed else None
     disjoint = raster.rows_disjoint(rows, start, stop, state.width)

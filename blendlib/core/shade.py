@@ -102,6 +102,20 @@ class Texels:
         texels[..., :3] = convert(texels[..., :3])
         self.values = texels.reshape(h * w, 4)
 
+    def distinct(self) -> tuple[np.ndarray, np.ndarray]:
+        """The texture's distinct texels: ``(first (D,) int64`` flat index of one texel of each
+        distinct value, ``of_texel (h*w,) int64`` each texel's entry in ``first``). Computed once."""
+        cached = getattr(self, "_distinct", None)
+        if cached is None:
+            if self.codes is not None:
+                keys = self.codes.view(np.uint32).reshape(-1)
+            else:  # by bytes: values that differ only in sign of zero or NaN payload stay apart
+                raw = np.ascontiguousarray(self.values)
+                keys = raw.view(np.dtype((np.void, raw.itemsize * 4))).reshape(-1)
+            _, first, of_texel = np.unique(keys, return_index=True, return_inverse=True)
+            cached = self._distinct = (first.astype(np.int64), of_texel.reshape(-1).astype(np.int64))
+        return cached
+
     def fetch(self, index: np.ndarray) -> np.ndarray:
         """Texels at flat indices ``index`` (N,) int64 (row * w + column) → (N, 4) float64."""
         if self.codes is None:
@@ -199,14 +213,13 @@ def shade(
 def texel_palette(
     material: Material, texels: Texels, lights: Lights, color_space: ColorSpace, normals: np.ndarray,
 ) -> np.ndarray:
-    """Point filtering's colours for every (normal, texel): (G * h * w, 4) float64, row
-    ``g * h * w + texel`` = what :func:`shade` gives a fragment with normal ``normals[g]``
-    (G, 3) float64 whose :func:`point_texel_index` is ``texel`` (the same arithmetic per
-    element, so equal bit for bit)."""
-    texel_count = texels.shape[0] * texels.shape[1]
-    groups = normals.shape[0]
-    tex = np.tile(texels.fetch(np.arange(texel_count, dtype=np.int64)), (groups, 1))
-    return shade_texels(material, tex, lights, color_space, np.repeat(normals, texel_count, axis=0))
+    """Point filtering's colours for every (normal, distinct texel): (G * D, 4) float64, row
+    ``g * D + of_texel[t]`` (:meth:`Texels.distinct`) = what :func:`shade` gives a fragment with
+    normal ``normals[g]`` (G, 3) float64 whose :func:`point_texel_index` is ``t`` (the same
+    arithmetic per element, so equal bit for bit)."""
+    first, _ = texels.distinct()
+    tex = np.tile(texels.fetch(first), (normals.shape[0], 1))
+    return shade_texels(material, tex, lights, color_space, np.repeat(normals, first.size, axis=0))
 
 
 def shade_texels(

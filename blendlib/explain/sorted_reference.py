@@ -203,7 +203,10 @@ class _Collector(FrameObserver):
             rest = np.flatnonzero(~tabled)
         else:
             rest = None
-        rows = frags.rgba if rest is None else frags.rgba[rest]
+        if frags.rgba is None:  # every colour is a palette entry
+            rows = np.empty((0, 4), dtype=np.float64)
+        else:
+            rows = frags.rgba if rest is None else frags.rgba[rest]
         if rows.shape[0]:
             # Consecutive fragments of a constant-colour triangle share one table row.
             new = np.ones(rows.shape[0], dtype=bool)
