@@ -216,14 +216,23 @@ def lut_eligible(p: Pass, hdr: bool) -> bool:
     return not p.blend or (p.src_blend not in _CROSS_CHANNEL and p.dst_blend not in _CROSS_CHANNEL)
 
 
+def table_rows(p: Pass) -> int:
+    """Rows per colour of :func:`blend_lut`: 256 destination codes, or 1 for ``Blend Off``
+    (the stored value is the source's, whatever the destination)."""
+    return 256 if p.blend else 1
+
+
 def blend_lut(buf: FrameBuffers, p: Pass, palette: np.ndarray) -> np.ndarray:
-    """Stored codes for every (source colour, destination code): (K, 256, 4) uint8.
+    """Stored codes for every (source colour, destination code): (K, 256, 4) uint8, or
+    (K, 1, 4) for ``Blend Off`` (:func:`table_rows`).
 
     Row (k, d) is the ordinary blend of ``palette[k]`` over a destination whose four
     channels all hold code ``d``, computed by the same functions as per-fragment blending,
     so a lookup equals the per-fragment result bit for bit (for :func:`lut_eligible` passes).
     """
     k = palette.shape[0]
+    if not p.blend:
+        return buf.encode(np.minimum(np.maximum(palette, 0.0), 1.0)).reshape(k, 1, 4)
     src = np.repeat(np.minimum(np.maximum(palette, 0.0), 1.0), 256, axis=0)
     codes = np.repeat(np.tile(np.arange(256, dtype=np.uint8), k)[:, None], 4, axis=1)
     result = blend(p, src, buf.decode(codes)) if p.blend else src
@@ -247,6 +256,10 @@ class BlendTable:
     def __init__(self, lut: np.ndarray, pairs: bool = False) -> None:
         self.size = int(lut.shape[0])
         self.pairs = bool(pairs)
+        self.direct = None
+        if lut.shape[1] == 1:  # Blend Off: one packed value per colour, whatever is stored
+            self.direct = np.ascontiguousarray(lut.reshape(-1, 4)).view(np.uint32).reshape(-1)
+            return
         t = lut.astype(np.uint32)
         if self.pairs:
             self.tables = [((t[:, None, :, c] << (8 * c)) | (t[:, :, None, c + 1] << (8 * c + 8))).reshape(-1)
@@ -256,6 +269,8 @@ class BlendTable:
 
     def lookup(self, stored: np.ndarray, ids: np.ndarray) -> np.ndarray:
         """New packed pixels (N,) uint32 for ``stored`` (N,) uint32 and palette ``ids`` (N,) >= 0."""
+        if self.direct is not None:
+            return np.take(self.direct, ids)
         base = None
         if self.size > 1:
             base = ids.astype(np.intp) << (16 if self.pairs else 8)

@@ -308,8 +308,8 @@ def _shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> Shaded
         tabled_at = ids >= 0
         tabled_count = int(np.count_nonzero(tabled_at))
         # 8-bit blending of a constant colour is a function of the destination code: tabulate
-        # it (256 rows per colour) when that is cheaper than blending every fragment.
-        if merger.lut_eligible(p, state.hdr) and palette.shape[0] * 256 <= tabled_count:
+        # it (256 rows per colour, one without Blend) when that is cheaper than blending every fragment.
+        if merger.lut_eligible(p, state.hdr) and palette.shape[0] * merger.table_rows(p) <= tabled_count:
             ids = ids.astype(np.int32)
             if tabled_count == n:
                 rgba = None  # every colour comes from the palette

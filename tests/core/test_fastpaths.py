@@ -257,10 +257,12 @@ def _texel_palette_scene(lighting: Lighting, p: Pass, *, hdr: bool = False, cuto
 
 @pytest.mark.parametrize("lighting", [Lighting.Unlit, Lighting.Lambert])
 @pytest.mark.parametrize("hdr", [False, True])
-def test_point_texture_palette_equals_reference(lighting, hdr, monkeypatch):
+@pytest.mark.parametrize("blend", [True, False])
+def test_point_texture_palette_equals_reference(lighting, hdr, blend, monkeypatch):
     """Point-filtered triangles with a constant normal take colours from a palette shaded once
     per (normal, texel) (``shade.texel_palette``): equal to the scalar reference, blended through
-    the table in LDR and gathered in HDR, with an alpha test on the palette's alpha."""
+    the table in LDR (Blend Off: one stored value per colour) and gathered in HDR, with an alpha
+    test on the palette's alpha."""
     from blendlib.core import shade
 
     palettes = []
@@ -271,7 +273,7 @@ def test_point_texture_palette_equals_reference(lighting, hdr, monkeypatch):
         return original(material, texels, lights, color_space, normals)
 
     monkeypatch.setattr(shade, "texel_palette", counting)
-    p = Pass(cull=Cull.Off, zwrite=False, blend=True, src_blend=BlendFactor.SrcAlpha,
+    p = Pass(cull=Cull.Off, zwrite=False, blend=blend, src_blend=BlendFactor.SrcAlpha,
              dst_blend=BlendFactor.OneMinusSrcAlpha, alpha_test=True)
     scene = _texel_palette_scene(lighting, p, hdr=hdr, cutoff=0.3)
     frame = render_scene(scene, workers=1)
