@@ -226,33 +226,57 @@ def shade_texels(
     material: Material, tex: np.ndarray | None, lights: Lights, color_space: ColorSpace, normal: np.ndarray,
 ) -> np.ndarray:
     """The fragment program after the texture fetch: ``tex`` (N, 4) float64 sampled texels
-    (None: no texture), ``normal`` (N, 3) float64 → colours (N, 4) float64, straight alpha."""
+    (None: no texture), ``normal`` (N, 3) float64 → colours (N, 4) float64, straight alpha.
+
+    Per fragment: ``albedo = tex.rgb * color.rgb``, ``alpha = (tex.a * color.a) * _AlphaScale``,
+    ``n = normal / sqrt((x*x + y*y) + z*z)`` (0 for a zero normal), ``ndl = max(0, (n.x*l.x +
+    n.y*l.y) + n.z*l.z)``, ``rgb = ambient*albedo + (light*albedo)*ndl``. Lighting is computed one
+    channel at a time on contiguous arrays, each operation as written (the same rounding).
+    """
     n = normal.shape[0]
     color = gamma_color_to_shading(material.color[:3], color_space) + (float(material.color[3]),)
     out = np.empty((n, 4), dtype=np.float64)
     if tex is None:
         # tex = (1, 1, 1, 1): 1.0 * c == c exactly, so albedo and alpha are the material's.
-        albedo = np.array(color[:3], dtype=np.float64)[None, :]
         out[:, 3] = color[3] * float(material.alpha_scale)
     else:
-        albedo = tex[:, :3] * np.array(color[:3], dtype=np.float64)
         out[:, 3] = (tex[:, 3] * color[3]) * float(material.alpha_scale)
+
+    def albedo(c: int) -> np.ndarray:
+        if tex is None:
+            return np.full(n, color[c], dtype=np.float64)
+        return np.multiply(tex[:, c], color[c])
+
     if material.lighting is Lighting.Unlit:
-        out[:, :3] = albedo
+        for c in range(3):
+            out[:, c] = albedo(c)
         return out
-    nx, ny, nz = normal[:, 0], normal[:, 1], normal[:, 2]
-    length = np.sqrt((nx * nx + ny * ny) + nz * nz)
-    lx, ly, lz = lights.direction
+    nx, ny, nz = (np.ascontiguousarray(normal[:, k], dtype=np.float64) for k in range(3))
+    length = nx * nx
+    scratch = ny * ny
+    length += scratch
+    np.multiply(nz, nz, out=scratch)
+    length += scratch
+    np.sqrt(length, out=length)
     if np.all(length > 0):
-        nxn, nyn, nzn = nx / length, ny / length, nz / length
+        for v in (nx, ny, nz):
+            np.divide(v, length, out=v)
     else:  # a zero normal shades as n = 0
         safe = length > 0
         divisor = np.where(safe, length, 1.0)
-        nxn = np.where(safe, nx / divisor, 0.0)
-        nyn = np.where(safe, ny / divisor, 0.0)
-        nzn = np.where(safe, nz / divisor, 0.0)
-    ndl = np.maximum(0.0, (nxn * lx + nyn * ly) + nzn * lz)
-    ambient = np.array(lights.ambient, dtype=np.float64)
-    light = np.array(lights.light, dtype=np.float64)
-    out[:, :3] = ambient * albedo + (light * albedo) * ndl[:, None]
+        for v in (nx, ny, nz):
+            np.divide(v, divisor, out=v)
+            v[~safe] = 0.0
+    lx, ly, lz = lights.direction
+    ndl = np.multiply(nx, lx, out=nx)
+    ndl += np.multiply(ny, ly, out=ny)
+    ndl += np.multiply(nz, lz, out=nz)
+    np.maximum(0.0, ndl, out=ndl)
+    for c in range(3):
+        a = albedo(c)
+        term = np.multiply(a, lights.ambient[c])
+        np.multiply(a, lights.light[c], out=a)
+        a *= ndl
+        term += a
+        out[:, c] = term
     return out
