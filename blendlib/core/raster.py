@@ -47,7 +47,10 @@ class Rows:
 
     def take(self, mask: np.ndarray) -> Rows:
         """The rows where ``mask`` is True, order kept."""
-        return Rows(**{name: getattr(self, name)[mask] for name in self.__dataclass_fields__})
+        # One index list, then a gather per field: boolean indexing of each field costs
+        # several times more when the mask is irregular (small triangles).
+        index = np.flatnonzero(mask)
+        return Rows(**{name: np.take(getattr(self, name), index) for name in self.__dataclass_fields__})
 
     def split_bands(self, bands: int, height: int) -> list[Rows]:
         """Split into up to ``bands`` horizontal screen bands of about equal fragment counts.
@@ -114,7 +117,7 @@ def _coverage_rows(setup: TriangleSetup, selected: np.ndarray, width: int, heigh
     (S*|dy_k|)``, that is ``x <= q`` when ``dy_k > 0`` and ``x >= -q`` when ``dy_k < 0``
     (one exact integer division per edge); a horizontal edge keeps or empties the row.
     """
-    X, Y = setup.X[selected], setup.Y[selected]
+    X, Y = np.take(setup.X, selected, axis=0), np.take(setup.Y, selected, axis=0)
     swap = setup.area2[selected] < 0
     # Counter-clockwise vertex order (a, b, c) = (v0, v1, v2), or (v0, v2, v1) when clockwise.
     ax, ay = X[:, 0], Y[:, 0]
@@ -128,8 +131,9 @@ def _coverage_rows(setup: TriangleSetup, selected: np.ndarray, width: int, heigh
     y_hi = np.minimum((np.maximum(np.maximum(ay, by), cy) - HALF) // SUBPIXEL, height - 1)
     has = (x_lo <= x_hi) & (y_lo <= y_hi)  # most tiny triangles hold no pixel centre at all
     if not np.all(has):
+        index = np.flatnonzero(has)
         selected, swap, ax, ay, bx, by, cx, cy, x_lo, x_hi, y_lo, y_hi = (
-            v[has] for v in (selected, swap, ax, ay, bx, by, cx, cy, x_lo, x_hi, y_lo, y_hi))
+            np.take(v, index) for v in (selected, swap, ax, ay, bx, by, cx, cy, x_lo, x_hi, y_lo, y_hi))
     nrows = y_hi - y_lo + 1
     total = int(nrows.sum())
     starts = np.cumsum(nrows) - nrows
@@ -163,7 +167,7 @@ def _coverage_rows(setup: TriangleSetup, selected: np.ndarray, width: int, heigh
         dy_rows.append(dy)
     length = np.maximum(x1 - x0 + 1, 0)
     keep = length > 0
-    area = each(np.abs(setup.area2[selected]))
+    area = each(np.abs(np.take(setup.area2, selected)))
     rows = Rows(tri=each(selected), y=y, x0=x0, length=length, c0=c_rows[0], c1=c_rows[1],
                 dy0=dy_rows[0], dy1=dy_rows[1], swap=each(swap), area=area)
     return rows if np.all(keep) else rows.take(keep)
