@@ -280,28 +280,36 @@ def _shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> Shaded
         keep = slice(None) if every else ~flat
         at = slice(None) if every else np.flatnonzero(~constant)  # their places in the chunk
         w = weights if every else weights[:, ~constant]
-        uv = None if uvs is None else raster.interpolate_runs(w, uvs[keep], counts[keep], uv_flat[keep])
+        # Channels first: each coordinate contiguous for the texel lookups (uv (2, M)).
+        uv = None if uvs is None else raster.interpolate_runs(w, uvs[keep], counts[keep], uv_flat[keep],
+                                                              channels_first=True)
         shaded = slice(None)  # of the non-flat fragments, those shaded one by one
         if groups is not None:
             palette_normals, group = groups
             first_texel, of_texel = texels.distinct()
             by_texel = np.repeat(tabled[keep], counts[keep])
-            texel = shade.point_texel_index(texels, shade.texture_uv(material, uv[by_texel]), material.main_tex_wrap)
-            texel = np.take(of_texel, texel)
+            every_texel = bool(by_texel.all())
+            u, v = (uv[0], uv[1]) if every_texel else (uv[0][by_texel], uv[1][by_texel])
+            u, v = shade.texture_uv_of(material, u, v)
+            texel = np.take(of_texel, shade.point_texel_index_of(texels, u, v, material.main_tex_wrap))
             base = sum(part.shape[0] for part in palettes) + group * first_texel.size  # (K,)
-            if ids is None:
-                ids = np.full(n, -1, dtype=np.int64)
-            ids[np.arange(n)[at][by_texel]] = np.repeat(base[tabled], counts[tabled]) + texel
+            texel += np.repeat(base[tabled], counts[tabled])
+            if ids is None and every and every_texel:
+                ids = texel
+            else:
+                if ids is None:
+                    ids = np.full(n, -1, dtype=np.int64)
+                ids[np.arange(n)[at][by_texel]] = texel
             palettes.append(shade.texel_palette(material, texels, state.lights, state.color_space, palette_normals))
             keep = ~flat & ~tabled
             shaded = ~by_texel
             at = np.arange(n)[at][shaded]
             w = w[:, shaded]
-            uv = None if uv is None else uv[shaded]
+            uv = uv[:, shaded]
         if w.shape[1]:
             normal = None if normals is None else \
                 raster.interpolate_runs(w, normals[keep], counts[keep], normal_flat[keep])
-            rgba[at] = shade_at(uv, normal, w.shape[1])
+            rgba[at] = shade_at(None if uv is None else uv.T, normal, w.shape[1])
     palette = None
     if palettes:
         palette = palettes[0] if len(palettes) == 1 else np.concatenate(palettes)

@@ -336,23 +336,25 @@ def flat_corners(corners: np.ndarray) -> np.ndarray:
     return np.all((corners[:, 0] == corners[:, 1]) & (corners[:, 0] == corners[:, 2]), axis=1)
 
 
-def interpolate_runs(weights: np.ndarray, corners: np.ndarray, counts: np.ndarray, flat: np.ndarray) -> np.ndarray:
+def interpolate_runs(weights: np.ndarray, corners: np.ndarray, counts: np.ndarray, flat: np.ndarray,
+                     channels_first: bool = False) -> np.ndarray:
     """Interpolate an attribute over fragments grouped in runs of one triangle each (§6).
 
     ``weights`` (3, N) float64; ``corners`` (K, 3, C) corner values of the K triangles;
     ``counts`` (K,) int64 fragments of each triangle, in order (sum N); ``flat`` (K,) bool:
     the triangle's corners are equal, so its fragments take the corner value. Returns
-    (N, C) float64 ``(o0*a0 + o1*a1) + o2*a2`` per component. Corner values are expanded
-    with ``repeat`` (sequential copies) rather than gathered per fragment.
+    (N, C) float64 ``(o0*a0 + o1*a1) + o2*a2`` per component, or (C, N) with
+    ``channels_first`` (each component contiguous). Corner values are expanded with
+    ``repeat`` (sequential copies) rather than gathered per fragment.
     """
     n = weights.shape[1]
-    out = np.empty((n, corners.shape[2]), dtype=np.float64)
+    out = np.empty((corners.shape[2], n), dtype=np.float64)
     for c in range(corners.shape[2]):
-        a0 = np.repeat(corners[:, 0, c], counts)
-        a1 = np.repeat(corners[:, 1, c], counts)
-        a2 = np.repeat(corners[:, 2, c], counts)
-        out[:, c] = (weights[0] * a0 + weights[1] * a1) + weights[2] * a2
+        acc = out[c]
+        np.multiply(weights[0], np.repeat(corners[:, 0, c], counts), out=acc)
+        acc += weights[1] * np.repeat(corners[:, 1, c], counts)
+        acc += weights[2] * np.repeat(corners[:, 2, c], counts)
     if np.any(flat):
         keep = np.repeat(flat, counts)
-        out[keep] = np.repeat(corners[flat, 0], counts[flat], axis=0)
-    return out
+        out[:, keep] = np.repeat(corners[flat, 0], counts[flat], axis=0).T
+    return out if channels_first else np.ascontiguousarray(out.T)

@@ -142,6 +142,16 @@ def texture_texels(texture: Texture, color_space: ColorSpace) -> Texels:
 
 def _wrap(i: np.ndarray, size: int, wrap: TextureWrap) -> np.ndarray:
     """Float texel indices (integer-valued) → int64 indices in 0..size-1."""
+    # Integer arithmetic gives the same indices whenever every value converts exactly (and is
+    # several times faster than a float modulo); NaN or huge values take the float formulas.
+    low, high = i.min(initial=0.0), i.max(initial=0.0)
+    if -(2.0**62) < low and high < 2.0**62:
+        k = i.astype(np.int64)
+        if wrap is TextureWrap.Repeat:
+            if size & (size - 1) == 0:  # a power of two: the low bits (two's complement)
+                return np.bitwise_and(k, size - 1, out=k)
+            return np.remainder(k, size, out=k)  # floor modulo, as the float np.mod
+        return np.clip(k, 0, size - 1, out=k)
     if wrap is TextureWrap.Repeat:
         return np.mod(i, float(size)).astype(np.int64)
     return np.minimum(np.maximum(i, 0.0), float(size - 1)).astype(np.int64)
@@ -150,13 +160,24 @@ def _wrap(i: np.ndarray, size: int, wrap: TextureWrap) -> np.ndarray:
 def point_texel_index(texels: Texels, uv: np.ndarray, wrap: TextureWrap) -> np.ndarray:
     """Point filtering's texel: flat indices (N,) int64 (row * w + column) of the texels that
     :func:`sample` with ``TextureFilter.Point`` fetches at uv (N, 2) float64 (§7)."""
+    return point_texel_index_of(texels, uv[:, 0], uv[:, 1], wrap)
+
+
+def point_texel_index_of(texels: Texels, u: np.ndarray, v: np.ndarray, wrap: TextureWrap) -> np.ndarray:
+    """:func:`point_texel_index` of texture coordinates given as two (N,) float64 arrays."""
     h, w = texels.shape[:2]
-    u, v = uv[:, 0], uv[:, 1]
-    finite = np.isfinite(u) & np.isfinite(v)
+    finite = np.isfinite(u)
+    finite &= np.isfinite(v)
     with np.errstate(invalid="ignore", over="ignore"):
-        i = np.where(finite, np.floor(u * w), 0.0)
-        j = np.where(finite, np.floor(v * h), 0.0)
-    return _wrap(j, h, wrap) * w + _wrap(i, w, wrap)
+        i = np.floor(np.multiply(u, w))
+        j = np.floor(np.multiply(v, h))
+    if not finite.all():
+        i[~finite] = 0.0
+        j[~finite] = 0.0
+    index = _wrap(j, h, wrap)
+    index *= w
+    index += _wrap(i, w, wrap)
+    return index
 
 
 def sample(texels: Texels, uv: np.ndarray, filt: TextureFilter, wrap: TextureWrap) -> np.ndarray:
@@ -179,6 +200,17 @@ def sample(texels: Texels, uv: np.ndarray, filt: TextureFilter, wrap: TextureWra
     lo = fetch(j0 * w + i0) * (1.0 - au) + fetch(j0 * w + i1) * au
     hi = fetch(j1 * w + i0) * (1.0 - au) + fetch(j1 * w + i1) * au
     return lo * (1.0 - av) + hi * av
+
+
+def texture_uv_of(material: Material, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`texture_uv` of mesh coordinates given as two (N,) float64 arrays."""
+    tu, tv = (float(x) for x in material.main_tex_tiling)
+    ou, ov = (float(x) for x in material.main_tex_offset)
+    up = np.multiply(u, tu)
+    up += ou
+    vp = np.multiply(v, tv)
+    vp += ov
+    return up, vp
 
 
 def texture_uv(material: Material, uv: np.ndarray) -> np.ndarray:

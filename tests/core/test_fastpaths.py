@@ -343,3 +343,43 @@ def test_batched_bands_equal_per_draw_bands_and_reference(monkeypatch):
         np.testing.assert_array_equal(frame.depth, depth)
         np.testing.assert_array_equal(frame.stencil, stencil)
         assert frame.warnings == batched.warnings
+
+
+@pytest.mark.parametrize("size", [1, 7, 8, 18, 32])
+@pytest.mark.parametrize("wrap", [TextureWrap.Repeat, TextureWrap.Clamp])
+def test_integer_texel_wrap_equals_float_formulas(size, wrap):
+    """``shade._wrap`` takes integer arithmetic when every index converts exactly: the same
+    indices as the float formulas of §7 (``mod`` / clamp), for negative, large and power-of-two
+    cases; arrays holding NaN or huge values take the float formulas themselves."""
+    from blendlib.core import shade
+
+    rng = np.random.default_rng(size)
+    values = np.floor(rng.uniform(-3000.0, 3000.0, 4096))
+    values[:6] = (-0.0, 0.0, -1.0, float(size), -float(size), 2.0**61)
+    if wrap is TextureWrap.Repeat:
+        expected = np.mod(values, float(size)).astype(np.int64)
+    else:
+        expected = np.minimum(np.maximum(values, 0.0), float(size - 1)).astype(np.int64)
+    got = shade._wrap(values.copy(), size, wrap)
+    assert got.dtype == np.int64
+    np.testing.assert_array_equal(got, expected)
+    assert got.min() >= 0 and got.max() <= size - 1
+    huge = values.copy()
+    huge[7] = 2.0**70  # beyond int64: the float formulas for the whole array
+    with np.errstate(invalid="ignore"):
+        if wrap is TextureWrap.Repeat:
+            expected_huge = np.mod(huge, float(size)).astype(np.int64)
+        else:
+            expected_huge = np.minimum(np.maximum(huge, 0.0), float(size - 1)).astype(np.int64)
+        np.testing.assert_array_equal(shade._wrap(huge, size, wrap), expected_huge)
+
+
+def test_point_texel_index_of_non_finite_coordinates_is_texel_zero():
+    from blendlib.core import shade
+
+    texels = shade.Texels(np.random.default_rng(1).uniform(0, 1, (6, 10, 4)).astype(np.float32), None)
+    u = np.array([0.05, np.nan, 0.55, np.inf, -0.25, 1.25])
+    v = np.array([0.05, 0.5, np.nan, 0.5, -0.1, 2.5])
+    got = shade.point_texel_index_of(texels, u, v, TextureWrap.Repeat)
+    # floor(u*10) mod 10 + 10 * (floor(v*6) mod 6); any non-finite coordinate -> texel 0.
+    np.testing.assert_array_equal(got, [0, 0, 0, 0, 5 * 10 + 7, 3 * 10 + 2])
