@@ -95,5 +95,8 @@ def decode_fast(values: np.ndarray) -> np.ndarray:
 
 def quantize_unorm(values: np.ndarray) -> np.ndarray:
     """Clamp to [0, 1] and quantise to 8-bit codes: ``floor(v*255 + 0.5)`` (uint8)."""
-    v = np.minimum(np.maximum(np.asarray(values, dtype=np.float64), 0.0), 1.0)
-    return np.floor(v * 255.0 + 0.5).astype(np.uint8)
+    v = np.maximum(np.asarray(values, dtype=np.float64), 0.0)
+    np.minimum(v, 1.0, out=v)
+    v *= 255.0
+    v += 0.5
+    return np.floor(v, out=v).astype(np.uint8)

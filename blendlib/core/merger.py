@@ -361,12 +361,65 @@ def apply_layer(
     packed[pix] = result
 
 
+def _channel_factor(f: BlendFactor, c: int, s: list, d: list):
+    """Blend factor of channel ``c`` (3 = alpha) as a scalar or (N,) array, from channel lists
+    ``s`` / ``d`` (four (N,) float64 arrays each): :func:`_rgb_factor` / :func:`_alpha_factor`."""
+    if f is BlendFactor.One or (c == 3 and f is BlendFactor.SrcAlphaSaturate):
+        return 1.0
+    if f is BlendFactor.Zero:
+        return 0.0
+    if f is BlendFactor.SrcAlphaSaturate:
+        return np.minimum(s[3], 1.0 - d[3])
+    if c == 3:
+        base = s[3] if f in (BlendFactor.SrcColor, BlendFactor.SrcAlpha, BlendFactor.OneMinusSrcColor,
+                             BlendFactor.OneMinusSrcAlpha) else d[3]
+    else:
+        base = {
+            BlendFactor.SrcColor: s[c], BlendFactor.OneMinusSrcColor: s[c],
+            BlendFactor.SrcAlpha: s[3], BlendFactor.OneMinusSrcAlpha: s[3],
+            BlendFactor.DstColor: d[c], BlendFactor.OneMinusDstColor: d[c],
+            BlendFactor.DstAlpha: d[3], BlendFactor.OneMinusDstAlpha: d[3],
+        }[f]
+    return 1.0 - base if f.value.startswith("OneMinus") else base
+
+
+def _blend_ldr(buf: FrameBuffers, p: Pass, stored: np.ndarray, rgba: np.ndarray) -> np.ndarray:
+    """:func:`_blend_fragments` of an 8-bit buffer, one channel at a time on contiguous (N,)
+    arrays: the operations of :func:`blend` and :meth:`FrameBuffers.encode`, element by element."""
+    codes = stored.view(np.uint8).reshape(-1, 4)
+    src = []
+    for c in range(4):
+        v = np.maximum(rgba[:, c], 0.0)
+        src.append(np.minimum(v, 1.0, out=v))
+    result = src
+    if p.blend:
+        dst = []
+        for c in range(4):
+            if buf.linear and c < 3:
+                dst.append(np.take(colorspace.DECODE_LUT, codes[:, c]))
+            else:
+                dst.append(np.divide(codes[:, c], 255.0))
+        sa, da, opa = p.alpha_factors
+        result = [_apply_op(p.blend_op, src[c], _channel_factor(p.src_blend, c, src, dst), dst[c],
+                            _channel_factor(p.dst_blend, c, src, dst)) for c in range(3)]
+        result.append(_apply_op(opa, src[3], _channel_factor(sa, 3, src, dst), dst[3],
+                                _channel_factor(da, 3, src, dst)))
+    out = np.empty((stored.shape[0], 4), dtype=np.uint8)
+    for c in range(4):
+        if buf.linear and c < 3:
+            out[:, c] = colorspace.quantize_encoded(result[c])
+        else:
+            out[:, c] = colorspace.quantize_unorm(result[c])
+    return out.view(stored.dtype).reshape(-1)
+
+
 def _blend_fragments(buf: FrameBuffers, p: Pass, stored: np.ndarray, rgba: np.ndarray) -> np.ndarray:
     """Packed stored values (N,) of blending ``rgba`` (N, 4) float64 over the packed ``stored`` (N,)."""
-    src = rgba if buf.hdr else np.minimum(np.maximum(rgba, 0.0), 1.0)
+    if not buf.hdr:
+        return _blend_ldr(buf, p, stored, rgba)
+    src = rgba
     if p.blend:
-        dst = stored.view(np.float32 if buf.hdr else np.uint8).reshape(-1, 4)
-        src = blend(p, src, buf.decode(dst))
+        src = blend(p, src, buf.decode(stored.view(np.float32).reshape(-1, 4)))
     return np.ascontiguousarray(buf.encode(src)).view(stored.dtype).reshape(-1)
 
 

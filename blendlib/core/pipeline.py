@@ -307,8 +307,8 @@ def _shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> Shaded
             w = w[:, shaded]
             uv = uv[:, shaded]
         if w.shape[1]:
-            normal = None if normals is None else \
-                raster.interpolate_runs(w, normals[keep], counts[keep], normal_flat[keep])
+            normal = None if normals is None else raster.interpolate_runs(
+                w, normals[keep], counts[keep], normal_flat[keep], channels_first=True).T
             rgba[at] = shade_at(None if uv is None else uv.T, normal, w.shape[1])
     palette = None
     if palettes:

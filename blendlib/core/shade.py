@@ -117,16 +117,19 @@ class Texels:
         return cached
 
     def fetch(self, index: np.ndarray) -> np.ndarray:
-        """Texels at flat indices ``index`` (N,) int64 (row * w + column) → (N, 4) float64."""
+        """Texels at flat indices ``index`` (N,) int64 (row * w + column) → (N, 4) float64
+        (for byte images a transposed view of a channels-first array)."""
         if self.codes is None:
             return self.values[index].astype(np.float64, copy=False)
         # Whole texels gathered as one uint32 each (fancy indexing of (N, 4) rows is slower),
         # then one table per channel.
-        c = self.codes.view(np.uint32).reshape(-1)[index].view(np.uint8).reshape(-1, 4)
-        out = np.empty((len(index), 4), np.float64)
+        c = np.take(self.codes.view(np.uint32).reshape(-1), index).view(np.uint8).reshape(-1, 4)
+        # Channels first (each channel's values contiguous), returned as an (N, 4) view: the
+        # shading reads one channel at a time.
+        out = np.empty((4, len(index)), np.float64)
         for k, lut in enumerate((self.lut_rgb, self.lut_rgb, self.lut_rgb, self.lut_alpha)):
-            np.take(lut, c[:, k], out=out[:, k])
-        return out
+            np.take(lut, c[:, k], out=out[k])
+        return out.T
 
 
 def texture_texels(texture: Texture, color_space: ColorSpace) -> Texels:
@@ -283,7 +286,8 @@ def shade_texels(
         for c in range(3):
             out[:, c] = albedo(c)
         return out
-    nx, ny, nz = (np.ascontiguousarray(normal[:, k], dtype=np.float64) for k in range(3))
+    # (A channels-first normal, passed as its transposed view, gives contiguous columns.)
+    nx, ny, nz = (normal[:, k] for k in range(3))
     length = nx * nx
     scratch = ny * ny
     length += scratch
@@ -291,13 +295,12 @@ def shade_texels(
     length += scratch
     np.sqrt(length, out=length)
     if np.all(length > 0):
-        for v in (nx, ny, nz):
-            np.divide(v, length, out=v)
+        nx, ny, nz = (np.divide(v, length) for v in (nx, ny, nz))
     else:  # a zero normal shades as n = 0
         safe = length > 0
         divisor = np.where(safe, length, 1.0)
+        nx, ny, nz = (np.divide(v, divisor) for v in (nx, ny, nz))
         for v in (nx, ny, nz):
-            np.divide(v, divisor, out=v)
             v[~safe] = 0.0
     lx, ly, lz = lights.direction
     ndl = np.multiply(nx, lx, out=nx)

@@ -383,3 +383,21 @@ def test_point_texel_index_of_non_finite_coordinates_is_texel_zero():
     got = shade.point_texel_index_of(texels, u, v, TextureWrap.Repeat)
     # floor(u*10) mod 10 + 10 * (floor(v*6) mod 6); any non-finite coordinate -> texel 0.
     np.testing.assert_array_equal(got, [0, 0, 0, 0, 5 * 10 + 7, 3 * 10 + 2])
+
+
+@pytest.mark.parametrize("src, dst, op", FACTOR_CASES)
+@pytest.mark.parametrize("color_space", [ColorSpace.Gamma, ColorSpace.Linear])
+def test_per_fragment_blending_by_channel_equals_reference(src, dst, op, color_space, monkeypatch):
+    """Varying colours (a bilinear texture with values beyond [0, 1]) blend one channel at a time
+    (``merger._blend_ldr``): equal to the reference for every factor and op, in both spaces."""
+    from blendlib.core.vocabulary import Texture
+
+    p = Pass(cull=Cull.Off, zwrite=False, blend=True, src_blend=src, dst_blend=dst, blend_op=op)
+    scene = _scene(p, color_space)
+    px = np.random.default_rng(5).uniform(-0.2, 1.3, size=(5, 7, 4)).astype(np.float32)
+    top = Material(name="Top", queue=Queue.Transparent, color=(0.9, 0.8, 1.0, 0.7), lighting=Lighting.Unlit,
+                   main_tex=Texture(px, encoding="Linear", name="noise"), main_tex_filter=TextureFilter.Bilinear,
+                   passes=(p,))
+    scene = DrawScene(camera=scene.camera, color_space=color_space, renderers=(
+        scene.renderers[0], sc.renderer(sc.quad(0, 0, W, H, z=1.0), top, name="Top")))
+    _assert_equal_with_table(scene, monkeypatch, expect_table=False)
