@@ -170,17 +170,32 @@ def _clip_polygons(tri: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def _to_window(clip: np.ndarray, camera: Camera) -> tuple[np.ndarray, ...]:
     """Clip coordinates (..., 4) → X, Y (int64 1/256 px), zw, iw (float64), finite mask."""
     x, y, z, w = clip[..., 0], clip[..., 1], clip[..., 2], clip[..., 3]
+    # In place, operation by operation: xw = (x * iw * 0.5 + 0.5) * W, fx = floor(xw * S + 0.5), ...
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        iw = 1.0 / w
-        xw = (x * iw * 0.5 + 0.5) * camera.width
-        yw = (y * iw * 0.5 + 0.5) * camera.height
-        zw = z * iw * 0.5 + 0.5
-        fx = np.floor(xw * SUBPIXEL + 0.5)
-        fy = np.floor(yw * SUBPIXEL + 0.5)
+        iw = np.divide(1.0, w)
+
+        def window(v: np.ndarray, size: int) -> np.ndarray:
+            f = np.multiply(v, iw)
+            f *= 0.5
+            f += 0.5
+            f *= size
+            f *= SUBPIXEL
+            f += 0.5
+            return np.floor(f, out=f)
+
+        fx = window(x, camera.width)
+        fy = window(y, camera.height)
+        zw = np.multiply(z, iw)
+        zw *= 0.5
+        zw += 0.5
     # Beyond 2**62 (far outside the guard band: such vertices are clipped) int64 cannot hold it.
-    finite = (np.abs(fx) < 2.0**62) & (np.abs(fy) < 2.0**62) & np.isfinite(zw) & np.isfinite(iw)
-    fx = np.where(finite, fx, 0.0)
-    fy = np.where(finite, fy, 0.0)
+    finite = np.abs(fx) < 2.0**62
+    finite &= np.abs(fy) < 2.0**62
+    finite &= np.isfinite(zw)
+    finite &= np.isfinite(iw)
+    if not finite.all():
+        fx[~finite] = 0.0
+        fy[~finite] = 0.0
     return fx.astype(np.int64), fy.astype(np.int64), zw, iw, finite
 
 
@@ -230,8 +245,10 @@ def setup_triangles(
     object_normals = np.asarray(mesh.normals).reshape(t_count, 3, 3) if need_normals else None
     object_uvs = np.asarray(mesh.uvs).reshape(t_count, 3, 2) if need_uvs and mesh.uvs is not None else None
 
-    # Per-vertex work first (V <= 3T), gathered per corner afterwards.
-    clip_v = np.empty((v_count, 4), dtype=np.float64)
+    # Per-vertex work first (V <= 3T), gathered per corner afterwards. Coordinates are kept
+    # channels first ((3, V) positions, (4, V) clip coordinates): every column contiguous.
+    pos_columns = np.ascontiguousarray(pos.T)
+    clip_v = np.empty((4, v_count), dtype=np.float64)
     finite_v = np.empty(v_count, dtype=bool)
     outcode_v = np.empty(v_count, dtype=np.uint8)
     Xv = np.empty(v_count, dtype=np.int64)
@@ -241,11 +258,14 @@ def setup_triangles(
     okv = np.empty(v_count, dtype=bool)
 
     def vertex_part(lo: int, hi: int) -> None:
-        p = pos[lo:hi]
-        for i, row in enumerate(_affine_rows(mvp, p[:, 0], p[:, 1], p[:, 2], 4)):
-            clip_v[lo:hi, i] = row
-        cv = clip_v[lo:hi]
-        finite_v[lo:hi] = np.all(np.isfinite(cv), axis=1)
+        p = pos_columns[:, lo:hi]
+        for i, row in enumerate(_affine_rows(mvp, p[0], p[1], p[2], 4)):
+            clip_v[i, lo:hi] = row
+        cv = clip_v[:, lo:hi].T  # (n, 4) view with contiguous columns
+        finite = np.isfinite(clip_v[0, lo:hi])
+        for k in range(1, 4):
+            finite &= np.isfinite(clip_v[k, lo:hi])
+        finite_v[lo:hi] = finite
         code = np.zeros(hi - lo, dtype=np.uint8)
         for k in range(6):
             code |= (_plane_distance(cv, k) < 0).astype(np.uint8) << np.uint8(k)
@@ -262,8 +282,6 @@ def setup_triangles(
     to_clip = np.empty(t_count, dtype=bool)
     finite = np.empty(t_count, dtype=bool)
     degenerate_t = np.empty(t_count, dtype=bool)
-
-    pos_columns = np.ascontiguousarray(pos.T)  # (3, V): 1-D gathers per axis below
 
     def triangle_part(lo: int, hi: int) -> None:
         t = tris[lo:hi]
@@ -312,7 +330,7 @@ def setup_triangles(
     clip_idx = np.nonzero(to_clip)[0]
     if clip_idx.size:
         carried = np.zeros((clip_idx.size, 3, 7), dtype=np.float64)
-        carried[:, :, :4] = clip_v[tris[clip_idx]]
+        carried[:, :, :4] = clip_v.T[tris[clip_idx]]
         carried[:, :, 4:] = np.eye(3)[None]
         poly, count = _clip_polygons(carried)
         fan_src, fan_verts = [], []
@@ -335,7 +353,7 @@ def setup_triangles(
 
     weights = None
     if len(parts_list) == 1:  # nothing clipped: already in draw order
-        src = whole.astype(np.int64)
+        src = whole.astype(np.int64, copy=False)
         clipped = np.zeros(src.size, dtype=bool)
     else:
         src = np.concatenate([q[0] for q in parts_list]).astype(np.int64)
