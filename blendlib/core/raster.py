@@ -333,7 +333,12 @@ def rows_disjoint(rows: Rows, start: int, stop: int, width: int) -> bool:
 
 def flat_corners(corners: np.ndarray) -> np.ndarray:
     """(T,) bool: the three corner values of each triangle are equal (corners (T, 3, C))."""
-    return np.all((corners[:, 0] == corners[:, 1]) & (corners[:, 0] == corners[:, 2]), axis=1)
+    flat = corners[:, 0, 0] == corners[:, 1, 0]
+    flat &= corners[:, 0, 0] == corners[:, 2, 0]
+    for c in range(1, corners.shape[2]):
+        flat &= corners[:, 0, c] == corners[:, 1, c]
+        flat &= corners[:, 0, c] == corners[:, 2, c]
+    return flat
 
 
 def interpolate_runs(weights: np.ndarray, corners: np.ndarray, counts: np.ndarray, flat: np.ndarray,
@@ -345,15 +350,25 @@ def interpolate_runs(weights: np.ndarray, corners: np.ndarray, counts: np.ndarra
     the triangle's corners are equal, so its fragments take the corner value. Returns
     (N, C) float64 ``(o0*a0 + o1*a1) + o2*a2`` per component, or (C, N) with
     ``channels_first`` (each component contiguous). Corner values are expanded with
-    ``repeat`` (sequential copies) rather than gathered per fragment.
+    ``repeat`` (sequential copies) when runs are long, else gathered per fragment.
     """
     n = weights.shape[1]
     out = np.empty((corners.shape[2], n), dtype=np.float64)
+    if counts.size * 4 > n:
+        # Short runs (small triangles): repeat with counts of one or two is slower than one
+        # fragment -> run index and a gather per corner value.
+        run = np.repeat(np.arange(counts.size, dtype=np.int64), counts)
+
+        def expand(values: np.ndarray) -> np.ndarray:
+            return np.take(values, run)
+    else:
+        def expand(values: np.ndarray) -> np.ndarray:
+            return np.repeat(values, counts)
     for c in range(corners.shape[2]):
         acc = out[c]
-        np.multiply(weights[0], np.repeat(corners[:, 0, c], counts), out=acc)
-        acc += weights[1] * np.repeat(corners[:, 1, c], counts)
-        acc += weights[2] * np.repeat(corners[:, 2, c], counts)
+        np.multiply(weights[0], expand(corners[:, 0, c]), out=acc)
+        acc += weights[1] * expand(corners[:, 1, c])
+        acc += weights[2] * expand(corners[:, 2, c])
     if np.any(flat):
         keep = np.repeat(flat, counts)
         out[:, keep] = np.repeat(corners[flat, 0], counts[flat], axis=0).T

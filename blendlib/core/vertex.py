@@ -203,10 +203,10 @@ def _world_normals(normals: np.ndarray, nmat: np.ndarray) -> np.ndarray:
     """Corner normals (T, 3, 3) → world space with the explicit sums of §1, float64 (T, 3, 3)."""
     t = normals.shape[0]
     cols = np.ascontiguousarray(np.asarray(normals, dtype=np.float64).reshape(t * 3, 3).T)  # (3, 3T)
-    out = np.empty((t * 3, 3), dtype=np.float64)
+    out = np.empty((3, t * 3), dtype=np.float64)  # components first: contiguous writes
     for i, row in enumerate(_affine_rows(nmat, cols[0], cols[1], cols[2], 3)):
-        out[:, i] = row
-    return out.reshape(t, 3, 3)
+        out[i] = row
+    return out.T.reshape(t, 3, 3)  # a (T, 3, 3) view
 
 
 def run_parts(pool, parts: int, n: int, fn, min_part: int = 1 << 15) -> None:
