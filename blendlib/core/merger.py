@@ -11,6 +11,8 @@ one draw call), never over fragments or pixels.
 
 from __future__ import annotations
 
+import contextlib
+import threading
 from enum import IntEnum
 
 import numpy as np
@@ -233,10 +235,14 @@ def blend_lut(buf: FrameBuffers, p: Pass, palette: np.ndarray) -> np.ndarray:
     k = palette.shape[0]
     if not p.blend:
         return buf.encode(np.minimum(np.maximum(palette, 0.0), 1.0)).reshape(k, 1, 4)
-    src = np.repeat(np.minimum(np.maximum(palette, 0.0), 1.0), 256, axis=0)
-    codes = np.repeat(np.tile(np.arange(256, dtype=np.uint8), k)[:, None], 4, axis=1)
-    result = blend(p, src, buf.decode(codes)) if p.blend else src
-    return buf.encode(result).reshape(k, 256, 4)
+    if buf.hdr:
+        src = np.repeat(np.minimum(np.maximum(palette, 0.0), 1.0), 256, axis=0)
+        codes = np.repeat(np.tile(np.arange(256, dtype=np.uint8), k)[:, None], 4, axis=1)
+        return buf.encode(blend(p, src, buf.decode(codes))).reshape(k, 256, 4)
+    # The per-fragment blend itself, over packed destinations whose four bytes hold d.
+    stored = np.tile(np.arange(256, dtype=np.uint32) * np.uint32(0x01010101), k)
+    packed = _blend_fragments(buf, p, stored, np.repeat(palette, 256, axis=0))
+    return packed.view(np.uint8).reshape(k, 256, 4)
 
 
 #: A table of two channels (65536 destination pairs, 256 KB) per colour pays once a chunk
@@ -328,10 +334,11 @@ def apply_layer(
         if not np.any(passed):
             return
         if not passed.all():
-            pix = pix[passed]
-            depth = None if depth is None else depth[passed]
-            rgba = None if rgba is None else rgba[passed]
-            ids = None if ids is None else ids[passed]
+            index = np.flatnonzero(passed)
+            pix = np.take(pix, index)
+            depth = None if depth is None else np.take(depth, index)
+            rgba = None if rgba is None else np.take(rgba, index, axis=0)
+            ids = None if ids is None else np.take(ids, index)
     if p.zwrite:
         buf.depth[pix] = depth
     if not p.color_mask:
@@ -428,6 +435,15 @@ def _blend_fragments(buf: FrameBuffers, p: Pass, stored: np.ndarray, rgba: np.nd
 PEEL_LAYERS = 8
 
 
+class BlendTables(dict):
+    """The :class:`BlendTable` s of one draw call, by palette, shared by its band workers: a
+    table is built once, under the lock (the other worker waits for it instead of building it too)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.lock = threading.Lock()
+
+
 def merge(
     buf: FrameBuffers, p: Pass, pix: np.ndarray, depth: np.ndarray | None, rgba: np.ndarray | None,
     ids: np.ndarray | None = None, palette: np.ndarray | None = None, outcome: np.ndarray | None = None,
@@ -442,7 +458,8 @@ def merge(
     ``depth`` None: all fragments pass the depth test and the pass writes no depth (see
     :func:`apply_layer`). ``disjoint``: the caller knows the fragments hit distinct pixels.
     ``tables``: a dict the caller keeps for the chunks of one draw call (same pass and
-    buffer kind): blend tables are built once per palette there instead of once per chunk.
+    buffer kind): blend tables are built once per palette there instead of once per chunk
+    (a :class:`BlendTables` when band workers share it).
     """
     n = pix.shape[0]
     if n == 0:
@@ -453,17 +470,22 @@ def merge(
         key = (palette.tobytes(), pairs)
         lut = None if tables is None else tables.get(key)
         if lut is None:
-            lut = BlendTable(blend_lut(buf, p, palette), pairs=pairs)
-            if tables is not None:
-                tables[key] = lut
+            with getattr(tables, "lock", contextlib.nullcontext()):
+                lut = None if tables is None else tables.get(key)
+                if lut is None:
+                    lut = BlendTable(blend_lut(buf, p, palette), pairs=pairs)
+                    if tables is not None:
+                        tables[key] = lut
 
     def layer(sel) -> None:
         if sel is None:
             apply_layer(buf, p, pix, depth, rgba, ids, lut, outcome)
             return
         codes = None if outcome is None else np.empty(sel.shape[0], dtype=np.int8)
-        apply_layer(buf, p, pix[sel], None if depth is None else depth[sel], None if rgba is None else rgba[sel],
-                    None if ids is None else ids[sel], lut, codes)
+        # np.take: fancy indexing of (N, 4) rows costs several times more.
+        apply_layer(buf, p, np.take(pix, sel), None if depth is None else np.take(depth, sel),
+                    None if rgba is None else np.take(rgba, sel, axis=0),
+                    None if ids is None else np.take(ids, sel), lut, codes)
         if codes is not None:
             outcome[sel] = codes
 

@@ -152,14 +152,16 @@ class ShadedFragments:
 
     def select(self, keep: np.ndarray) -> ShadedFragments:
         """The fragments where ``keep`` (bool (N,) or indices) holds."""
+        index = np.flatnonzero(keep) if keep.dtype == bool else keep
+
         def take(a):
-            return None if a is None else a[keep]
+            return None if a is None else np.take(a, index, axis=0)
 
         depth_fn = None
         if self.stored_depth is None and self.depth_fn is not None:
             def depth_fn():
-                return self.depth[keep]
-        return ShadedFragments(self.pix[keep], take(self.stored_depth), take(self.rgba), take(self.ids),
+                return np.take(self.depth, index)
+        return ShadedFragments(take(self.pix), take(self.stored_depth), take(self.rgba), take(self.ids),
                                self.palette, take(self.triangle), take(self.alive), self.disjoint, depth_fn)
 
 
@@ -346,10 +348,13 @@ def _shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> Shaded
     return ShadedFragments(frags.pix, depth, rgba, ids, palette, triangle, alive, disjoint, depth_fn)
 
 
-def _draw_band(buf, setup, rows, chunk_candidates: int, state: DrawState, stop_flag, observer) -> None:
-    """Raster, shade and merge one screen band of a draw call, chunk by chunk in draw order."""
+def _draw_band(buf, setup, rows, chunk_candidates: int, state: DrawState, stop_flag, observer,
+               tables: dict | None = None) -> None:
+    """Raster, shade and merge one screen band of a draw call, chunk by chunk in draw order.
+    ``tables``: the draw call's blend tables (:class:`merger.BlendTables`), shared by its bands."""
     p = state.pass_state
-    tables: dict = {}  # blend tables of this band's palettes, shared by its chunks
+    if tables is None:
+        tables = {}  # blend tables of this band's palettes, shared by its chunks
     for a, b in raster.row_chunks(rows, chunk_candidates):
         if stop_flag.is_set():
             return
@@ -431,6 +436,8 @@ class _Prepared:
     selected: np.ndarray
     rows: raster.Rows
     state: DrawState
+    #: Blend tables of the call's palettes, built once and shared by the bands that draw it.
+    tables: merger.BlendTables = field(default_factory=merger.BlendTables)
 
 
 def _setup(frame: _FrameContext, renderer, pool, parts: int) -> tuple[object, list[str], tuple[str, int] | None]:
@@ -541,7 +548,8 @@ def _draw_batch_band(frame: _FrameContext, items, y0: int, y1: int, between: Cal
                 zfloor = _band_floor(frame.buf, y0, y1)
             state = replace(state, zfloor=zfloor)
         if rows.count:
-            _draw_band(frame.buf, prepared.setup, rows, frame.chunk_candidates, state, frame.stop_flag, None)
+            _draw_band(frame.buf, prepared.setup, rows, frame.chunk_candidates, state, frame.stop_flag, None,
+                       prepared.tables)
         if state.pass_state.zwrite:
             zfloor = None
 

@@ -148,6 +148,8 @@ def _wrap(i: np.ndarray, size: int, wrap: TextureWrap) -> np.ndarray:
     # Integer arithmetic gives the same indices whenever every value converts exactly (and is
     # several times faster than a float modulo); NaN or huge values take the float formulas.
     low, high = i.min(initial=0.0), i.max(initial=0.0)
+    if 0.0 <= low and high <= size - 1:  # already in range (uv in [0, 1)): nothing to wrap
+        return i.astype(np.int64)
     if -(2.0**62) < low and high < 2.0**62:
         k = i.astype(np.int64)
         if wrap is TextureWrap.Repeat:
