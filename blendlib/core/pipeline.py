@@ -257,7 +257,8 @@ def _shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> Shaded
                                             weights=any_varying, depth=want_depth)
     rgba = np.empty((n, 4), dtype=np.float64)
     palettes: list[np.ndarray] = []  # colours fragments take by id: per flat triangle, per texel
-    ids = None
+    ids = None  # (N,) int32 palette entry of each fragment, -1 for those shaded one by one
+    tabled_count = 0  # fragments with an id
     row_flat = flat[run_of_row]
     constant = None if not any_varying else np.repeat(row_flat, length)
 
@@ -273,9 +274,10 @@ def _shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> Shaded
         # Triangles of one colour (an unlit mesh, a flat-lit plane) share one palette entry.
         colors, inverse = np.unique(colors, axis=0, return_inverse=True)
         palettes.append(colors)
-        slot = np.full(tris.size, -1, dtype=np.int64)
+        slot = np.full(tris.size, -1, dtype=np.int32)
         slot[const_tris] = inverse.reshape(-1)
         ids = np.repeat(slot[run_of_row], length)
+        tabled_count = n if not any_varying else int(counts[flat].sum())
     if any_varying:
         # Varying fragments are exactly those of the non-flat triangles: whole runs.
         every = not np.any(flat)  # e.g. a smooth mesh: no masked copies needed
@@ -294,13 +296,14 @@ def _shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> Shaded
             u, v = (uv[0], uv[1]) if every_texel else (uv[0][by_texel], uv[1][by_texel])
             u, v = shade.texture_uv_of(material, u, v)
             texel = np.take(of_texel, shade.point_texel_index_of(texels, u, v, material.main_tex_wrap))
-            base = sum(part.shape[0] for part in palettes) + group * first_texel.size  # (K,)
+            base = (sum(part.shape[0] for part in palettes) + group * first_texel.size).astype(np.int32)  # (K,)
             texel += np.repeat(base[tabled], counts[tabled])
+            tabled_count += int(counts[tabled].sum())
             if ids is None and every and every_texel:
                 ids = texel
             else:
                 if ids is None:
-                    ids = np.full(n, -1, dtype=np.int64)
+                    ids = np.full(n, -1, dtype=np.int32)
                 ids[np.arange(n)[at][by_texel]] = texel
             palettes.append(shade.texel_palette(material, texels, state.lights, state.color_space, palette_normals))
             keep = ~flat & ~tabled
@@ -315,19 +318,17 @@ def _shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> Shaded
     palette = None
     if palettes:
         palette = palettes[0] if len(palettes) == 1 else np.concatenate(palettes)
-        tabled_at = ids >= 0
-        tabled_count = int(np.count_nonzero(tabled_at))
         # 8-bit blending of a constant colour is a function of the destination code: tabulate
         # it (256 rows per colour, one without Blend) when that is cheaper than blending every fragment.
         if merger.lut_eligible(p, state.hdr) and palette.shape[0] * merger.table_rows(p) <= tabled_count:
-            ids = ids.astype(np.int32)
             if tabled_count == n:
                 rgba = None  # every colour comes from the palette
         else:
             if tabled_count == n:
-                rgba = palette[ids]
+                rgba = np.take(palette, ids, axis=0)
             else:
-                rgba[tabled_at] = palette[ids[tabled_at]]
+                tabled_at = ids >= 0
+                rgba[tabled_at] = np.take(palette, ids[tabled_at], axis=0)
             ids = palette = None
     alive = None
     if p.alpha_test:

@@ -104,7 +104,7 @@ class Texels:
 
     def distinct(self) -> tuple[np.ndarray, np.ndarray]:
         """The texture's distinct texels: ``(first (D,) int64`` flat index of one texel of each
-        distinct value, ``of_texel (h*w,) int64`` each texel's entry in ``first``). Computed once."""
+        distinct value, ``of_texel (h*w,) int32`` each texel's entry in ``first``). Computed once."""
         cached = getattr(self, "_distinct", None)
         if cached is None:
             if self.codes is not None:
@@ -113,7 +113,7 @@ class Texels:
                 raw = np.ascontiguousarray(self.values)
                 keys = raw.view(np.dtype((np.void, raw.itemsize * 4))).reshape(-1)
             _, first, of_texel = np.unique(keys, return_index=True, return_inverse=True)
-            cached = self._distinct = (first.astype(np.int64), of_texel.reshape(-1).astype(np.int64))
+            cached = self._distinct = (first.astype(np.int64), of_texel.reshape(-1).astype(np.int32))
         return cached
 
     def fetch(self, index: np.ndarray) -> np.ndarray:
