@@ -485,6 +485,9 @@ def _renderer_runs(calls: list[DrawCall]) -> list[list[DrawCall]]:
 #: worker draws its screen band of the whole batch in draw order, with no wait between calls.
 BATCH_TRIANGLES = 1 << 18
 BATCH_DRAWS = 64
+#: Below this many triangles a batch's renderers are prepared in the calling thread: their
+#: many small array operations hold the GIL, so a second thread only adds contention.
+PARALLEL_PREPARE_TRIANGLES = 1 << 15
 
 
 
@@ -515,7 +518,8 @@ def _prepare_batch(frame: _FrameContext, runs: list[list[DrawCall]]) -> list[_Pr
         return notes, degenerate, [_prepare(frame, call, setup, tex, pool, parts)
                                    for call, tex in zip(runs[k], texels[k], strict=True)]
 
-    if frame.pool is None or len(runs) <= 1:
+    triangles = sum(int(run[0].renderer.mesh.triangle_count) for run in runs)
+    if frame.pool is None or len(runs) <= 1 or triangles < PARALLEL_PREPARE_TRIANGLES:
         results = [prepare_run(k, frame.pool, frame.workers) for k in range(len(runs))]
     else:
         results = list(frame.pool.map(lambda k: prepare_run(k, None, 1), range(len(runs))))

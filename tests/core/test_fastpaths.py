@@ -301,9 +301,10 @@ def test_texel_palette_is_left_when_the_texture_is_large(monkeypatch):
 
 
 def test_batched_bands_equal_per_draw_bands_and_reference(monkeypatch):
-    """Without an observer, draw calls are prepared as batches (renderers in parallel) and each
-    worker draws its screen band of a whole batch with no wait between calls: the frame, depth,
-    stencil and warnings equal one thread, per-draw bands (the observed driver) and the reference.
+    """Without an observer, draw calls are prepared as batches (renderers in parallel when they
+    hold enough triangles) and each worker draws its screen band of a whole batch with no wait
+    between calls: the frame, depth, stencil and warnings equal one thread, per-draw bands (the
+    observed driver) and the reference.
     Opaque ZWrite On draws between ZWrite Off ones make each band recompute its depth floor."""
     from blendlib.core import pipeline
 
@@ -332,13 +333,15 @@ def test_batched_bands_equal_per_draw_bands_and_reference(monkeypatch):
     monkeypatch.setattr(pipeline, "_prepare_batch", counting)
     batched = render_scene(scene, workers=2)
     assert batches == [14]  # every draw call in one batch
+    monkeypatch.setattr(pipeline, "PARALLEL_PREPARE_TRIANGLES", 0)  # renderers prepared on the pool
+    pool_prepared = render_scene(scene, workers=2)
     observed = render_scene(scene, workers=2, observer=pipeline.FrameObserver())
     one = render_scene(scene, workers=1, chunk_candidates=211)
     monkeypatch.setattr(pipeline, "BATCH_DRAWS", 1)
     unbatched = render_scene(scene, workers=2)
     color, depth, stencil = render_reference(scene)
     assert any("degenerate" in w for w in batched.warnings)
-    for frame in (batched, observed, one, unbatched):
+    for frame in (batched, pool_prepared, observed, one, unbatched):
         np.testing.assert_array_equal(frame.color, color)
         np.testing.assert_array_equal(frame.depth, depth)
         np.testing.assert_array_equal(frame.stencil, stencil)
