@@ -9,8 +9,9 @@ maps the cumulative time of the pipeline's stage functions to stages:
 - setup: ``vertex.setup_triangles`` (transform, clipping, snapping, areas)
 - coverage: ``raster.coverage_rows`` / ``rasterize_rows`` / ``row_chunks`` / ``split_bands``
 - interpolation: ``raster.interpolate`` / ``interpolate_runs`` (depth, weights, attributes)
-- shading: ``shade.shade`` (texture sampling, lighting), ``shade.texel_palette`` and
-  ``shade.point_texel_index`` (Point-filtered textures shaded once per texel)
+- shading: ``shade.shade`` (texture sampling, lighting), ``shade.texel_palette``,
+  ``shade.texture_uv_of`` and ``shade.point_texel_index_of`` (Point-filtered textures shaded
+  once per texel, fragments given their texel)
 - ordering: ``merger.merge`` minus the layers it applies and the tables it builds (counting
   fragments per pixel, peeling layers)
 - merge: ``merger.apply_layer`` and blend-table building (tests, blending, writes)
@@ -33,7 +34,8 @@ STAGES = {
     "coverage": [("raster.py", "coverage_rows"), ("raster.py", "rasterize_rows"), ("raster.py", "row_chunks"),
                  ("raster.py", "split_bands")],
     "interpolation": [("raster.py", "interpolate"), ("raster.py", "interpolate_runs")],
-    "shading": [("shade.py", "shade"), ("shade.py", "texel_palette"), ("shade.py", "point_texel_index")],
+    "shading": [("shade.py", "shade"), ("shade.py", "texel_palette"), ("shade.py", "point_texel_index_of"),
+                ("shade.py", "texture_uv_of")],
     "merge": [("merger.py", "apply_layer")],
     "tables": [("merger.py", "blend_lut"), ("merger.py", "__init__")],
     "output": [("merger.py", "output")],
