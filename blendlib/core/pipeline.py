@@ -112,8 +112,8 @@ class ShadedFragments:
       or None when every fragment has an id.
     - ``ids`` (N,) int32 or None, ``palette`` (K, 4) float64 or None: fragments with
       ``ids >= 0`` have the colour ``palette[ids]`` (shaded once per triangle).
-    - ``triangle`` (N,) int64: the source mesh triangle (index in the renderer's mesh); None
-      when not observed.
+    - ``triangle`` (N,) int64: the source mesh triangle (index in the renderer's mesh), computed
+      when an observer reads it (``stored_triangle`` / ``triangle_fn``); None when not observed.
     - ``alive`` (N,) bool or None: passed the alpha test (None: the pass has no alpha test).
     - ``disjoint``: the fragments hit pairwise distinct pixels (one merge layer).
     """
@@ -123,10 +123,20 @@ class ShadedFragments:
     rgba: np.ndarray
     ids: np.ndarray | None
     palette: np.ndarray | None
-    triangle: np.ndarray | None
+    stored_triangle: np.ndarray | None
     alive: np.ndarray | None
     disjoint: bool = False
-    depth_fn: Callable[[], np.ndarray] | None = None
+    #: ``depth_fn(index)``: the deferred depth codes of fragments ``index`` (None: all).
+    depth_fn: Callable[[np.ndarray | None], np.ndarray] | None = None
+    #: ``triangle_fn(index)``: the source triangles of fragments ``index`` (None: all), deferred.
+    triangle_fn: Callable[[np.ndarray | None], np.ndarray] | None = None
+
+    @property
+    def triangle(self) -> np.ndarray | None:
+        """(N,) int64 source mesh triangles, computed on first use when deferred (observed renders)."""
+        if self.stored_triangle is None and self.triangle_fn is not None:
+            self.stored_triangle, self.triangle_fn = self.triangle_fn(None), None
+        return self.stored_triangle
 
     @property
     def count(self) -> int:
@@ -136,7 +146,7 @@ class ShadedFragments:
     def depth(self) -> np.ndarray | None:
         """(N,) int64 depth codes, computed on first use when deferred (see the class doc)."""
         if self.stored_depth is None and self.depth_fn is not None:
-            self.stored_depth, self.depth_fn = self.depth_fn(), None
+            self.stored_depth, self.depth_fn = self.depth_fn(None), None
         return self.stored_depth
 
     def colors(self) -> np.ndarray:
@@ -159,10 +169,20 @@ class ShadedFragments:
 
         depth_fn = None
         if self.stored_depth is None and self.depth_fn is not None:
-            def depth_fn():
-                return np.take(self.depth, index)
+            parent = self.depth_fn
+
+            def depth_fn(sub: np.ndarray | None) -> np.ndarray:
+                # Only the selected fragments' depths (a pixel history reads a handful).
+                return parent(index if sub is None else np.take(index, sub))
+        triangle_fn = None
+        if self.stored_triangle is None and self.triangle_fn is not None:
+            source = self.triangle_fn
+
+            def triangle_fn(sub: np.ndarray | None) -> np.ndarray:
+                return source(index if sub is None else np.take(index, sub))
         return ShadedFragments(take(self.pix), take(self.stored_depth), take(self.rgba), take(self.ids),
-                               self.palette, take(self.triangle), take(self.alive), self.disjoint, depth_fn)
+                               self.palette, take(self.stored_triangle), take(self.alive), self.disjoint, depth_fn,
+                               triangle_fn)
 
 
 class FrameObserver:
@@ -172,6 +192,12 @@ class FrameObserver:
     within a band, chunks come in primitive order): implementations must be thread-safe.
     The base class ignores everything.
     """
+
+    #: Whether :meth:`draw_begin` / :meth:`draw_end` must see the buffers exactly as they are
+    #: between two draw calls (snapshots). False lets the renderer draw calls in batches, as
+    #: without an observer: ``draw_begin`` of a batch's calls comes before it is drawn and
+    #: ``draw_end`` after (with the buffers after the whole batch); fragments keep their order.
+    exact_boundaries = True
 
     def draw_begin(self, call: DrawCall, buffers: FrameBuffers) -> None:
         """Before draw call ``call`` (``buffers`` as left by the draw calls before it)."""
@@ -339,14 +365,29 @@ def _shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> Shaded
         else:
             alpha = np.where(ids >= 0, palette[np.maximum(ids, 0), 3], rgba[:, 3])
         alive = ~(alpha - float(material.cutoff) < 0)
-    triangle = np.repeat(row_src, length) if state.observed else None
+    triangle_fn = None
+    if state.observed:  # source triangles only when an observer reads them (and only those it reads)
+        def triangle_fn(index: np.ndarray | None) -> np.ndarray:
+            if index is None:
+                return np.repeat(row_src, length)
+            return np.take(row_src, np.searchsorted(np.cumsum(length), index, side="right"))
     disjoint = raster.rows_disjoint(rows, start, stop, state.width)
     depth_fn = None
     if depth is None and state.observed:
-        def depth_fn() -> np.ndarray:
-            with_bary = frags if frags.bary is not None else raster.rasterize_rows(rows, start, stop, state.width)
-            return raster.interpolate(setup, with_bary, p.offset_factor, p.offset_units, weights=False)[0]
-    return ShadedFragments(frags.pix, depth, rgba, ids, palette, triangle, alive, disjoint, depth_fn)
+        def depth_fn(index: np.ndarray | None) -> np.ndarray:
+            if index is None:
+                with_bary = frags if frags.bary is not None else raster.rasterize_rows(rows, start, stop, state.width)
+                return raster.interpolate(setup, with_bary, p.offset_factor, p.offset_units, weights=False)[0]
+            # Rasterise only the rows holding fragments ``index``, then pick them out.
+            ends = np.cumsum(length)
+            row = np.searchsorted(ends, index, side="right")
+            used, which = np.unique(row, return_inverse=True)
+            sub = rows.take_rows(start + used)
+            codes = raster.interpolate(setup, raster.rasterize_rows(sub, 0, sub.count, state.width),
+                                       p.offset_factor, p.offset_units, weights=False)[0]
+            sub_first = np.cumsum(sub.length) - sub.length
+            return codes[sub_first[which.reshape(-1)] + (index - (ends - length)[row])]
+    return ShadedFragments(frags.pix, depth, rgba, ids, palette, None, alive, disjoint, depth_fn, triangle_fn)
 
 
 def _draw_band(buf, setup, rows, chunk_candidates: int, state: DrawState, stop_flag, observer,
@@ -539,7 +580,8 @@ def _band_floor(buf: FrameBuffers, y0: int, y1: int) -> np.ndarray:
     return floor
 
 
-def _draw_batch_band(frame: _FrameContext, items, y0: int, y1: int, between: Callable[[], None]) -> None:
+def _draw_batch_band(frame: _FrameContext, items, y0: int, y1: int, between: Callable[[], None],
+                     observer: FrameObserver | None = None) -> None:
     """Draw one screen band ``[y0, y1)`` of a batch: ``items`` (prepared call, its rows in the
     band) in draw order; ``between()`` runs before each call (a cancellation check)."""
     zfloor = None  # the band's smallest stored depth per row, valid until a pass writes depth
@@ -553,34 +595,45 @@ def _draw_batch_band(frame: _FrameContext, items, y0: int, y1: int, between: Cal
                 zfloor = _band_floor(frame.buf, y0, y1)
             state = replace(state, zfloor=zfloor)
         if rows.count:
-            _draw_band(frame.buf, prepared.setup, rows, frame.chunk_candidates, state, frame.stop_flag, None,
+            _draw_band(frame.buf, prepared.setup, rows, frame.chunk_candidates, state, frame.stop_flag, observer,
                        prepared.tables)
         if state.pass_state.zwrite:
             zfloor = None
 
 
-def _render_batched(frame: _FrameContext, todo, cancelled, should_cancel, progress) -> None:
-    """Draw calls without an observer: batch by batch; within a batch the workers' screen
-    bands (cut at equal fragment counts of the whole batch) proceed independently."""
+def _render_batched(frame: _FrameContext, todo, cancelled, should_cancel, progress,
+                    observer: FrameObserver | None = None) -> None:
+    """Draw calls batch by batch; within a batch the workers' screen bands (cut at equal
+    fragment counts of the whole batch) proceed independently. An ``observer`` here does not
+    need exact draw boundaries (:attr:`FrameObserver.exact_boundaries`)."""
     done = 0
     for runs in _batches(todo):
         cancelled()
         prepared = _prepare_batch(frame, runs)
+        calls = [call for run in runs for call in run]
+        if observer is not None:
+            for call in calls:
+                observer.draw_begin(call, frame.buf)
         cuts = None if frame.pool is None else raster.band_cuts([pr.rows for pr in prepared], frame.workers,
                                                                frame.height)
         if cuts is None:
-            _draw_batch_band(frame, [(pr, pr.rows) for pr in prepared], 0, frame.height, cancelled)
+            _draw_batch_band(frame, [(pr, pr.rows) for pr in prepared], 0, frame.height, cancelled, observer)
         else:
             splits = [pr.rows.split_at(cuts) for pr in prepared]
             edges = [0, *(int(c) for c in cuts), frame.height]
             futures = [frame.pool.submit(_draw_batch_band, frame, [(pr, split[k]) for pr, split in
                                                                    zip(prepared, splits, strict=True)],
-                                         edges[k], min(max(edges[k + 1], edges[k]), frame.height), _no_check)
+                                         edges[k], min(max(edges[k + 1], edges[k]), frame.height), _no_check,
+                                         observer)
                        for k in range(cuts.size + 1)]
             _wait(futures, should_cancel, frame.stop_flag)
         if frame.stop_flag.is_set():
             raise RenderCancelled("render cancelled")
-        done += sum(len(run) for run in runs)
+        if observer is not None:
+            reached = {pr.call.index: int(np.unique(pr.setup.src[pr.selected]).size) for pr in prepared}
+            for call in calls:
+                observer.draw_end(call, frame.buf, reached.get(call.index, 0))
+        done += len(calls)
         if progress is not None:
             progress(done / max(len(todo), 1))
 
@@ -683,8 +736,8 @@ def render_scene(
             raise RenderCancelled("render cancelled")
 
     try:
-        if observer is None:
-            _render_batched(frame, todo, cancelled, should_cancel, progress)
+        if observer is None or not observer.exact_boundaries:
+            _render_batched(frame, todo, cancelled, should_cancel, progress, observer)
         else:
             _render_observed(frame, todo, cancelled, should_cancel, progress, observer)
     finally:

@@ -52,6 +52,10 @@ class Rows:
         index = np.flatnonzero(mask)
         return Rows(**{name: np.take(getattr(self, name), index) for name in self.__dataclass_fields__})
 
+    def take_rows(self, index: np.ndarray) -> Rows:
+        """The rows at positions ``index`` (int), in that order."""
+        return Rows(**{name: np.take(getattr(self, name), index) for name in self.__dataclass_fields__})
+
     def split_bands(self, bands: int, height: int) -> list[Rows]:
         """Split into up to ``bands`` horizontal screen bands of about equal fragment counts.
 

@@ -101,6 +101,11 @@ class _StatsObserver(FrameObserver):
         self.mark_draw = mark_draw
         self.mask: np.ndarray | None = None
 
+    @property
+    def exact_boundaries(self) -> bool:
+        """Snapshots need the buffers exactly between draw calls; counting does not."""
+        return bool(self.snapshot_every)
+
     def draw_begin(self, call, buffers):
         if call.index == self.mark_draw:
             self.mask = np.zeros(buffers.width * buffers.height, dtype=bool)
@@ -205,6 +210,8 @@ class _PixelObserver(FrameObserver):
     primitive order, and draw calls follow each other: appending keeps each pixel's order.
     """
 
+    exact_boundaries = False  # only fragments are read
+
     def __init__(self, targets: np.ndarray, size: int):
         self.lock = threading.Lock()
         self.single = int(targets[0]) if targets.size == 1 else None
@@ -216,9 +223,9 @@ class _PixelObserver(FrameObserver):
         hit = np.flatnonzero(frags.pix == self.single if self.single is not None else self.wanted[frags.pix])
         if hit.size == 0:
             return
-        colors = frags.select(hit).colors()
-        record = (call, frags.pix[hit].copy(), frags.triangle[hit].copy(), frags.depth[hit].copy(),
-                  np.array(colors, dtype=np.float64), outcome[hit].copy())
+        hits = frags.select(hit)  # deferred depths and triangles are computed for these only
+        record = (call, hits.pix, hits.triangle, hits.depth, np.array(hits.colors(), dtype=np.float64),
+                  outcome[hit].copy())
         with self.lock:
             self.records.append(record)
 

@@ -165,3 +165,72 @@ def test_deferred_depth_of_a_provably_passing_pass_equals_the_computed_depth(off
     np.testing.assert_array_equal(got[0], want[0])
     np.testing.assert_array_equal(got[1], want[1])
     assert np.unique(got[1]).size > 10  # a tilted plane: depth varies across it
+
+
+class SubsetDepthRecorder(DepthRecorder):
+    """Reads the deferred depth of a scattered subset first (every 7th fragment, then a selection
+    of that selection), then the whole chunk's, and keeps both."""
+
+    def __init__(self):
+        super().__init__()
+        self.pairs: list[tuple[np.ndarray, np.ndarray]] = []
+
+    def fragments(self, call, frags, outcome):
+        pick = np.arange(3, frags.count, 7)
+        sub = frags.select(pick)
+        nested = sub.select(np.arange(0, sub.count, 2)).depth.copy()
+        partial = sub.depth.copy()
+        with self.lock:
+            self.pairs.append((pick, partial, nested))
+        super().fragments(call, frags, outcome)
+
+
+def test_deferred_depth_of_a_selection_computes_only_its_rows():
+    """``select(...).depth`` of deferred fragments rasterises only the rows holding them (a pixel
+    history reads a few fragments of each chunk): the same codes as the whole chunk's depth."""
+    p = Pass(zwrite=False, ztest=CompareFunction.LEqual, blend=True, cull=Cull.Off)
+    tilt = np.eye(4)
+    tilt[2, 0] = 0.3
+    material = sc.unlit((0.2, 0.6, 0.9, 0.5), queue=Queue.Transparent, passes=(p,))
+    scene = sc.scene(sc.camera(48, 40, eye=(0, 0, 6)), sc.renderer(sc.quad(-2, -2, 2, 2, uv=False), material,
+                                                                  matrix=tilt))
+    rec = SubsetDepthRecorder()
+    render_scene(scene, observer=rec, workers=1, chunk_candidates=211)
+    assert rec.deferred > 1 and len(rec.pairs) == len(rec.records)
+    checked = 0
+    for (pick, partial, nested), (_, whole) in zip(rec.pairs, rec.records, strict=True):
+        np.testing.assert_array_equal(partial, whole[pick])
+        np.testing.assert_array_equal(nested, whole[pick][::2])
+        checked += pick.size
+    assert checked > 50
+
+
+class TriangleRecorder(FrameObserver):
+    """Reads the source triangles of every 5th fragment through a selection, then of all."""
+
+    def __init__(self):
+        self.lock = threading.Lock()
+        self.pairs = []
+
+    def fragments(self, call, frags, outcome):
+        pick = np.arange(1, frags.count, 5)
+        partial = frags.select(pick).triangle.copy()
+        with self.lock:
+            self.pairs.append((pick, partial, frags.triangle.copy(), frags.pix.copy()))
+
+
+def test_deferred_source_triangles_of_a_selection_equal_the_whole_chunks():
+    """Observed fragments carry their source triangles on demand; a selection computes only its
+    own. Both agree, and each fragment's triangle covers its pixel (a 7-triangle fan)."""
+    p = Pass(zwrite=False, blend=True, cull=Cull.Off)
+    material = sc.unlit((0.2, 0.6, 0.9, 0.5), queue=Queue.Transparent, passes=(p,))
+    scene = sc.scene(sc.camera(48, 40, eye=(0, 0, 3)), sc.renderer(sc.fan(radius=1.0, count=7), material))
+    rec = TriangleRecorder()
+    render_scene(scene, observer=rec, workers=1, chunk_candidates=97)
+    assert len(rec.pairs) > 3
+    seen = set()
+    for pick, partial, whole, _pix in rec.pairs:
+        np.testing.assert_array_equal(partial, whole[pick])
+        assert whole.min() >= 0 and whole.max() < 7
+        seen.update(np.unique(whole).tolist())
+    assert seen == set(range(7))
