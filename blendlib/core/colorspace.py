@@ -95,7 +95,8 @@ def decode_fast(values: np.ndarray) -> np.ndarray:
 
 def quantize_unorm(values: np.ndarray) -> np.ndarray:
     """Clamp to [0, 1] and quantise to 8-bit codes: ``floor(v*255 + 0.5)`` (uint8)."""
-    v = np.maximum(np.asarray(values, dtype=np.float64), 0.0)
+    v = np.array(values, dtype=np.float64)  # a copy, 0-d for a scalar: operated on in place
+    np.maximum(v, 0.0, out=v)
     np.minimum(v, 1.0, out=v)
     v *= 255.0
     v += 0.5

@@ -437,11 +437,17 @@ PEEL_LAYERS = 8
 
 class BlendTables(dict):
     """The :class:`BlendTable` s of one draw call, by palette, shared by its band workers: a
-    table is built once, under the lock (the other worker waits for it instead of building it too)."""
+    table is built once, under a lock of its own key (a worker needing the same table waits for
+    it instead of building it too; other tables are built meanwhile)."""
 
     def __init__(self) -> None:
         super().__init__()
-        self.lock = threading.Lock()
+        self._guard = threading.Lock()
+        self._locks: dict = {}
+
+    def key_lock(self, key) -> threading.Lock:
+        with self._guard:
+            return self._locks.setdefault(key, threading.Lock())
 
 
 def merge(
@@ -470,7 +476,7 @@ def merge(
         key = (palette.tobytes(), pairs)
         lut = None if tables is None else tables.get(key)
         if lut is None:
-            with getattr(tables, "lock", contextlib.nullcontext()):
+            with tables.key_lock(key) if isinstance(tables, BlendTables) else contextlib.nullcontext():
                 lut = None if tables is None else tables.get(key)
                 if lut is None:
                     lut = BlendTable(blend_lut(buf, p, palette), pairs=pairs)

@@ -200,7 +200,8 @@ class FrameObserver:
     exact_boundaries = True
 
     def draw_begin(self, call: DrawCall, buffers: FrameBuffers) -> None:
-        """Before draw call ``call`` (``buffers`` as left by the draw calls before it)."""
+        """Before draw call ``call`` (``buffers`` as left by the draw calls before it when
+        :attr:`exact_boundaries`; else as left by the batch before it)."""
 
     def fragments(self, call: DrawCall, frags: ShadedFragments, outcome: np.ndarray) -> None:
         """Every fragment rasterised in a chunk, with its :class:`merger.Outcome` (N,) int8."""
@@ -213,14 +214,21 @@ class FrameObserver:
 #: A texel palette (one colour per normal and texel, :func:`shade.texel_palette`) replaces
 #: per-fragment shading when it has at most this share of the fragments it serves.
 TEXEL_PALETTE_SHARE = 4
+#: Textures up to this many texels are examined for repeated texels (a palette entry each).
+TEXEL_PALETTE_EXAMINE = 1 << 14
 
 
 def _texel_groups(state: DrawState, candidates: np.ndarray, normals, counts) -> tuple[np.ndarray, np.ndarray] | None:
     """Point-filtered triangles whose normal is constant: their colour is a function of
     (normal, texel). Returns ``(normals (G, 3), group (K,) int64 per triangle)`` when a palette
     of G * (distinct texels) colours is cheaper than shading the candidates' fragments, else None."""
-    texel_count = state.texels.distinct()[0].size
     served = int(counts[candidates].sum())
+    h, w = state.texels.shape[:2]
+    # Finding the distinct texels of a large texture costs more than it can save unless even
+    # its full size would pay: only small textures are examined for repeated texels.
+    if h * w > TEXEL_PALETTE_EXAMINE and h * w * TEXEL_PALETTE_SHARE > served:
+        return None
+    texel_count = state.texels.distinct()[0].size
     if texel_count * TEXEL_PALETTE_SHARE > served:
         return None
     if normals is None:  # Unlit: the colour depends on the texel alone
@@ -531,7 +539,6 @@ BATCH_DRAWS = 64
 PARALLEL_PREPARE_TRIANGLES = 1 << 15
 
 
-
 def _batches(calls: list[DrawCall]) -> list[list[list[DrawCall]]]:
     """Renderer runs grouped into batches (a run is never split; at least one run a batch)."""
     batches: list[list[list[DrawCall]]] = []
@@ -698,7 +705,8 @@ def render_scene(
     """Render a draw scene exactly as Unity's built-in pipeline would (docs/pipeline.md).
 
     ``progress(fraction)`` is called as draw calls complete (after each batch of them, see
-    ``BATCH_TRIANGLES``; with an observer after each call); ``should_cancel()`` is polled
+    ``BATCH_TRIANGLES``; after each call with an observer that needs exact draw boundaries);
+    ``should_cancel()`` is polled
     between draw calls and chunks, and a True answer raises :class:`RenderCancelled`.
     ``until_draw`` K: stop after draw call K (numbered from 1; 0 = the cleared frame).
     ``resume`` (buffers, K0): start from a copy of ``buffers`` as left after draw call K0

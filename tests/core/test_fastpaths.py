@@ -404,3 +404,21 @@ def test_per_fragment_blending_by_channel_equals_reference(src, dst, op, color_s
     scene = DrawScene(camera=scene.camera, color_space=color_space, renderers=(
         scene.renderers[0], sc.renderer(sc.quad(0, 0, W, H, z=1.0), top, name="Top")))
     _assert_equal_with_table(scene, monkeypatch, expect_table=False)
+
+
+def test_large_textures_are_not_examined_for_repeated_texels(monkeypatch):
+    """Finding the distinct texels of a texture larger than ``TEXEL_PALETTE_EXAMINE`` is skipped
+    unless even its full size would pay (a 256x256 texture over a 48x40 frame): shaded per fragment."""
+    from blendlib.core import shade
+    from blendlib.core.vocabulary import Texture
+
+    def refuse(self):
+        raise AssertionError("distinct texels of a large texture computed")
+
+    monkeypatch.setattr(shade.Texels, "distinct", refuse)
+    px = np.random.default_rng(2).uniform(0, 1, size=(256, 256, 4)).astype(np.float32)
+    mat = Material(name="Big", lighting=Lighting.Unlit, main_tex=Texture(px, encoding="sRGB", name="big"),
+                   main_tex_filter=TextureFilter.Point, passes=(Pass(),))
+    scene = DrawScene(camera=sc.screen_camera(48, 40), renderers=(sc.renderer(sc.quad(0, 0, 48, 40), mat),))
+    frame = render_scene(scene, workers=1)
+    np.testing.assert_array_equal(frame.color, render_reference(scene)[0])
