@@ -152,35 +152,6 @@ class FrameBuffers:
         return color, depth, stencil
 
 
-def _rgb_factor(f: BlendFactor, s: np.ndarray, d: np.ndarray) -> np.ndarray | float:
-    """Colour factor (N, 3) or a scalar for One/Zero."""
-    if f is BlendFactor.One:
-        return 1.0
-    if f is BlendFactor.Zero:
-        return 0.0
-    if f is BlendFactor.SrcAlphaSaturate:
-        return np.minimum(s[:, 3], 1.0 - d[:, 3])[:, None]
-    base = {
-        BlendFactor.SrcColor: s[:, :3], BlendFactor.OneMinusSrcColor: s[:, :3],
-        BlendFactor.SrcAlpha: s[:, 3:4], BlendFactor.OneMinusSrcAlpha: s[:, 3:4],
-        BlendFactor.DstColor: d[:, :3], BlendFactor.OneMinusDstColor: d[:, :3],
-        BlendFactor.DstAlpha: d[:, 3:4], BlendFactor.OneMinusDstAlpha: d[:, 3:4],
-    }[f]
-    return 1.0 - base if f.value.startswith("OneMinus") else base
-
-
-def _alpha_factor(f: BlendFactor, s: np.ndarray, d: np.ndarray) -> np.ndarray | float:
-    """Alpha factor (N,) or a scalar."""
-    if f in (BlendFactor.One, BlendFactor.SrcAlphaSaturate):
-        return 1.0
-    if f is BlendFactor.Zero:
-        return 0.0
-    src = f in (BlendFactor.SrcColor, BlendFactor.SrcAlpha, BlendFactor.OneMinusSrcColor,
-                BlendFactor.OneMinusSrcAlpha)
-    base = s[:, 3] if src else d[:, 3]
-    return 1.0 - base if f.value.startswith("OneMinus") else base
-
-
 def _apply_op(op: BlendOp, s: np.ndarray, fs, d: np.ndarray, fd) -> np.ndarray:
     if op is BlendOp.Min:
         return np.minimum(s, d)
@@ -198,10 +169,17 @@ def blend(p: Pass, src: np.ndarray, dst: np.ndarray) -> np.ndarray:
     if not p.blend:
         return src
     out = np.empty_like(src)
-    out[:, :3] = _apply_op(p.blend_op, src[:, :3], _rgb_factor(p.src_blend, src, dst),
-                           dst[:, :3], _rgb_factor(p.dst_blend, src, dst))
+    for c, channel in enumerate(_blend_channels(p, [src[:, k] for k in range(4)], [dst[:, k] for k in range(4)])):
+        out[:, c] = channel
+    return out
+
+
+def _blend_channels(p: Pass, s: list, d: list) -> list:
+    """The blend of each channel (R, G, B, A) from four source and four destination (N,) arrays."""
     sa, da, opa = p.alpha_factors
-    out[:, 3] = _apply_op(opa, src[:, 3], _alpha_factor(sa, src, dst), dst[:, 3], _alpha_factor(da, src, dst))
+    out = [_apply_op(p.blend_op, s[c], _channel_factor(p.src_blend, c, s, d), d[c],
+                     _channel_factor(p.dst_blend, c, s, d)) for c in range(3)]
+    out.append(_apply_op(opa, s[3], _channel_factor(sa, 3, s, d), d[3], _channel_factor(da, 3, s, d)))
     return out
 
 
@@ -370,7 +348,7 @@ def apply_layer(
 
 def _channel_factor(f: BlendFactor, c: int, s: list, d: list):
     """Blend factor of channel ``c`` (3 = alpha) as a scalar or (N,) array, from channel lists
-    ``s`` / ``d`` (four (N,) float64 arrays each): :func:`_rgb_factor` / :func:`_alpha_factor`."""
+    ``s`` / ``d`` (four (N,) float64 arrays each); SrcAlphaSaturate is 1 for alpha (§8)."""
     if f is BlendFactor.One or (c == 3 and f is BlendFactor.SrcAlphaSaturate):
         return 1.0
     if f is BlendFactor.Zero:
@@ -406,11 +384,7 @@ def _blend_ldr(buf: FrameBuffers, p: Pass, stored: np.ndarray, rgba: np.ndarray)
                 dst.append(np.take(colorspace.DECODE_LUT, codes[:, c]))
             else:
                 dst.append(np.divide(codes[:, c], 255.0))
-        sa, da, opa = p.alpha_factors
-        result = [_apply_op(p.blend_op, src[c], _channel_factor(p.src_blend, c, src, dst), dst[c],
-                            _channel_factor(p.dst_blend, c, src, dst)) for c in range(3)]
-        result.append(_apply_op(opa, src[3], _channel_factor(sa, 3, src, dst), dst[3],
-                                _channel_factor(da, 3, src, dst)))
+        result = _blend_channels(p, src, dst)
     out = np.empty((stored.shape[0], 4), dtype=np.uint8)
     for c in range(4):
         if buf.linear and c < 3:

@@ -49,8 +49,7 @@ class Rows:
         """The rows where ``mask`` is True, order kept."""
         # One index list, then a gather per field: boolean indexing of each field costs
         # several times more when the mask is irregular (small triangles).
-        index = np.flatnonzero(mask)
-        return Rows(**{name: np.take(getattr(self, name), index) for name in self.__dataclass_fields__})
+        return self.take_rows(np.flatnonzero(mask))
 
     def take_rows(self, index: np.ndarray) -> Rows:
         """The rows at positions ``index`` (int), in that order."""
