@@ -167,19 +167,15 @@ class ShadedFragments:
         def take(a):
             return None if a is None else np.take(a, index, axis=0)
 
-        depth_fn = None
-        if self.stored_depth is None and self.depth_fn is not None:
-            parent = self.depth_fn
+        def deferred(stored, fn):
+            # A deferred value of the selection asks for the selected fragments only (a pixel
+            # history reads a handful of each chunk).
+            if stored is not None or fn is None:
+                return None
+            return lambda sub: fn(index if sub is None else np.take(index, sub))
 
-            def depth_fn(sub: np.ndarray | None) -> np.ndarray:
-                # Only the selected fragments' depths (a pixel history reads a handful).
-                return parent(index if sub is None else np.take(index, sub))
-        triangle_fn = None
-        if self.stored_triangle is None and self.triangle_fn is not None:
-            source = self.triangle_fn
-
-            def triangle_fn(sub: np.ndarray | None) -> np.ndarray:
-                return source(index if sub is None else np.take(index, sub))
+        depth_fn = deferred(self.stored_depth, self.depth_fn)
+        triangle_fn = deferred(self.stored_triangle, self.triangle_fn)
         return ShadedFragments(take(self.pix), take(self.stored_depth), take(self.rgba), take(self.ids),
                                self.palette, take(self.stored_triangle), take(self.alive), self.disjoint, depth_fn,
                                triangle_fn)
@@ -321,7 +317,6 @@ def _shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> Shaded
         # Channels first: each coordinate contiguous for the texel lookups (uv (2, M)).
         uv = None if uvs is None else raster.interpolate_runs(w, uvs[keep], counts[keep], uv_flat[keep],
                                                               channels_first=True)
-        shaded = slice(None)  # of the non-flat fragments, those shaded one by one
         if groups is not None:
             palette_normals, group = groups
             first_texel, of_texel = texels.distinct()
@@ -333,16 +328,17 @@ def _shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> Shaded
             base = (sum(part.shape[0] for part in palettes) + group * first_texel.size).astype(np.int32)  # (K,)
             texel += np.repeat(base[tabled], counts[tabled])
             tabled_count += int(counts[tabled].sum())
+            places = np.arange(n)[at]  # of the non-flat fragments, in the chunk
             if ids is None and every and every_texel:
                 ids = texel
             else:
                 if ids is None:
                     ids = np.full(n, -1, dtype=np.int32)
-                ids[np.arange(n)[at][by_texel]] = texel
+                ids[places[by_texel]] = texel
             palettes.append(shade.texel_palette(material, texels, state.lights, state.color_space, palette_normals))
             keep = ~flat & ~tabled
             shaded = ~by_texel
-            at = np.arange(n)[at][shaded]
+            at = places[shaded]
             w = w[:, shaded]
             uv = uv[:, shaded]
         if w.shape[1]:
@@ -466,6 +462,12 @@ class _FrameContext:
     def height(self) -> int:
         return self.buf.height
 
+    def record(self, notes: list[str], degenerate: tuple[str, int] | None) -> None:
+        """What :func:`_setup` found about a renderer, for the frame's warnings (in draw order)."""
+        self.warnings.extend(notes)
+        if degenerate is not None:
+            self.degenerate.append(degenerate)
+
     def texels_of(self, material: Material):
         """The material's texture in shading space, converted once per render (main thread only)."""
         if material.main_tex is None:
@@ -573,9 +575,7 @@ def _prepare_batch(frame: _FrameContext, runs: list[list[DrawCall]]) -> list[_Pr
         results = list(frame.pool.map(lambda k: prepare_run(k, None, 1), range(len(runs))))
     prepared: list[_Prepared] = []
     for notes, degenerate, items in results:
-        frame.warnings.extend(notes)
-        if degenerate is not None:
-            frame.degenerate.append(degenerate)
+        frame.record(notes, degenerate)
         prepared.extend(items)
     return prepared
 
@@ -665,9 +665,7 @@ def _render_observed(frame: _FrameContext, todo, cancelled, should_cancel, progr
         if setup_of is not renderer:  # one vertex setup per renderer, shared by its passes
             setup_of = renderer
             setup, notes, degenerate = _setup(frame, renderer, pool, workers)
-            frame.warnings.extend(notes)
-            if degenerate is not None:
-                frame.degenerate.append(degenerate)
+            frame.record(notes, degenerate)
         prepared = _prepare(frame, call, setup, frame.texels_of(renderer.material), pool, workers)
         state = prepared.state
         if state.zbound is not None:

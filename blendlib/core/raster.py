@@ -10,6 +10,7 @@ Work is proportional to covered pixels plus rows (spans), not to bounding boxes.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -222,6 +223,17 @@ class Fragments:
         return np.repeat(per_triangle[self.row_tri], self.row_length)
 
 
+def run_expander(counts: np.ndarray, n: int) -> Callable[[np.ndarray], np.ndarray]:
+    """A function that expands per-run values (R,) to the ``n`` elements of runs of ``counts``
+    (R,) int64: ``repeat`` (sequential copies) when runs are long; for short runs (small
+    triangles), where repeat with counts of one or two is about three times slower, one
+    element -> run index once and a gather per expansion."""
+    if counts.size * 4 > n:
+        run = np.repeat(np.arange(counts.size, dtype=np.int64), counts)
+        return lambda values: np.take(values, run)
+    return lambda values: np.repeat(values, counts)
+
+
 def rasterize_rows(rows: Rows, start: int, stop: int, width: int, bary: bool = True) -> Fragments:
     """The covered pixels of rows ``[start, stop)`` with their barycentrics (docs/pipeline.md §4).
 
@@ -230,17 +242,9 @@ def rasterize_rows(rows: Rows, start: int, stop: int, width: int, bary: bool = T
     length = rows.length[start:stop]
     n = int(length.sum())
     sl = slice(start, stop)
-    # Per-row values are expanded with repeat (sequential) rather than gathered per fragment;
-    # a fragment's pixel is its index in the chunk plus its row's (first pixel - first index).
+    # A fragment's pixel is its index in the chunk plus its row's (first pixel - first index).
     first = np.cumsum(length) - length
-    if (stop - start) * 4 > n:  # short rows: one fragment -> row index, then gathers
-        of_frag = np.repeat(np.arange(stop - start, dtype=np.int64), length)
-
-        def each(per_row: np.ndarray) -> np.ndarray:
-            return np.take(per_row, of_frag)
-    else:
-        def each(per_row: np.ndarray) -> np.ndarray:
-            return np.repeat(per_row, length)
+    each = run_expander(length, n)
     pix = np.arange(n, dtype=np.int64)
     pix += each(rows.y[sl] * width + rows.x0[sl] - first)
     row_tri = rows.tri[sl]
@@ -357,16 +361,7 @@ def interpolate_runs(weights: np.ndarray, corners: np.ndarray, counts: np.ndarra
     """
     n = weights.shape[1]
     out = np.empty((corners.shape[2], n), dtype=np.float64)
-    if counts.size * 4 > n:
-        # Short runs (small triangles): repeat with counts of one or two is slower than one
-        # fragment -> run index and a gather per corner value.
-        run = np.repeat(np.arange(counts.size, dtype=np.int64), counts)
-
-        def expand(values: np.ndarray) -> np.ndarray:
-            return np.take(values, run)
-    else:
-        def expand(values: np.ndarray) -> np.ndarray:
-            return np.repeat(values, counts)
+    expand = run_expander(counts, n)
     for c in range(corners.shape[2]):
         acc = out[c]
         np.multiply(weights[0], expand(corners[:, 0, c]), out=acc)

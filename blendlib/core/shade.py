@@ -220,11 +220,8 @@ def texture_uv_of(material: Material, u: np.ndarray, v: np.ndarray) -> tuple[np.
 
 def texture_uv(material: Material, uv: np.ndarray) -> np.ndarray:
     """Mesh uv (N, 2) float64 → texture coordinates after ``_MainTex``'s tiling and offset."""
-    tu, tv = (float(v) for v in material.main_tex_tiling)
-    ou, ov = (float(v) for v in material.main_tex_offset)
     uvp = np.empty_like(uv)
-    uvp[:, 0] = uv[:, 0] * tu + ou
-    uvp[:, 1] = uv[:, 1] * tv + ov
+    uvp[:, 0], uvp[:, 1] = texture_uv_of(material, uv[:, 0], uv[:, 1])
     return uvp
 
 
