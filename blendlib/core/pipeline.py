@@ -241,6 +241,15 @@ def _texel_groups(state: DrawState, candidates: np.ndarray, normals, counts) -> 
     return corner[where], group
 
 
+def _distinct_colors(colors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``np.unique(colors, axis=0, return_inverse=True)`` of (K, 4) float64 colours, without its
+    sort when every row has the same bytes (an unlit or evenly lit mesh: the common case)."""
+    bits = np.ascontiguousarray(colors).view(np.int64)
+    if np.isfinite(colors).all() and (bits == bits[:1]).all():
+        return colors[:1], np.zeros(colors.shape[0], dtype=np.int64)
+    return np.unique(colors, axis=0, return_inverse=True)
+
+
 def _shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedFragments | None:
     """Raster + interpolate + shade + alpha test of rows [start, stop), in draw order.
 
@@ -302,7 +311,7 @@ def _shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> Shaded
         colors = shade_at(None if uvs is None else uvs[const_tris, 0],
                           None if normals is None else normals[const_tris, 0], const_tris.size)
         # Triangles of one colour (an unlit mesh, a flat-lit plane) share one palette entry.
-        colors, inverse = np.unique(colors, axis=0, return_inverse=True)
+        colors, inverse = _distinct_colors(colors)
         palettes.append(colors)
         slot = np.full(tris.size, -1, dtype=np.int32)
         slot[const_tris] = inverse.reshape(-1)
@@ -492,32 +501,59 @@ class _Prepared:
     tables: merger.BlendTables = field(default_factory=merger.BlendTables)
 
 
-def _setup(frame: _FrameContext, renderer, pool, parts: int) -> tuple[object, list[str], tuple[str, int] | None]:
-    """Vertex setup of one renderer (shared by its passes) and what to tell the user about it."""
+def _setup_input(renderer) -> vertex.SetupInput:
+    """What the vertex setup of ``renderer`` needs: normals only for lit shading, UVs only with a texture."""
     material = renderer.material
-    setup = vertex.setup_triangles(
-        renderer.mesh, renderer.matrix_world, frame.camera,
-        need_normals=material.lighting is not Lighting.Unlit, need_uvs=material.main_tex is not None,
-        pool=pool, parts=parts,
-    )
+    return vertex.SetupInput(renderer.mesh, renderer.matrix_world, need_normals=material.lighting is not Lighting.Unlit,
+                             need_uvs=material.main_tex is not None)
+
+
+def _setup_notes(renderer, setup) -> tuple[list[str], tuple[str, int] | None]:
+    """What to tell the user about a renderer's setup: skipped triangles, zero-area ones."""
     notes = []
     if setup.skipped_nonfinite:
         label = f"object {renderer.name!r} slot {renderer.slot}"
         notes.append(f"{label}: skipped {setup.skipped_nonfinite} triangles with non-finite vertices")
-    return setup, notes, ((renderer.name, setup.degenerate) if setup.degenerate else None)
+    return notes, ((renderer.name, setup.degenerate) if setup.degenerate else None)
 
 
-def _prepare(frame: _FrameContext, call: DrawCall, setup, texels, pool, parts: int) -> _Prepared:
-    """Cull, coverage and derived state of one draw call."""
+def _setup(frame: _FrameContext, renderer, pool, parts: int) -> tuple[object, list[str], tuple[str, int] | None]:
+    """Vertex setup of one renderer (shared by its passes) and what to tell the user about it."""
+    setup = vertex.setup_renderers([_setup_input(renderer)], frame.camera, pool=pool, parts=parts)[0]
+    return (setup, *_setup_notes(renderer, setup))
+
+
+def _draw_state(frame: _FrameContext, call: DrawCall, setup, texels) -> tuple[DrawState, np.ndarray]:
+    """A draw call's derived state and the triangles its Cull keeps."""
     p = call.state
     zbound = None
     if not p.zwrite and p.ztest in (CompareFunction.Less, CompareFunction.LEqual):
         zbound = raster.depth_upper_codes(setup, p.offset_factor, p.offset_units)
     state = DrawState(call, call.renderer.material, texels, frame.lights, frame.color_space, frame.hdr,
                       frame.width, observed=frame.observed, zbound=zbound)
-    selected = vertex.cull_select(setup, p.cull)
+    return state, vertex.cull_select(setup, p.cull)
+
+
+def _prepare(frame: _FrameContext, call: DrawCall, setup, texels, pool, parts: int) -> _Prepared:
+    """Cull, coverage and derived state of one draw call."""
+    state, selected = _draw_state(frame, call, setup, texels)
     rows = raster.coverage_rows(setup, selected, frame.width, frame.height, pool=pool, parts=parts)
     return _Prepared(call, setup, selected, rows, state)
+
+
+def _prepare_together(frame: _FrameContext, runs: list[list[DrawCall]], texels) -> list[_Prepared]:
+    """Prepare many small renderers' draw calls with one vertex setup and one coverage pass for
+    all of them (per-call array work on a few hundred triangles is mostly fixed cost)."""
+    setups = vertex.setup_renderers([_setup_input(run[0].renderer) for run in runs], frame.camera)
+    items = []
+    for run, setup, run_texels in zip(runs, setups, texels, strict=True):
+        frame.record(*_setup_notes(run[0].renderer, setup))
+        items.extend((call, setup, *_draw_state(frame, call, setup, tex)) for call, tex in zip(run, run_texels,
+                                                                                              strict=True))
+    rows = raster.coverage_rows_many([(setup, selected) for _, setup, _, selected in items], frame.width,
+                                     frame.height)
+    return [_Prepared(call, setup, selected, r, state)
+            for (call, setup, state, selected), r in zip(items, rows, strict=True)]
 
 
 def _renderer_runs(calls: list[DrawCall]) -> list[list[DrawCall]]:
@@ -569,7 +605,9 @@ def _prepare_batch(frame: _FrameContext, runs: list[list[DrawCall]]) -> list[_Pr
                                    for call, tex in zip(runs[k], texels[k], strict=True)]
 
     triangles = sum(int(run[0].renderer.mesh.triangle_count) for run in runs)
-    if frame.pool is None or len(runs) <= 1 or triangles < PARALLEL_PREPARE_TRIANGLES:
+    if len(runs) > 1 and triangles < PARALLEL_PREPARE_TRIANGLES:
+        return _prepare_together(frame, runs, texels)
+    if frame.pool is None or len(runs) <= 1:
         results = [prepare_run(k, frame.pool, frame.workers) for k in range(len(runs))]
     else:
         results = list(frame.pool.map(lambda k: prepare_run(k, None, 1), range(len(runs))))

@@ -112,8 +112,44 @@ def coverage_rows(
     return Rows(**{name: np.concatenate([getattr(r, name) for r in pieces]) for name in Rows.__dataclass_fields__})
 
 
+def coverage_rows_many(passes: list[tuple[TriangleSetup, np.ndarray]], width: int, height: int) -> list[Rows]:
+    """:func:`coverage_rows` of several passes at once: (setup, selected triangles) each → its Rows.
+
+    The spans of a triangle depend on that triangle alone, so the selected triangles of all
+    passes are concatenated and covered in one pass of array operations (many small draw
+    calls cost one set of array operations, not one each), then cut per pass.
+    """
+    if len(passes) == 1:
+        return [_coverage_rows(passes[0][0], passes[0][1], width, height)]
+    counts = np.array([sel.size for _, sel in passes], dtype=np.int64)
+    offsets = np.concatenate([[0], np.cumsum(counts)])
+    gathered = [np.concatenate([np.take(getattr(setup, name), sel, axis=0) for setup, sel in passes])
+                for name in ("X", "Y", "area2")]
+    # Rows come out labelled with their position in the concatenation: ascending, so each
+    # pass's rows are one contiguous range; the labels then become the pass's own triangles.
+    labels = np.arange(int(offsets[-1]), dtype=np.int64)
+    rows = _spans(*gathered, labels, width, height)
+    cuts = np.searchsorted(rows.tri, offsets)
+    local = np.concatenate([sel for _, sel in passes]).astype(np.int64, copy=False)
+    out = []
+    for k in range(len(passes)):
+        a, b = int(cuts[k]), int(cuts[k + 1])
+        part = Rows(**{name: getattr(rows, name)[a:b] for name in Rows.__dataclass_fields__})
+        part.tri = np.take(local, part.tri)
+        out.append(part)
+    return out
+
+
 def _coverage_rows(setup: TriangleSetup, selected: np.ndarray, width: int, height: int) -> Rows:
-    """:func:`coverage_rows` for one contiguous part.
+    """:func:`coverage_rows` for one contiguous part."""
+    return _spans(np.take(setup.X, selected, axis=0), np.take(setup.Y, selected, axis=0),
+                  np.take(setup.area2, selected), selected, width, height)
+
+
+def _spans(X: np.ndarray, Y: np.ndarray, area2: np.ndarray, selected: np.ndarray, width: int,
+           height: int) -> Rows:
+    """The spans of triangles with snapped corners ``X``, ``Y`` (n, 3) int64 and twice their
+    signed areas ``area2`` (n,) int64, labelled ``selected`` (n,) in the rows' ``tri``.
 
     A pixel centre ``Px = x*S + S/2`` of row ``y`` is covered when every edge has
     ``E_k = c_k - dy_k*Px >= bias_k`` (bias 0 on top-left edges, else 1), i.e.
@@ -121,8 +157,7 @@ def _coverage_rows(setup: TriangleSetup, selected: np.ndarray, width: int, heigh
     (S*|dy_k|)``, that is ``x <= q`` when ``dy_k > 0`` and ``x >= -q`` when ``dy_k < 0``
     (one exact integer division per edge); a horizontal edge keeps or empties the row.
     """
-    X, Y = np.take(setup.X, selected, axis=0), np.take(setup.Y, selected, axis=0)
-    swap = setup.area2[selected] < 0
+    swap = area2 < 0
     # Counter-clockwise vertex order (a, b, c) = (v0, v1, v2), or (v0, v2, v1) when clockwise.
     ax, ay = X[:, 0], Y[:, 0]
     bx = np.where(swap, X[:, 2], X[:, 1])
@@ -136,8 +171,8 @@ def _coverage_rows(setup: TriangleSetup, selected: np.ndarray, width: int, heigh
     has = (x_lo <= x_hi) & (y_lo <= y_hi)  # most tiny triangles hold no pixel centre at all
     if not np.all(has):
         index = np.flatnonzero(has)
-        selected, swap, ax, ay, bx, by, cx, cy, x_lo, x_hi, y_lo, y_hi = (
-            np.take(v, index) for v in (selected, swap, ax, ay, bx, by, cx, cy, x_lo, x_hi, y_lo, y_hi))
+        selected, area2, swap, ax, ay, bx, by, cx, cy, x_lo, x_hi, y_lo, y_hi = (
+            np.take(v, index) for v in (selected, area2, swap, ax, ay, bx, by, cx, cy, x_lo, x_hi, y_lo, y_hi))
     nrows = y_hi - y_lo + 1
     total = int(nrows.sum())
     starts = np.cumsum(nrows) - nrows
@@ -171,7 +206,7 @@ def _coverage_rows(setup: TriangleSetup, selected: np.ndarray, width: int, heigh
         dy_rows.append(dy)
     length = np.maximum(x1 - x0 + 1, 0)
     keep = length > 0
-    area = each(np.abs(np.take(setup.area2, selected)))
+    area = each(np.abs(area2))
     rows = Rows(tri=each(selected), y=y, x0=x0, length=length, c0=c_rows[0], c1=c_rows[1],
                 dy0=dy_rows[0], dy1=dy_rows[1], swap=each(swap), area=area)
     return rows if np.all(keep) else rows.take(keep)

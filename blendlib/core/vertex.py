@@ -224,6 +224,17 @@ def run_parts(pool, parts: int, n: int, fn, min_part: int = 1 << 15) -> None:
         f.result()
 
 
+@dataclass(frozen=True, eq=False)
+class SetupInput:
+    """One renderer for :func:`setup_renderers`: its mesh, object → world matrix (4, 4), and
+    whether shading reads normals (Lambert) and UVs (a texture)."""
+
+    mesh: Mesh
+    matrix_world: np.ndarray
+    need_normals: bool = True
+    need_uvs: bool = True
+
+
 def setup_triangles(
     mesh: Mesh, matrix_world: np.ndarray, camera: Camera, need_normals: bool = True, need_uvs: bool = True,
     pool=None, parts: int = 1,
@@ -234,20 +245,40 @@ def setup_triangles(
     Attributes not needed are left out (``object_normals`` / ``object_uvs`` None).
     ``pool`` / ``parts``: a thread pool to split per-vertex and per-triangle work over.
     """
-    mv = matmul4(camera.view_matrix, matrix_world)
-    mvp = matmul4(camera.projection, mv)
-    nmat, det = normal_matrix(matrix_world)
+    return setup_renderers([SetupInput(mesh, matrix_world, need_normals, need_uvs)], camera, pool, parts)[0]
 
-    pos = np.asarray(mesh.positions, dtype=np.float64)
-    tris = np.asarray(mesh.triangles, dtype=np.int64)
-    t_count = tris.shape[0]
-    v_count = pos.shape[0]
-    object_normals = np.asarray(mesh.normals).reshape(t_count, 3, 3) if need_normals else None
-    object_uvs = np.asarray(mesh.uvs).reshape(t_count, 3, 2) if need_uvs and mesh.uvs is not None else None
+
+def setup_renderers(items: list[SetupInput], camera: Camera, pool=None, parts: int = 1) -> list[TriangleSetup]:
+    """:func:`setup_triangles` of several renderers at once, one :class:`TriangleSetup` each.
+
+    Every step is per vertex or per triangle, so the renderers' vertices and triangles are
+    concatenated and each step runs once for all of them (many small meshes cost one pass
+    of array operations, not one per mesh); the results are then cut per renderer. Each
+    renderer's setup equals its own :func:`setup_triangles` bit for bit.
+    """
+    mvps, nmats, dets = [], [], []
+    for item in items:
+        mvps.append(matmul4(camera.projection, matmul4(camera.view_matrix, item.matrix_world)))
+        nmat, det = normal_matrix(item.matrix_world)
+        nmats.append(nmat)
+        dets.append(det)
+    v_counts = np.array([item.mesh.positions.shape[0] for item in items], dtype=np.int64)
+    t_counts = np.array([item.mesh.triangles.shape[0] for item in items], dtype=np.int64)
+    v_offsets = np.concatenate([[0], np.cumsum(v_counts)])
+    t_offsets = np.concatenate([[0], np.cumsum(t_counts)])
+    v_count, t_count = int(v_offsets[-1]), int(t_offsets[-1])
 
     # Per-vertex work first (V <= 3T), gathered per corner afterwards. Coordinates are kept
     # channels first ((3, V) positions, (4, V) clip coordinates): every column contiguous.
-    pos_columns = np.ascontiguousarray(pos.T)
+    pos_columns = np.empty((3, v_count), dtype=np.float64)
+    for k, item in enumerate(items):
+        pos_columns[:, v_offsets[k]:v_offsets[k + 1]] = np.asarray(item.mesh.positions, dtype=np.float64).T
+    if len(items) == 1:
+        tris = np.asarray(items[0].mesh.triangles, dtype=np.int64)
+    else:
+        tris = np.empty((t_count, 3), dtype=np.int64)
+        for k, item in enumerate(items):
+            np.add(item.mesh.triangles, v_offsets[k], out=tris[t_offsets[k]:t_offsets[k + 1]], dtype=np.int64)
     clip_v = np.empty((4, v_count), dtype=np.float64)
     finite_v = np.empty(v_count, dtype=bool)
     outcode_v = np.empty(v_count, dtype=np.uint8)
@@ -258,9 +289,13 @@ def setup_triangles(
     okv = np.empty(v_count, dtype=bool)
 
     def vertex_part(lo: int, hi: int) -> None:
-        p = pos_columns[:, lo:hi]
-        for i, row in enumerate(_affine_rows(mvp, p[0], p[1], p[2], 4)):
-            clip_v[i, lo:hi] = row
+        # Each renderer's vertices in [lo, hi) with its own matrix.
+        for k in range(len(items)):
+            a, b = max(lo, int(v_offsets[k])), min(hi, int(v_offsets[k + 1]))
+            if a < b:
+                p = pos_columns[:, a:b]
+                for i, row in enumerate(_affine_rows(mvps[k], p[0], p[1], p[2], 4)):
+                    clip_v[i, a:b] = row
         cv = clip_v[:, lo:hi].T  # (n, 4) view with contiguous columns
         finite = np.isfinite(clip_v[0, lo:hi])
         for k in range(1, 4):
@@ -303,8 +338,6 @@ def setup_triangles(
                 ((e1[0] * e2[1] - e1[1] * e2[0]) == 0)
 
     run_parts(pool, parts, t_count, triangle_part)
-    skipped = int(t_count - np.count_nonzero(finite))
-    degenerate = int(np.count_nonzero(degenerate_t))
 
     # Unclipped triangles: window coordinates per vertex, gathered per corner.
     if np.all(keep_whole):
@@ -369,22 +402,48 @@ def setup_triangles(
             [np.broadcast_to(np.eye(3), (whole.size, 3, 3))] + [q[5] for q in parts_list[1:]])
         weights = np.ascontiguousarray(weights[order])
 
+    # Setup triangles are in source order, so each renderer's are one contiguous range.
+    cuts = np.searchsorted(src, t_offsets) if len(items) > 1 else np.array([0, src.size], dtype=np.int64)
     area2 = np.empty(src.size, dtype=np.int64)
     front = np.empty(src.size, dtype=bool)
+    mirrored = [det < 0 for det in dets]
 
     def area_part(lo: int, hi: int) -> None:
         x, y = X[lo:hi], Y[lo:hi]
         a2 = (x[:, 1] - x[:, 0]) * (y[:, 2] - y[:, 0]) - (x[:, 2] - x[:, 0]) * (y[:, 1] - y[:, 0])
         area2[lo:hi] = a2
-        # Zero-area triangles stay in the arrays (no copies) but are neither front nor back.
-        front[lo:hi] = (a2 > 0) if det >= 0 else (a2 < 0)
+        # Zero-area triangles stay in the arrays (no copies) but are neither front nor back;
+        # a mirroring matrix (negative determinant) turns clockwise triangles to the front.
+        np.greater(a2, 0, out=front[lo:hi])
+        for k, flip in enumerate(mirrored):
+            a, b = max(lo, int(cuts[k])), min(hi, int(cuts[k + 1]))
+            if flip and a < b:
+                np.less(area2[a:b], 0, out=front[a:b])
 
     run_parts(pool, parts, src.size, area_part)
-    return TriangleSetup(
-        X=X, Y=Y, zw=zw, iw=iw, area2=area2, src=src, weights=weights, clipped=clipped, front=front,
-        object_normals=object_normals, normal_matrix=nmat, object_uvs=object_uvs,
-        skipped_nonfinite=skipped, degenerate=degenerate,
-    )
+    if len(items) == 1:
+        skipped = [t_count - int(np.count_nonzero(finite))]
+        degenerate = [int(np.count_nonzero(degenerate_t))]
+    else:
+        owner = np.repeat(np.arange(len(items)), t_counts)
+        skipped = (t_counts - np.bincount(owner[finite], minlength=len(items))).tolist()
+        degenerate = np.bincount(owner[degenerate_t], minlength=len(items)).tolist()
+    setups = []
+    for k, item in enumerate(items):
+        a, b = int(cuts[k]), int(cuts[k + 1])
+        mesh, n = item.mesh, int(t_counts[k])
+        part_clipped = clipped[a:b]
+        setups.append(TriangleSetup(
+            X=X[a:b], Y=Y[a:b], zw=zw[a:b], iw=iw[a:b], area2=area2[a:b],
+            src=src[a:b] - t_offsets[k] if k else src[a:b],
+            weights=weights[a:b] if weights is not None and part_clipped.any() else None,
+            clipped=part_clipped, front=front[a:b],
+            object_normals=np.asarray(mesh.normals).reshape(n, 3, 3) if item.need_normals else None,
+            normal_matrix=nmats[k],
+            object_uvs=np.asarray(mesh.uvs).reshape(n, 3, 2) if item.need_uvs and mesh.uvs is not None else None,
+            skipped_nonfinite=int(skipped[k]), degenerate=int(degenerate[k]),
+        ))
+    return setups
 
 
 def cull_select(setup: TriangleSetup, cull: Cull) -> np.ndarray:

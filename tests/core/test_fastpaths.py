@@ -422,3 +422,72 @@ def test_large_textures_are_not_examined_for_repeated_texels(monkeypatch):
     scene = DrawScene(camera=sc.screen_camera(48, 40), renderers=(sc.renderer(sc.quad(0, 0, 48, 40), mat),))
     frame = render_scene(scene, workers=1)
     np.testing.assert_array_equal(frame.color, render_reference(scene)[0])
+
+
+def test_renderers_set_up_together_equal_each_alone():
+    """Many small renderers get one vertex setup and one coverage pass for all of them; each
+    renderer's triangles and each pass's spans equal those of its own setup: near-plane clipping,
+    a mirroring matrix, non-finite and zero-area triangles, a mesh without triangles, float32 and
+    int32 mesh arrays."""
+    from blendlib.core import raster, vertex
+
+    nan_mesh = sc.make_mesh([(0, 0, 0), (1, 0, 0), (0, 1, 0), (np.nan, 0, 0)], [(0, 1, 2), (0, 1, 3)])
+    line = sc.make_mesh([(0, 0, 0), (1, 1, 0), (2, 2, 0)], [(0, 1, 2), (0, 1, 2)])
+    sphere = sc.uv_sphere(0.9, 14, 9)
+    small = sc.uv_sphere(0.4, 8, 6)
+    small32 = sc.replace(small, positions=small.positions.astype(np.float32),
+                         triangles=small.triangles.astype(np.int32))
+    empty = sc.make_mesh(np.zeros((0, 3)), np.zeros((0, 3)))
+    items = [
+        vertex.SetupInput(sphere, sc.translate(0.2, 0.0, 1.6)),  # crosses the near plane (eye at z 2.5)
+        vertex.SetupInput(sc.quad(-1, -1, 1, 1), sc.scale(-1.0, 1.0, 1.0), need_normals=False),  # mirrored
+        vertex.SetupInput(nan_mesh, sc.translate(-0.5, 0.2, 0.0), need_uvs=False),
+        vertex.SetupInput(empty, np.eye(4)),
+        vertex.SetupInput(line, np.eye(4)),
+        vertex.SetupInput(small32, sc.translate(0.6, -0.3, 0.5)),
+    ]
+    camera = sc.camera(80, 60, eye=(0.0, 0.0, 2.5))
+    together = vertex.setup_renderers(items, camera)
+    alone = [vertex.setup_renderers([item], camera)[0] for item in items]
+    for a, b in zip(together, alone, strict=True):
+        for name in ("X", "Y", "zw", "iw", "area2", "src", "clipped", "front"):
+            np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+        assert (a.weights is None) == (b.weights is None)
+        if a.weights is not None:
+            np.testing.assert_array_equal(a.weights, b.weights)
+        assert (a.skipped_nonfinite, a.degenerate) == (b.skipped_nonfinite, b.degenerate)
+        assert (a.object_uvs is None) == (b.object_uvs is None)
+        assert (a.object_normals is None) == (b.object_normals is None)
+    # The cases above really happen.
+    assert together[0].clipped.any() and together[0].weights is not None
+    assert together[5].weights is None
+    mirrored = together[1]
+    assert mirrored.front.all() and (mirrored.area2 < 0).all()
+    assert together[2].skipped_nonfinite == 1 and together[4].degenerate == 2 and together[3].count == 0
+
+    passes = [(setup, vertex.cull_select(setup, cull)) for setup in together for cull in (Cull.Back, Cull.Off)]
+    many = raster.coverage_rows_many(passes, camera.width, camera.height)
+    assert sum(r.count for r in many) > 200
+    for (setup, selected), rows in zip(passes, many, strict=True):
+        own = raster.coverage_rows(setup, selected, camera.width, camera.height)
+        for name in raster.Rows.__dataclass_fields__:
+            np.testing.assert_array_equal(getattr(rows, name), getattr(own, name), err_msg=name)
+
+
+@pytest.mark.parametrize("rows", [
+    [(0.2, 0.4, 0.6, 0.5)] * 5,
+    [(0.2, 0.4, 0.6, 0.5)],
+    [(0.2, 0.4, 0.6, 0.5), (0.2, 0.4, 0.6, 0.25), (0.2, 0.4, 0.6, 0.5)],
+    [(0.0, 0.4, 0.6, 0.5), (-0.0, 0.4, 0.6, 0.5)],  # equal as numbers, not as bytes
+    [(np.nan, 0.4, 0.6, 0.5)] * 3,
+])
+def test_distinct_colours_equal_numpy_unique(rows):
+    """Flat triangles' colours are deduplicated without a sort when all are the same bytes; the
+    result is np.unique's, byte for byte."""
+    from blendlib.core.pipeline import _distinct_colors
+
+    colors = np.array(rows, dtype=np.float64)
+    got, inverse = _distinct_colors(colors)
+    want, want_inverse = np.unique(colors, axis=0, return_inverse=True)
+    assert got.tobytes() == want.tobytes() and got.shape == want.shape
+    np.testing.assert_array_equal(inverse.reshape(-1), want_inverse.reshape(-1))
