@@ -431,11 +431,15 @@ class ProjectWorker:
         import numpy as np
 
         from blendlib import blender
+        from blendlib.core import merger
         from blendlib.core.pipeline import render_scene
 
         kwargs = self._kwargs()
         with Timer() as te:
             draw = blender.build_draw_scene(self.scene)
+        # A render from scratch: no blend tables kept from the previous run (the viewport and
+        # explain series keep them, as an interactive session does).
+        merger.RECENT_TABLES.clear()
         can_peak = _reset_peak()
         rss0 = _proc_status().get("VmRSS", 0)
         with Timer() as tr:

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import threading
+from collections import OrderedDict
 from enum import IntEnum
 
 import numpy as np
@@ -251,6 +252,10 @@ class BlendTable:
         else:
             self.tables = [(t[:, :, c] << (8 * c)).reshape(-1) for c in range(4)]
 
+    @property
+    def nbytes(self) -> int:
+        return int(self.direct.nbytes) if self.direct is not None else sum(int(t.nbytes) for t in self.tables)
+
     def lookup(self, stored: np.ndarray, ids: np.ndarray) -> np.ndarray:
         """New packed pixels (N,) uint32 for ``stored`` (N,) uint32 and palette ``ids`` (N,) >= 0."""
         if self.direct is not None:
@@ -409,6 +414,52 @@ def _blend_fragments(buf: FrameBuffers, p: Pass, stored: np.ndarray, rgba: np.nd
 PEEL_LAYERS = 8
 
 
+class RecentTables:
+    """Blend tables of recent renders by content — (pass, colour space, palette, form) —
+    dropping the least recently used past ``max_bytes``. A viewport, an animation, the frame
+    debugger and ``analyze`` render the same palettes under the same passes again and again;
+    a table is a pure function of its key, so a kept one equals a rebuilt one bit for bit."""
+
+    def __init__(self, max_bytes: int) -> None:
+        self.max_bytes = int(max_bytes)
+        self._tables: OrderedDict = OrderedDict()
+        self._bytes = 0
+        self._lock = threading.Lock()
+
+    def get(self, key) -> BlendTable | None:
+        with self._lock:
+            table = self._tables.get(key)
+            if table is not None:
+                self._tables.move_to_end(key)
+            return table
+
+    def put(self, key, table: BlendTable) -> None:
+        with self._lock:
+            if key in self._tables or table.nbytes > self.max_bytes:
+                return
+            self._tables[key] = table
+            self._bytes += table.nbytes
+            while self._bytes > self.max_bytes:
+                _, dropped = self._tables.popitem(last=False)
+                self._bytes -= dropped.nbytes
+
+    @property
+    def nbytes(self) -> int:
+        return self._bytes
+
+    def __len__(self) -> int:
+        return len(self._tables)
+
+    def clear(self) -> None:
+        with self._lock:
+            self._tables.clear()
+            self._bytes = 0
+
+
+#: The process's kept blend tables (a pair table of one colour is 512 KB, a channel table 4 KB).
+RECENT_TABLES = RecentTables(64 << 20)
+
+
 class BlendTables(dict):
     """The :class:`BlendTable` s of one draw call, by palette, shared by its band workers: a
     table is built once, under a lock of its own key (a worker needing the same table waits for
@@ -439,7 +490,8 @@ def merge(
     :func:`apply_layer`). ``disjoint``: the caller knows the fragments hit distinct pixels.
     ``tables``: a dict the caller keeps for the chunks of one draw call (same pass and
     buffer kind): blend tables are built once per palette there instead of once per chunk
-    (a :class:`BlendTables` when band workers share it).
+    (a :class:`BlendTables` when band workers share it); tables of earlier renders are
+    taken from :data:`RECENT_TABLES`.
     """
     n = pix.shape[0]
     if n == 0:
@@ -453,7 +505,11 @@ def merge(
             with tables.key_lock(key) if isinstance(tables, BlendTables) else contextlib.nullcontext():
                 lut = None if tables is None else tables.get(key)
                 if lut is None:
-                    lut = BlendTable(blend_lut(buf, p, palette), pairs=pairs)
+                    kept = (p, buf.hdr, buf.linear, key)
+                    lut = RECENT_TABLES.get(kept)
+                    if lut is None:
+                        lut = BlendTable(blend_lut(buf, p, palette), pairs=pairs)
+                        RECENT_TABLES.put(kept, lut)
                     if tables is not None:
                         tables[key] = lut
 

@@ -64,6 +64,7 @@ def _assert_equal_with_table(scene: DrawScene, monkeypatch, expect_table: bool =
         return original(buf, p, palette)
 
     monkeypatch.setattr(merger, "blend_lut", counting)
+    merger.RECENT_TABLES.clear()  # tables kept from earlier renders would skip blend_lut
     frame = render_scene(scene)
     color, depth, stencil = render_reference(scene)
     assert bool(calls) == expect_table, f"lookup table used {len(calls)} times"
@@ -491,3 +492,52 @@ def test_distinct_colours_equal_numpy_unique(rows):
     want, want_inverse = np.unique(colors, axis=0, return_inverse=True)
     assert got.tobytes() == want.tobytes() and got.shape == want.shape
     np.testing.assert_array_equal(inverse.reshape(-1), want_inverse.reshape(-1))
+
+
+def test_blend_tables_are_kept_across_renders_by_content(monkeypatch):
+    """A second render takes its blend tables from merger.RECENT_TABLES (none is built) and is
+    identical; a table is never reused for another colour space or pass: renders that
+    alternate them, each with the other's tables kept, equal the reference."""
+    built = []
+    original = merger.BlendTable
+
+    class Counting(original):
+        def __init__(self, lut, pairs=False):
+            built.append(lut.shape[0])
+            super().__init__(lut, pairs)
+
+    monkeypatch.setattr(merger, "BlendTable", Counting)
+    merger.RECENT_TABLES.clear()
+    over = Pass(cull=Cull.Off, zwrite=False, blend=True, src_blend=BlendFactor.SrcAlpha,
+                dst_blend=BlendFactor.OneMinusSrcAlpha)
+    first = render_scene(_scene(over, ColorSpace.Gamma))
+    assert built and len(merger.RECENT_TABLES) == len(built)
+    count = len(built)
+    again = render_scene(_scene(over, ColorSpace.Gamma))
+    assert len(built) == count  # every table came from the kept ones
+    np.testing.assert_array_equal(first.color, again.color)
+    add = Pass(cull=Cull.Off, zwrite=False, blend=True, src_blend=BlendFactor.One, dst_blend=BlendFactor.One)
+    # 0 and 1 are the same in both colour spaces: only the key's colour space tells these palettes apart.
+    pure = (1.0, 0.0, 1.0, 0.45)
+    for p, space in ((over, ColorSpace.Gamma), (over, ColorSpace.Linear), (add, ColorSpace.Linear),
+                     (add, ColorSpace.Gamma), (over, ColorSpace.Gamma)):
+        scene = _scene(p, space, color=pure)
+        np.testing.assert_array_equal(render_scene(scene).color, render_reference(scene)[0])
+    assert len(built) > count  # the other passes and colour space built their own tables
+
+
+def test_recent_tables_drop_the_least_recently_used_past_their_budget():
+    lut = np.zeros((1, 256, 4), dtype=np.uint8)
+    size = merger.BlendTable(lut).nbytes  # four (256,) uint32 tables
+    assert size == 4 * 256 * 4
+    kept = merger.RecentTables(max_bytes=3 * size)
+    for key in "abc":
+        kept.put(key, merger.BlendTable(lut))
+    assert kept.get("a") is not None  # now the most recently used
+    kept.put("d", merger.BlendTable(lut))
+    assert kept.get("b") is None and all(kept.get(k) is not None for k in "acd")
+    assert kept.nbytes == 3 * size and len(kept) == 3
+    kept.put("huge", merger.BlendTable(np.zeros((4, 256, 4), dtype=np.uint8)))  # larger than the budget
+    assert kept.get("huge") is None and len(kept) == 3
+    kept.clear()
+    assert len(kept) == 0 and kept.nbytes == 0
