@@ -6,8 +6,9 @@ Builds the benchmark's scenes (``scripts.benchmark``), extracts each DrawScene o
 once untimed and once under cProfile with ``workers=1`` (cProfile sees one thread only), and
 maps the cumulative time of the pipeline's stage functions to stages:
 
-- setup: ``vertex.setup_triangles`` (transform, clipping, snapping, areas)
-- coverage: ``raster.coverage_rows`` / ``rasterize_rows`` / ``row_chunks`` / ``split_bands``
+- setup: ``vertex.setup_renderers`` (transform, clipping, snapping, areas; one renderer or a batch)
+- coverage: ``raster.coverage_rows`` / ``coverage_rows_many`` / ``rasterize_rows`` / ``row_chunks`` /
+  ``split_bands``
 - interpolation: ``raster.interpolate`` / ``interpolate_runs`` (depth, weights, attributes)
 - shading: ``shade.shade`` (texture sampling, lighting), ``shade.texel_palette``,
   ``shade.texture_uv_of`` and ``shade.point_texel_index_of`` (Point-filtered textures shaded
@@ -30,9 +31,9 @@ import pstats
 from pathlib import Path
 
 STAGES = {
-    "setup": [("vertex.py", "setup_triangles")],
-    "coverage": [("raster.py", "coverage_rows"), ("raster.py", "rasterize_rows"), ("raster.py", "row_chunks"),
-                 ("raster.py", "split_bands")],
+    "setup": [("vertex.py", "setup_renderers")],
+    "coverage": [("raster.py", "coverage_rows"), ("raster.py", "coverage_rows_many"), ("raster.py", "rasterize_rows"),
+                 ("raster.py", "row_chunks"), ("raster.py", "split_bands")],
     "interpolation": [("raster.py", "interpolate"), ("raster.py", "interpolate_runs")],
     "shading": [("shade.py", "shade"), ("shade.py", "texel_palette"), ("shade.py", "point_texel_index_of"),
                 ("shade.py", "texture_uv_of")],
