@@ -19,7 +19,7 @@ from enum import IntEnum
 import numpy as np
 
 from . import colorspace
-from .vertex import DEPTH_MAX
+from .vertex import DEPTH_MAX, run_parts
 from .vocabulary import BlendFactor, BlendOp, ColorSpace, CompareFunction, Pass, StencilOp
 
 
@@ -138,17 +138,29 @@ class FrameBuffers:
             return out
         return stored / 255.0
 
-    def output(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(color (H, W, 4) float32, depth (H, W) float32, stencil (H, W) uint8), row 0 = top."""
+    def output(self, pool=None, parts: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(color (H, W, 4) float32, depth (H, W) float32, stencil (H, W) uint8), row 0 = top.
+
+        ``pool`` / ``parts``: a thread pool to convert row ranges on (numpy's divisions
+        release the GIL); the result does not depend on the split.
+        """
         h, w = self.height, self.width
-        if self.hdr:
-            color = self.color.reshape(h, w, 4)[::-1].copy()
-        else:
-            # float32 division of the exact integers equals float32(q / 255.0) for every code
-            # and float32(d / (2**24 - 1)) for every depth code (both checked exhaustively in
-            # tests/core/test_fastpaths.py), at a seventh of a table lookup's time.
-            color = np.divide(self.color.reshape(h, w, 4)[::-1], _FLOAT32_255, dtype=np.float32)
-        depth = np.divide(self.depth.reshape(h, w)[::-1], _FLOAT32_DEPTH_MAX, dtype=np.float32)
+        color = np.empty((h, w, 4), dtype=np.float32)
+        depth = np.empty((h, w), dtype=np.float32)
+        src_color = self.color.reshape(h, w, 4)[::-1]
+        src_depth = self.depth.reshape(h, w)[::-1]
+
+        def rows(lo: int, hi: int) -> None:
+            if self.hdr:
+                color[lo:hi] = src_color[lo:hi]
+            else:
+                # float32 division of the exact integers equals float32(q / 255.0) for every code
+                # and float32(d / (2**24 - 1)) for every depth code (both checked exhaustively in
+                # tests/core/test_fastpaths.py), at a seventh of a table lookup's time.
+                np.divide(src_color[lo:hi], _FLOAT32_255, out=color[lo:hi], dtype=np.float32)
+            np.divide(src_depth[lo:hi], _FLOAT32_DEPTH_MAX, out=depth[lo:hi], dtype=np.float32)
+
+        run_parts(pool, parts, h, rows, min_part=64)
         stencil = self.stencil.reshape(h, w)[::-1].copy()
         return color, depth, stencil
 

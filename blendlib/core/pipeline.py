@@ -784,6 +784,7 @@ def render_scene(
             _render_batched(frame, todo, cancelled, should_cancel, progress, observer)
         else:
             _render_observed(frame, todo, cancelled, should_cancel, progress, observer)
+        color, depth, stencil = buf.output(pool, workers)
     finally:
         if pool is not None:
             pool.shutdown(wait=True, cancel_futures=True)
@@ -794,7 +795,6 @@ def render_scene(
         names = sorted({name for name, _ in degenerate})
         shown = ", ".join(repr(n) for n in names[:3]) + (f" and {len(names) - 3} more" if len(names) > 3 else "")
         warnings.append(f"{total} degenerate (zero-area) triangles draw nothing, in {shown}")
-    color, depth, stencil = buf.output()
     textures = (c.renderer.material.main_tex for c in calls)
     missing = {t.name for t in textures if t is not None and t.missing}
     warnings.extend(f"image {name!r}: file missing, drawn magenta" for name in sorted(missing))

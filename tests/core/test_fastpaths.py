@@ -541,3 +541,25 @@ def test_recent_tables_drop_the_least_recently_used_past_their_budget():
     assert kept.get("huge") is None and len(kept) == 3
     kept.clear()
     assert len(kept) == 0 and kept.nbytes == 0
+
+
+@pytest.mark.parametrize("hdr", [False, True])
+def test_frame_output_split_over_threads_equals_one_thread(hdr):
+    """The frame's conversion to float32 (flipped to row 0 = top) in row ranges on a pool equals
+    the one-thread conversion, for an odd height and both buffer kinds."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    buf = merger.FrameBuffers(37, 301, hdr, ColorSpace.Linear, (0.1, 0.2, 0.3, 1.0))
+    rng = np.random.default_rng(5)
+    if hdr:
+        buf.color[:] = rng.uniform(-2, 5, size=buf.color.shape).astype(np.float32)
+    else:
+        buf.color[:] = rng.integers(0, 256, size=buf.color.shape, dtype=np.uint8)
+    buf.depth[:] = rng.integers(0, 2**24, size=buf.depth.shape)
+    buf.stencil[:] = rng.integers(0, 256, size=buf.stencil.shape, dtype=np.uint8)
+    one = buf.output()
+    with ThreadPoolExecutor(2) as pool:
+        split = buf.output(pool, 2)
+    for a, b in zip(one, split, strict=True):
+        assert a.dtype == b.dtype and a.tobytes() == b.tobytes()
+    np.testing.assert_array_equal(one[1][0], (buf.depth.reshape(301, 37)[-1] / (2**24 - 1)).astype(np.float32))
