@@ -61,7 +61,8 @@ class Texels:
     that converting every texel would (docs/pipeline.md §7: conversion before filtering).
 
     - Byte images (at most 256 distinct float32 values, e.g. Blender's k/255): (h*w, 4) uint8
-      codes and a float64 lookup table per channel kind (RGB converted, alpha as is): 1 byte a channel.
+      codes and a float64 lookup table per channel kind (RGB converted, alpha as is): 1 byte a channel;
+      small ones (up to :attr:`PLANE_TEXELS` texels) also decoded, channels first, on first fetch.
     - Other images that need no conversion: the float32 values (float64 of a float32 is exact).
     - Other images that need a conversion: float64 (as before).
     """
@@ -121,15 +122,34 @@ class Texels:
         (for byte images a transposed view of a channels-first array)."""
         if self.codes is None:
             return self.values[index].astype(np.float64, copy=False)
-        # Whole texels gathered as one uint32 each (fancy indexing of (N, 4) rows is slower),
-        # then one table per channel.
-        c = np.take(self.codes.view(np.uint32).reshape(-1), index).view(np.uint8).reshape(-1, 4)
         # Channels first (each channel's values contiguous), returned as an (N, 4) view: the
         # shading reads one channel at a time.
         out = np.empty((4, len(index)), np.float64)
+        planes = self._planes()
+        if planes is not None:  # one gather per channel from the decoded texture
+            for k in range(4):
+                np.take(planes[k], index, out=out[k])
+            return out.T
+        # Whole texels gathered as one uint32 each (fancy indexing of (N, 4) rows is slower),
+        # then one table per channel.
+        c = np.take(self.codes.view(np.uint32).reshape(-1), index).view(np.uint8).reshape(-1, 4)
         for k, lut in enumerate((self.lut_rgb, self.lut_rgb, self.lut_rgb, self.lut_alpha)):
             np.take(lut, c[:, k], out=out[k])
         return out.T
+
+    #: Byte images of up to this many texels are also kept decoded, channels first (8 MB at most).
+    PLANE_TEXELS = 1 << 18
+
+    def _planes(self) -> np.ndarray | None:
+        """(4, h*w) float64: every texel's channels through the tables (the values :meth:`fetch`
+        returns), made on first use for textures of at most :attr:`PLANE_TEXELS` texels."""
+        planes = getattr(self, "_decoded", None)
+        if planes is None and self.codes.shape[0] <= self.PLANE_TEXELS:
+            planes = np.empty((4, self.codes.shape[0]), np.float64)
+            for k, lut in enumerate((self.lut_rgb, self.lut_rgb, self.lut_rgb, self.lut_alpha)):
+                np.take(lut, self.codes[:, k], out=planes[k])
+            self._decoded = planes
+        return planes
 
 
 def texture_texels(texture: Texture, color_space: ColorSpace) -> Texels:

@@ -27,11 +27,15 @@ def byte_image(rng, h, w) -> np.ndarray:
 
 @pytest.mark.parametrize("encoding", ["sRGB", "Linear", "Data"])
 @pytest.mark.parametrize("cs", [ColorSpace.Gamma, ColorSpace.Linear])
-@pytest.mark.parametrize("kind", ["byte", "float", "nan"])
-def test_fetch_gives_the_converted_float64_texels_bit_for_bit(encoding, cs, kind):
+@pytest.mark.parametrize("kind", ["byte", "float", "nan", "byte-large"])
+def test_fetch_gives_the_converted_float64_texels_bit_for_bit(encoding, cs, kind, monkeypatch):
+    """Byte images up to Texels.PLANE_TEXELS are fetched from decoded planes, larger ones
+    ("byte-large": the limit lowered below this texture) through the per-channel tables."""
+    if kind == "byte-large":
+        monkeypatch.setattr(shade.Texels, "PLANE_TEXELS", 100)
     rng = np.random.default_rng(7)
     h, w = 300, 37  # more rows than one conversion step
-    px = byte_image(rng, h, w) if kind == "byte" else rng.uniform(-0.5, 1.5, size=(h, w, 4)).astype(np.float32)
+    px = byte_image(rng, h, w) if kind.startswith("byte") else rng.uniform(-0.5, 1.5, size=(h, w, 4)).astype(np.float32)
     if kind == "nan":
         px[5, 6, 1] = np.nan
         px[7, 8, 3] = np.inf
@@ -42,8 +46,9 @@ def test_fetch_gives_the_converted_float64_texels_bit_for_bit(encoding, cs, kind
     want = converted_float64(px, encoding, cs)[index]
     assert got.dtype == np.float64
     np.testing.assert_array_equal(got, want)  # NaN positions equal too
-    if kind == "byte":
+    if kind.startswith("byte"):
         assert texels.codes is not None and texels.codes.dtype == np.uint8  # one byte a channel
+        assert (getattr(texels, "_decoded", None) is None) == (kind == "byte-large")
 
 
 def test_byte_texture_memory_is_one_byte_a_channel():
