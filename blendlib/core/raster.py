@@ -17,6 +17,11 @@ import numpy as np
 
 from .vertex import DEPTH_MAX, HALF, SUBPIXEL, TriangleSetup, run_parts
 
+_SHIFT = SUBPIXEL.bit_length() - 1
+assert SUBPIXEL == 1 << _SHIFT  # divisions by S are shifts
+#: Span ends are found by float64 division below this numerator bound (exact there), else in int64.
+FLOAT_DIVISION_LIMIT = 2**53
+
 
 @dataclass(eq=False)
 class Rows:
@@ -88,10 +93,6 @@ def band_cuts(parts: list[Rows], bands: int, height: int) -> np.ndarray | None:
     return np.searchsorted(np.cumsum(per_y), total * np.arange(1, bands) / bands, side="right")
 
 
-def _ceil_div(a: np.ndarray, b: int) -> np.ndarray:
-    return -((-a) // b)
-
-
 def coverage_rows(
     setup: TriangleSetup, selected: np.ndarray, width: int, height: int, pool=None, parts: int = 1
 ) -> Rows:
@@ -155,7 +156,7 @@ def _spans(X: np.ndarray, Y: np.ndarray, area2: np.ndarray, selected: np.ndarray
     ``E_k = c_k - dy_k*Px >= bias_k`` (bias 0 on top-left edges, else 1), i.e.
     ``dy_k*Px <= rhs_k`` with ``rhs_k = c_k - bias_k``. With ``q = (rhs_k - (S/2)*dy_k) //
     (S*|dy_k|)``, that is ``x <= q`` when ``dy_k > 0`` and ``x >= -q`` when ``dy_k < 0``
-    (one exact integer division per edge); a horizontal edge keeps or empties the row.
+    (one exact floor division per edge); a horizontal edge keeps or empties the row.
     """
     swap = area2 < 0
     # Counter-clockwise vertex order (a, b, c) = (v0, v1, v2), or (v0, v2, v1) when clockwise.
@@ -164,10 +165,11 @@ def _spans(X: np.ndarray, Y: np.ndarray, area2: np.ndarray, selected: np.ndarray
     by = np.where(swap, Y[:, 2], Y[:, 1])
     cx = np.where(swap, X[:, 1], X[:, 2])
     cy = np.where(swap, Y[:, 1], Y[:, 2])
-    x_lo = np.maximum(_ceil_div(np.minimum(np.minimum(ax, bx), cx) - HALF, SUBPIXEL), 0)
-    x_hi = np.minimum((np.maximum(np.maximum(ax, bx), cx) - HALF) // SUBPIXEL, width - 1)
-    y_lo = np.maximum(_ceil_div(np.minimum(np.minimum(ay, by), cy) - HALF, SUBPIXEL), 0)
-    y_hi = np.minimum((np.maximum(np.maximum(ay, by), cy) - HALF) // SUBPIXEL, height - 1)
+    # Floor and ceiling divisions by S = 2**SHIFT as arithmetic shifts (exact for negatives too).
+    x_lo = np.maximum(-((HALF - np.minimum(np.minimum(ax, bx), cx)) >> _SHIFT), 0)
+    x_hi = np.minimum((np.maximum(np.maximum(ax, bx), cx) - HALF) >> _SHIFT, width - 1)
+    y_lo = np.maximum(-((HALF - np.minimum(np.minimum(ay, by), cy)) >> _SHIFT), 0)
+    y_hi = np.minimum((np.maximum(np.maximum(ay, by), cy) - HALF) >> _SHIFT, height - 1)
     has = (x_lo <= x_hi) & (y_lo <= y_hi)  # most tiny triangles hold no pixel centre at all
     if not np.all(has):
         index = np.flatnonzero(has)
@@ -188,28 +190,42 @@ def _spans(X: np.ndarray, Y: np.ndarray, area2: np.ndarray, selected: np.ndarray
     py = y * SUBPIXEL + HALF
     x0 = each(x_lo)
     x1 = each(x_hi)
+    # The floor divisions below run in float64 when that is exact: a quotient of integers below
+    # 2**53 in magnitude is correctly rounded, so it lands on the integer below it only when it
+    # is that integer (its distance to any other is at least 1/|divisor|, the rounding error
+    # less than that). |numerator| <= 6*L**2 + S*L + 1 for corners within L of the origin.
+    reach = max(int(np.abs(X).max(initial=0)), int(np.abs(Y).max(initial=0)))
+    in_float = 6 * reach * reach + SUBPIXEL * reach + 1 < FLOAT_DIVISION_LIMIT
     # Edges p -> q: b->c (opposite a), c->a (opposite b), a->b (opposite c).
-    c_rows, dy_rows = [], []
+    c_rows, dy_t_all = [], []
     for xp, yp, xq, yq in ((bx, by, cx, cy), (cx, cy, ax, ay), (ax, ay, bx, by)):
         dx_t, dy_t = xq - xp, yq - yp
-        top_left = (dy_t < 0) | ((dy_t == 0) & (dx_t < 0))
+        bias_t = ((dy_t > 0) | ((dy_t == 0) & (dx_t >= 0))).astype(np.int64)  # 0 on top-left edges
         k_t = dy_t * xp - dx_t * yp  # E = dx*(Py - yp) - dy*(Px - xp) = (dx*Py + k) - dy*Px
         dy = each(dy_t)
         c = each(dx_t) * py
         c += each(k_t)
-        rhs = c - each(np.where(top_left, 0, 1))
-        q = (rhs - HALF * dy) // each(SUBPIXEL * np.maximum(np.abs(dy_t), 1))
+        rhs = c - each(bias_t)
+        num = rhs - HALF * dy
+        den_t = SUBPIXEL * np.maximum(np.abs(dy_t), 1)
+        if in_float:
+            q = np.floor(np.divide(num, each(den_t.astype(np.float64)))).astype(np.int64)
+        else:
+            q = num // each(den_t)
         x1 = np.where(dy > 0, np.minimum(x1, q), x1)
         x0 = np.where(dy < 0, np.maximum(x0, -q), x0)
         x1 = np.where((dy == 0) & (rhs < 0), x0 - 1, x1)
         c_rows.append(c)
-        dy_rows.append(dy)
-    length = np.maximum(x1 - x0 + 1, 0)
-    keep = length > 0
-    area = each(np.abs(area2))
-    rows = Rows(tri=each(selected), y=y, x0=x0, length=length, c0=c_rows[0], c1=c_rows[1],
-                dy0=dy_rows[0], dy1=dy_rows[1], swap=each(swap), area=area)
-    return rows if np.all(keep) else rows.take(keep)
+        dy_t_all.append(dy_t)
+    length = x1 - x0 + 1
+    keep = np.flatnonzero(length > 0)
+    if keep.size != length.size:  # rows without a covered pixel centre are dropped
+        y, x0, length, c0, c1 = (np.take(v, keep) for v in (y, x0, length, *c_rows[:2]))
+        of_row = np.take(of_row, keep)
+    else:
+        c0, c1 = c_rows[:2]
+    return Rows(tri=each(selected), y=y, x0=x0, length=length, c0=c0, c1=c1, dy0=each(dy_t_all[0]),
+                dy1=each(dy_t_all[1]), swap=each(swap), area=each(np.abs(area2)))
 
 
 def row_chunks(rows: Rows, max_candidates: int) -> list[tuple[int, int]]:

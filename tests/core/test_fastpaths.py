@@ -563,3 +563,32 @@ def test_frame_output_split_over_threads_equals_one_thread(hdr):
     for a, b in zip(one, split, strict=True):
         assert a.dtype == b.dtype and a.tobytes() == b.tobytes()
     np.testing.assert_array_equal(one[1][0], (buf.depth.reshape(301, 37)[-1] / (2**24 - 1)).astype(np.float32))
+
+
+@pytest.mark.parametrize("reach", [1 << 12, 1 << 22])
+def test_span_ends_by_float_division_equal_integer_division(reach, monkeypatch):
+    """Span ends come from a float64 floor division when that is exact (numerators below
+    2**53): equal, field by field, to the int64 division path on random triangles whose
+    corners lie up to ``reach`` subpixels away (far outside a 40x32 frame: guard-band sized),
+    with horizontal, vertical and near-degenerate edges and both windings."""
+    from blendlib.core import raster
+
+    rng = np.random.default_rng(int(reach).bit_length())
+    n = 4000
+    X = rng.integers(-reach, reach, size=(n, 3), dtype=np.int64)
+    Y = rng.integers(-reach, reach, size=(n, 3), dtype=np.int64)
+    X[: n // 4] = rng.integers(-4 * 256, 44 * 256, size=(n // 4, 3))  # small ones near the frame
+    Y[: n // 4] = rng.integers(-4 * 256, 36 * 256, size=(n // 4, 3))
+    Y[n // 4: n // 3, 1] = Y[n // 4: n // 3, 0]  # horizontal edges
+    X[n // 3: n // 2, 2] = X[n // 3: n // 2, 0]  # vertical edges
+    X[n // 2: n // 2 + 200, 1] = X[n // 2: n // 2 + 200, 0] + 1  # nearly degenerate
+    area2 = (X[:, 1] - X[:, 0]) * (Y[:, 2] - Y[:, 0]) - (X[:, 2] - X[:, 0]) * (Y[:, 1] - Y[:, 0])
+    keep = area2 != 0
+    X, Y, area2 = X[keep], Y[keep], area2[keep]
+    labels = np.arange(area2.size, dtype=np.int64)
+    fast = raster._spans(X, Y, area2, labels, W, H)
+    monkeypatch.setattr(raster, "FLOAT_DIVISION_LIMIT", 0)
+    exact = raster._spans(X, Y, area2, labels, W, H)
+    assert fast.count > 1000 and int(fast.length.sum()) > 10000 and fast.swap.any() and not fast.swap.all()
+    for name in raster.Rows.__dataclass_fields__:
+        np.testing.assert_array_equal(getattr(fast, name), getattr(exact, name), err_msg=name)
