@@ -404,16 +404,18 @@ def _shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> Shaded
 
 
 def _draw_band(buf, setup, rows, chunk_candidates: int, state: DrawState, stop_flag, observer,
-               tables: dict | None = None) -> None:
+               tables: dict | None = None, shade_chunk: Callable | None = None) -> None:
     """Raster, shade and merge one screen band of a draw call, chunk by chunk in draw order.
-    ``tables``: the draw call's blend tables (:class:`merger.BlendTables`), shared by its bands."""
+    ``tables``: the draw call's blend tables (:class:`merger.BlendTables`), shared by its bands;
+    ``shade_chunk``: how a chunk is shaded (default :func:`_shade_chunk`)."""
+    shade_chunk = _shade_chunk if shade_chunk is None else shade_chunk
     p = state.pass_state
     if tables is None:
         tables = {}  # blend tables of this band's palettes, shared by its chunks
     for a, b in raster.row_chunks(rows, chunk_candidates):
         if stop_flag.is_set():
             return
-        shaded = _shade_chunk(setup, rows, a, b, state)
+        shaded = shade_chunk(setup, rows, a, b, state)
         if shaded is None:
             continue
         merged = shaded if shaded.alive is None else shaded.select(shaded.alive)
@@ -499,6 +501,13 @@ class _Prepared:
     state: DrawState
     #: Blend tables of the call's palettes, built once and shared by the bands that draw it.
     tables: merger.BlendTables = field(default_factory=merger.BlendTables)
+    #: Raster + interpolate + shade of a chunk of rows (:func:`_shade_chunk`, or the constant
+    #: colours of fused draw calls: :func:`_fuse_constant_calls`).
+    shade: Callable = None
+
+    def __post_init__(self) -> None:
+        if self.shade is None:
+            self.shade = _shade_chunk
 
 
 def _setup_input(renderer) -> vertex.SetupInput:
@@ -554,6 +563,119 @@ def _prepare_together(frame: _FrameContext, runs: list[list[DrawCall]], texels) 
                                      frame.height)
     return [_Prepared(call, setup, selected, r, state)
             for (call, setup, state, selected), r in zip(items, rows, strict=True)]
+
+
+#: Consecutive draw calls of one constant colour each are fused (drawn as one) in groups of at
+#: most this many triangles: a few hundred triangles cost about 1 ms a call in fixed array-call
+#: overhead; big meshes gain nothing and would be copied.
+FUSE_TRIANGLES = 1 << 15
+
+
+def _constant_color(prepared: _Prepared) -> np.ndarray | None:
+    """(4,) float64: the colour the shader gives every fragment of the call, when that does not
+    depend on the fragment (Unlit, no texture, no alpha test); else None."""
+    state = prepared.state
+    material = state.material
+    if material.lighting is not Lighting.Unlit or state.texels is not None or state.pass_state.alpha_test:
+        return None
+    # What _shade_chunk's flat path computes for each of the call's triangles.
+    return shade.shade(material, None, state.lights, state.color_space, np.zeros((1, 2), dtype=np.float64),
+                       np.zeros((1, 3), dtype=np.float64))[0]
+
+
+def _fuse_constant_calls(prepared: list[_Prepared]) -> list[_Prepared]:
+    """Consecutive draw calls with one pass state whose fragments each take their call's
+    constant colour (:func:`_constant_color`: text labels, unlit props) drawn as one call.
+
+    Their setups and rows are concatenated in draw order and each fragment gets its call's
+    colour from a palette, so the merger applies exactly the fragments the calls would apply
+    one after another, in the same order (a pixel's fragments of several calls are layers of
+    one chunk, as overlapping triangles of one call are). Saves the per-call fixed cost.
+    """
+    out: list[_Prepared] = []
+    group: list[tuple[_Prepared, np.ndarray]] = []
+    triangles = 0
+
+    def flush() -> None:
+        if len(group) > 1:
+            out.append(_fused(group))
+        else:
+            out.extend(pr for pr, _ in group)
+        group.clear()
+
+    for pr in prepared:
+        color = _constant_color(pr) if pr.setup.count <= FUSE_TRIANGLES else None
+        if color is None:
+            flush()
+            out.append(pr)
+            triangles = 0
+            continue
+        if group and (pr.state.pass_state != group[0][0].state.pass_state
+                      or triangles + pr.setup.count > FUSE_TRIANGLES):
+            flush()
+            triangles = 0
+        group.append((pr, color))
+        triangles += pr.setup.count
+    flush()
+    return out
+
+
+def _fused(group: list[tuple[_Prepared, np.ndarray]]) -> _Prepared:
+    """One :class:`_Prepared` drawing ``group``'s calls (prepared call, its colour) in order."""
+    setups = [pr.setup for pr, _ in group]
+    counts = np.array([s.count for s in setups], dtype=np.int64)
+    offsets = np.cumsum(counts) - counts
+
+    def cat(name: str) -> np.ndarray:
+        return np.concatenate([getattr(s, name) for s in setups])
+
+    setup = vertex.TriangleSetup(X=cat("X"), Y=cat("Y"), zw=cat("zw"), iw=cat("iw"), area2=cat("area2"),
+                                 src=cat("src"), weights=None, clipped=cat("clipped"), front=cat("front"),
+                                 object_normals=None, normal_matrix=None, object_uvs=None)
+    rows = raster.Rows(**{name: np.concatenate([getattr(pr.rows, name) + offset if name == "tri"
+                                                else getattr(pr.rows, name) for (pr, _), offset in
+                                                zip(group, offsets, strict=True)])
+                          for name in raster.Rows.__dataclass_fields__})
+    # Palette entries by bytes (as _shade_chunk's flat path keeps -0.0 and NaN colours apart).
+    entries: dict[bytes, int] = {}
+    for _, color in group:
+        entries.setdefault(color.tobytes(), len(entries))
+    palette = np.array([np.frombuffer(b, dtype=np.float64) for b in entries], dtype=np.float64)
+    color_id = np.repeat(np.array([entries[c.tobytes()] for _, c in group], dtype=np.int32), counts)
+    first = group[0][0]
+    zbounds = [pr.state.zbound for pr, _ in group]
+    zbound = None if any(z is None for z in zbounds) else np.concatenate(zbounds)
+    state = replace(first.state, zbound=zbound)
+
+    def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedFragments | None:
+        return _shade_constant_chunk(setup, rows, start, stop, state, color_id, palette)
+
+    return _Prepared(first.call, setup, np.concatenate([pr.selected + o for (pr, _), o in zip(group, offsets,
+                                                                                                strict=True)]),
+                     rows, state, shade=shade_chunk)
+
+
+def _shade_constant_chunk(setup, rows, start: int, stop: int, state: DrawState, color_id: np.ndarray,
+                          palette: np.ndarray) -> ShadedFragments | None:
+    """:func:`_shade_chunk` of rows whose every fragment takes a constant colour:
+    ``palette[color_id[tri]]`` for setup triangle ``tri`` (``color_id`` (T,) int32, ``palette``
+    (K, 4) float64). Depth as there; no weights, no per-fragment shading."""
+    p = state.pass_state
+    length = rows.length[start:stop]
+    n = int(length.sum())
+    if n == 0:
+        return None
+    want_depth = state.depth_needed(rows, start, stop)
+    frags = raster.rasterize_rows(rows, start, stop, state.width, bary=want_depth)
+    depth = None
+    if want_depth:
+        depth = raster.interpolate(setup, frags, p.offset_factor, p.offset_units, weights=False)[0]
+    ids = raster.run_expander(length, n)(np.take(color_id, rows.tri[start:stop]))
+    rgba, chunk_palette = None, palette
+    if not (merger.lut_eligible(p, state.hdr) and palette.shape[0] * merger.table_rows(p) <= n):
+        rgba, ids, chunk_palette = np.take(palette, ids, axis=0), None, None  # blended one by one
+    return ShadedFragments(frags.pix, depth, rgba, ids, chunk_palette, None, None,
+                           raster.rows_disjoint(rows, start, stop, state.width))
 
 
 def _renderer_runs(calls: list[DrawCall]) -> list[list[DrawCall]]:
@@ -641,7 +763,7 @@ def _draw_batch_band(frame: _FrameContext, items, y0: int, y1: int, between: Cal
             state = replace(state, zfloor=zfloor)
         if rows.count:
             _draw_band(frame.buf, prepared.setup, rows, frame.chunk_candidates, state, frame.stop_flag, observer,
-                       prepared.tables)
+                       prepared.tables, prepared.shade)
         if state.pass_state.zwrite:
             zfloor = None
 
@@ -655,6 +777,8 @@ def _render_batched(frame: _FrameContext, todo, cancelled, should_cancel, progre
     for runs in _batches(todo):
         cancelled()
         prepared = _prepare_batch(frame, runs)
+        if observer is None:  # an observer is told of each call's own fragments
+            prepared = _fuse_constant_calls(prepared)
         calls = [call for run in runs for call in run]
         if observer is not None:
             for call in calls:

@@ -98,10 +98,22 @@ class Camera:
 def cofactors3(matrix) -> tuple[list[list[float]], float]:
     """Cofactor matrix (3x3 nested lists of Python floats) of ``matrix``'s upper-left 3x3 and its
     determinant, with the explicit sums of docs/pipeline.md §1."""
-    a = [[float(v) for v in row[:3]] for row in np.asarray(matrix, dtype=np.float64)[:3]]
-    c = [[a[(i + 1) % 3][(j + 1) % 3] * a[(i + 2) % 3][(j + 2) % 3]
-          - a[(i + 1) % 3][(j + 2) % 3] * a[(i + 2) % 3][(j + 1) % 3] for j in range(3)] for i in range(3)]
-    det = (a[0][0] * c[0][0] + a[0][1] * c[0][1]) + a[0][2] * c[0][2]
+    c, det = cofactors3_many(np.asarray(matrix, dtype=np.float64)[None])
+    return c[0].tolist(), float(det[0])
+
+
+_NEXT = np.array([1, 2, 0])
+_AFTER = np.array([2, 0, 1])
+
+
+def cofactors3_many(matrices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`cofactors3` of each of ``matrices`` (R, >=3, >=3): cofactors (R, 3, 3) and
+    determinants (R,) float64. Element by element ``c[i][j] = a[i+1][j+1]*a[i+2][j+2] -
+    a[i+1][j+2]*a[i+2][j+1]`` (indices mod 3) and ``det = (a00*c00 + a01*c01) + a02*c02``."""
+    m = np.asarray(matrices, dtype=np.float64)[:, :3, :3]
+    i1, i2, j1, j2 = _NEXT[:, None], _AFTER[:, None], _NEXT[None, :], _AFTER[None, :]
+    c = m[:, i1, j1] * m[:, i2, j2] - m[:, i1, j2] * m[:, i2, j1]
+    det = (m[:, 0, 0] * c[:, 0, 0] + m[:, 0, 1] * c[:, 0, 1]) + m[:, 0, 2] * c[:, 0, 2]
     return c, det
 
 

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .scene import Camera, Mesh, cofactors3
+from .scene import Camera, Mesh, cofactors3_many
 from .vocabulary import Cull
 
 SUBPIXEL = 256
@@ -28,19 +28,32 @@ _NONFINITE_MASK = np.uint8(1 << _NONFINITE_BIT)
 
 def matmul4(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """4x4 product with the explicit left-to-right sums of docs/pipeline.md §1 (float64)."""
-    a = [[float(v) for v in row] for row in np.asarray(a, dtype=np.float64)]
-    b = [[float(v) for v in row] for row in np.asarray(b, dtype=np.float64)]
-    out = [[((a[i][0] * b[0][j] + a[i][1] * b[1][j]) + a[i][2] * b[2][j]) + a[i][3] * b[3][j]
-            for j in range(4)] for i in range(4)]
-    return np.array(out, dtype=np.float64)
+    return matmul4_many(a, np.asarray(b, dtype=np.float64)[None])[0]
+
+
+def matmul4_many(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """:func:`matmul4` of ``a`` (4, 4) with each of ``b`` (R, 4, 4): (R, 4, 4) float64, element
+    ``[k, i, j] = ((a[i,0]*b[k,0,j] + a[i,1]*b[k,1,j]) + a[i,2]*b[k,2,j]) + a[i,3]*b[k,3,j]``
+    (one multiply or add per array operation: the same roundings as written out)."""
+    a = np.asarray(a, dtype=np.float64)
+    b = np.asarray(b, dtype=np.float64)
+    out = a[None, :, 0, None] * b[:, None, 0, :]
+    for t in (1, 2, 3):
+        out = out + a[None, :, t, None] * b[:, None, t, :]
+    return out
 
 
 def normal_matrix(matrix_world: np.ndarray) -> tuple[np.ndarray, float]:
     """Sign-corrected cofactor matrix of the upper 3x3 and its determinant (docs/pipeline.md §1)."""
-    c, det = cofactors3(matrix_world)
-    if det < 0:
-        c = [[-v for v in row] for row in c]
-    return np.array(c, dtype=np.float64), det
+    c, det = normal_matrices(np.asarray(matrix_world, dtype=np.float64)[None])
+    return c[0], float(det[0])
+
+
+def normal_matrices(matrices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`normal_matrix` of each of ``matrices`` (R, 4, 4): sign-corrected cofactors
+    (R, 3, 3) and determinants (R,) float64."""
+    c, det = cofactors3_many(matrices)
+    return np.where((det < 0)[:, None, None], -c, c), det
 
 
 def _affine_rows(m: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray, rows: int) -> list[np.ndarray]:
@@ -256,12 +269,9 @@ def setup_renderers(items: list[SetupInput], camera: Camera, pool=None, parts: i
     of array operations, not one per mesh); the results are then cut per renderer. Each
     renderer's setup equals its own :func:`setup_triangles` bit for bit.
     """
-    mvps, nmats, dets = [], [], []
-    for item in items:
-        mvps.append(matmul4(camera.projection, matmul4(camera.view_matrix, item.matrix_world)))
-        nmat, det = normal_matrix(item.matrix_world)
-        nmats.append(nmat)
-        dets.append(det)
+    worlds = np.array([np.asarray(item.matrix_world, dtype=np.float64) for item in items]).reshape(-1, 4, 4)
+    mvps = matmul4_many(camera.projection, matmul4_many(camera.view_matrix, worlds))
+    nmats, dets = normal_matrices(worlds)
     v_counts = np.array([item.mesh.positions.shape[0] for item in items], dtype=np.int64)
     t_counts = np.array([item.mesh.triangles.shape[0] for item in items], dtype=np.int64)
     v_offsets = np.concatenate([[0], np.cumsum(v_counts)])
@@ -288,14 +298,20 @@ def setup_renderers(items: list[SetupInput], camera: Camera, pool=None, parts: i
     iwv = np.empty(v_count, dtype=np.float64)
     okv = np.empty(v_count, dtype=bool)
 
+    # Many renderers: each vertex's matrix entries (16, V), so that the affine rows are one set
+    # of array operations for all of them (the same products and sums as _affine_rows).
+    entries = None if len(items) == 1 else np.repeat(mvps.reshape(-1, 16).T, v_counts, axis=1)
+
     def vertex_part(lo: int, hi: int) -> None:
-        # Each renderer's vertices in [lo, hi) with its own matrix.
-        for k in range(len(items)):
-            a, b = max(lo, int(v_offsets[k])), min(hi, int(v_offsets[k + 1]))
-            if a < b:
-                p = pos_columns[:, a:b]
-                for i, row in enumerate(_affine_rows(mvps[k], p[0], p[1], p[2], 4)):
-                    clip_v[i, a:b] = row
+        p = pos_columns[:, lo:hi]
+        if entries is None:
+            for i, row in enumerate(_affine_rows(mvps[0], p[0], p[1], p[2], 4)):
+                clip_v[i, lo:hi] = row
+        else:
+            m = entries[:, lo:hi]
+            for i in range(4):
+                row = (m[4 * i] * p[0] + m[4 * i + 1] * p[1]) + m[4 * i + 2] * p[2]
+                np.add(row, m[4 * i + 3], out=clip_v[i, lo:hi])
         cv = clip_v[:, lo:hi].T  # (n, 4) view with contiguous columns
         finite = np.isfinite(clip_v[0, lo:hi])
         for k in range(1, 4):

@@ -592,3 +592,90 @@ def test_span_ends_by_float_division_equal_integer_division(reach, monkeypatch):
     assert fast.count > 1000 and int(fast.length.sum()) > 10000 and fast.swap.any() and not fast.swap.all()
     for name in raster.Rows.__dataclass_fields__:
         np.testing.assert_array_equal(getattr(fast, name), getattr(exact, name), err_msg=name)
+
+
+@pytest.mark.parametrize("hdr,color_space", [(False, ColorSpace.Gamma), (False, ColorSpace.Linear),
+                                             (True, ColorSpace.Linear)])
+def test_constant_colour_draw_calls_fused_equal_reference(hdr, color_space, monkeypatch):
+    """Consecutive Unlit untextured draw calls with one pass state (text labels) are drawn as
+    one: overlapping blended quads, ZWrite On with Offset and a stencil op, equal colours in
+    different calls, a textured call and an alpha-tested one between groups. The frame equals
+    the reference, one thread and two, with blend tables (large chunks) and per-fragment
+    blending (small chunks), and equals the frame drawn call by call."""
+    from blendlib.core import pipeline
+    from blendlib.core.vocabulary import StencilOp, Texture
+
+    blend = Pass(cull=Cull.Off, zwrite=False, blend=True, src_blend=BlendFactor.SrcAlpha,
+                 dst_blend=BlendFactor.OneMinusSrcAlpha)
+    stamp = Pass(offset_factor=-1.0, offset_units=-1.0, stencil=True, stencil_ref=3,
+                 stencil_pass=StencilOp.IncrSat, stencil_zfail=StencilOp.Invert)
+    colors = [(0.9, 0.2, 0.1, 0.5), (0.1, 0.8, 0.3, 0.35), (0.9, 0.2, 0.1, 0.5), (0.2, 0.3, 0.95, 0.7),
+              (0.5, 0.5, 0.5, 0.25)]
+    renderers = []
+    for k, color in enumerate(colors):
+        mat = sc.unlit(color, queue=Queue.Transparent, passes=(blend,), name=f"Glass{k}")
+        renderers.append(sc.renderer(sc.fan((0.25 * k - 0.5, 0.1 * k, 0.15 * k), 0.9, 9, 0.2 * k), mat,
+                                     name=f"Glass{k}"))
+    texture = Texture(np.random.default_rng(3).uniform(0, 1, (4, 4, 4)).astype(np.float32), name="t")
+    for k in range(6):
+        if k == 3:  # a textured call splits the opaque group
+            mat = Material(name="Textured", lighting=Lighting.Unlit, main_tex=texture, passes=(stamp,))
+        elif k == 4:  # so does an alpha-tested one
+            mat = sc.unlit((0.3, 0.6, 0.9, 0.4), passes=(Pass(alpha_test=True),), cutoff=0.3, name="Cut")
+        else:
+            mat = sc.unlit((0.1 + 0.15 * k, 0.7, 0.2, 1.0), passes=(stamp,), name=f"Stamp{k}")
+        renderers.append(sc.renderer(sc.quad(-1.2 + 0.35 * k, -1.0 + 0.2 * k, 0.2 + 0.35 * k, 0.6 + 0.1 * k,
+                                             z=-0.2 * k), mat, name=f"Quad{k}"))
+    scene = DrawScene(camera=sc.camera(120, 96, eye=(0.3, 0.4, 4.0)), renderers=tuple(renderers),
+                      color_space=color_space, hdr=hdr)
+    groups = []
+    original = pipeline._fuse_constant_calls
+
+    def recording(prepared):
+        out = original(prepared)
+        groups.append((len(prepared), len(out)))
+        return out
+
+    monkeypatch.setattr(pipeline, "_fuse_constant_calls", recording)
+    merger.RECENT_TABLES.clear()
+    frames = [render_scene(scene, workers=1), render_scene(scene, workers=2),
+              render_scene(scene, workers=1, chunk_candidates=97)]
+    # 5 blended calls -> 1; the opaque ones: 3 fused, then the textured, the alpha-tested, 1 alone.
+    assert groups[0] == (11, 5)
+    monkeypatch.setattr(pipeline, "FUSE_TRIANGLES", 0)
+    frames.append(render_scene(scene, workers=1))
+    assert groups[-1] == (11, 11)
+    color, depth, stencil = render_reference(scene)
+    assert len(np.unique(stencil)) > 2 and len(np.unique(color.reshape(-1, 4), axis=0)) > 8
+    for frame in frames:
+        np.testing.assert_array_equal(frame.color, color)
+        np.testing.assert_array_equal(frame.depth, depth)
+        np.testing.assert_array_equal(frame.stencil, stencil)
+
+
+def test_matrices_of_many_renderers_equal_written_out_sums():
+    """The batched 4x4 products and cofactors of the vertex stage equal the written-out
+    Python-float sums of docs/pipeline.md §1 (mirroring matrices included)."""
+    from blendlib.core import vertex
+
+    rng = np.random.default_rng(11)
+    worlds = rng.normal(size=(9, 4, 4))
+    worlds[:, 3] = (0.0, 0.0, 0.0, 1.0)
+    worlds[4, :3, 0] *= -1.0  # negative determinant
+    view = rng.normal(size=(4, 4))
+
+    def written(a, b):
+        return [[((a[i][0] * b[0][j] + a[i][1] * b[1][j]) + a[i][2] * b[2][j]) + a[i][3] * b[3][j]
+                 for j in range(4)] for i in range(4)]
+
+    many = vertex.matmul4_many(view, worlds)
+    nmats, dets = vertex.normal_matrices(worlds)
+    assert (dets < 0).sum() >= 1 and (dets > 0).sum() >= 1
+    for k, w in enumerate(worlds.tolist()):
+        assert many[k].tolist() == written(view.tolist(), w)
+        m = [row[:3] for row in w[:3]]
+        c = [[m[(i + 1) % 3][(j + 1) % 3] * m[(i + 2) % 3][(j + 2) % 3]
+              - m[(i + 1) % 3][(j + 2) % 3] * m[(i + 2) % 3][(j + 1) % 3] for j in range(3)] for i in range(3)]
+        det = (m[0][0] * c[0][0] + m[0][1] * c[0][1]) + m[0][2] * c[0][2]
+        assert dets[k] == det
+        assert nmats[k].tolist() == ([[-v for v in row] for row in c] if det < 0 else c)
