@@ -487,12 +487,24 @@ class BlendTables(dict):
             return self._locks.setdefault(key, threading.Lock())
 
 
+_NEARER_PASSES = (CompareFunction.Less, CompareFunction.LEqual)
+
+
+def order_free_depth(p: Pass) -> bool:
+    """Whether a pass only keeps the nearest (or farthest) depth per pixel: ZWrite On with
+    ZTest Less, LEqual, Greater or GEqual, no colour written, no stencil. Its fragments can
+    then be applied in any order (the merger takes a per-pixel minimum or maximum)."""
+    return (not p.color_mask and not p.stencil and p.zwrite
+            and p.ztest in (*_NEARER_PASSES, CompareFunction.Greater, CompareFunction.GEqual))
+
+
 def merge(
     buf: FrameBuffers, p: Pass, pix: np.ndarray, depth: np.ndarray | None, rgba: np.ndarray | None,
     ids: np.ndarray | None = None, palette: np.ndarray | None = None, outcome: np.ndarray | None = None,
     disjoint: bool = False, tables: dict | None = None,
 ) -> int:
-    """Apply a chunk of fragments (in draw order) exactly as one-by-one; returns the layer count.
+    """Apply a chunk of fragments (in draw order) exactly as one-by-one; returns the layer count
+    (1 for a pass whose result does not depend on the order: :func:`order_free_depth`).
 
     Optional ``ids`` (N,) int32 / ``palette`` (K, 4) float64: fragments with ``ids >= 0``
     have the colour ``palette[ids]`` (constant over their triangle) and blend through a
@@ -508,6 +520,11 @@ def merge(
     n = pix.shape[0]
     if n == 0:
         return 0
+    if outcome is None and depth is not None and order_free_depth(p):
+        # Applied one by one, each fragment replaces the stored depth when nearer (farther):
+        # the pixel ends with the minimum (maximum) of its stored and fragment depths.
+        (np.minimum if p.ztest in _NEARER_PASSES else np.maximum).at(buf.depth, pix, depth)
+        return 1
     lut = None
     if ids is not None:
         pairs = palette.shape[0] * PAIR_TABLE_FRAGMENTS <= n

@@ -655,11 +655,28 @@ def _fused(group: list[tuple[_Prepared, np.ndarray]]) -> _Prepared:
                      rows, state, shade=shade_chunk)
 
 
-def _shade_constant_chunk(setup, rows, start: int, stop: int, state: DrawState, color_id: np.ndarray,
-                          palette: np.ndarray) -> ShadedFragments | None:
+def _skip_unused_shading(prepared: list[_Prepared]) -> list[_Prepared]:
+    """Draw calls whose pass writes no colour and has no alpha test (a depth prepass,
+    ``ColorMask 0``) get fragments without colours: only depth and stencil reach the buffers."""
+    for pr in prepared:
+        p = pr.state.pass_state
+        if not p.color_mask and not p.alpha_test:
+            pr.shade = _shade_colourless_chunk
+    return prepared
+
+
+def _shade_colourless_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedFragments | None:
+    """:func:`_shade_chunk` of a pass that writes no colour and has no alpha test: pixels and
+    depth only (the merger reads no colour of such a pass)."""
+    return _shade_constant_chunk(setup, rows, start, stop, state, None, None)
+
+
+def _shade_constant_chunk(setup, rows, start: int, stop: int, state: DrawState, color_id: np.ndarray | None,
+                          palette: np.ndarray | None) -> ShadedFragments | None:
     """:func:`_shade_chunk` of rows whose every fragment takes a constant colour:
     ``palette[color_id[tri]]`` for setup triangle ``tri`` (``color_id`` (T,) int32, ``palette``
-    (K, 4) float64). Depth as there; no weights, no per-fragment shading."""
+    (K, 4) float64), or no colour at all when ``palette`` is None. Depth as there; no weights,
+    no per-fragment shading."""
     p = state.pass_state
     length = rows.length[start:stop]
     n = int(length.sum())
@@ -670,12 +687,14 @@ def _shade_constant_chunk(setup, rows, start: int, stop: int, state: DrawState, 
     depth = None
     if want_depth:
         depth = raster.interpolate(setup, frags, p.offset_factor, p.offset_units, weights=False)[0]
+    disjoint = raster.rows_disjoint(rows, start, stop, state.width)
+    if palette is None:
+        return ShadedFragments(frags.pix, depth, None, None, None, None, None, disjoint)
     ids = raster.run_expander(length, n)(np.take(color_id, rows.tri[start:stop]))
     rgba, chunk_palette = None, palette
     if not (merger.lut_eligible(p, state.hdr) and palette.shape[0] * merger.table_rows(p) <= n):
         rgba, ids, chunk_palette = np.take(palette, ids, axis=0), None, None  # blended one by one
-    return ShadedFragments(frags.pix, depth, rgba, ids, chunk_palette, None, None,
-                           raster.rows_disjoint(rows, start, stop, state.width))
+    return ShadedFragments(frags.pix, depth, rgba, ids, chunk_palette, None, None, disjoint)
 
 
 def _renderer_runs(calls: list[DrawCall]) -> list[list[DrawCall]]:
@@ -777,8 +796,8 @@ def _render_batched(frame: _FrameContext, todo, cancelled, should_cancel, progre
     for runs in _batches(todo):
         cancelled()
         prepared = _prepare_batch(frame, runs)
-        if observer is None:  # an observer is told of each call's own fragments
-            prepared = _fuse_constant_calls(prepared)
+        if observer is None:  # an observer is told of each call's own fragments and colours
+            prepared = _fuse_constant_calls(_skip_unused_shading(prepared))
         calls = [call for run in runs for call in run]
         if observer is not None:
             for call in calls:

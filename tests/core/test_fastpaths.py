@@ -679,3 +679,58 @@ def test_matrices_of_many_renderers_equal_written_out_sums():
         det = (m[0][0] * c[0][0] + m[0][1] * c[0][1]) + m[0][2] * c[0][2]
         assert dets[k] == det
         assert nmats[k].tolist() == ([[-v for v in row] for row in c] if det < 0 else c)
+
+
+@pytest.mark.parametrize("ztest", [CompareFunction.LEqual, CompareFunction.Less, CompareFunction.GEqual,
+                                   CompareFunction.Greater, CompareFunction.Equal])
+def test_colourless_passes_skip_shading_and_take_extreme_depths(ztest, monkeypatch):
+    """A ``ZWrite On, ColorMask 0`` prepass of a self-overlapping lit, textured mesh, then its
+    blended pass: the prepass's fragments are not shaded, and with ZTest Less/LEqual/Greater/
+    GEqual (no stencil) its depth is the per-pixel minimum/maximum, applied in any order. A
+    colourless pass with a stencil op, and one with ZTest Equal, take the ordered path. The
+    frame equals the reference, one thread and two, and the observed (fully shaded) render."""
+    from blendlib.core import pipeline
+    from blendlib.core.vocabulary import StencilOp, Texture
+
+    texture = Texture(np.random.default_rng(5).uniform(0, 1, (8, 8, 4)).astype(np.float32), name="t")
+    blend = dict(blend=True, src_blend=BlendFactor.SrcAlpha, dst_blend=BlendFactor.OneMinusSrcAlpha)
+    knot = Material(name="Knot", queue=Queue.Transparent, color=(0.9, 0.8, 0.7, 0.6), main_tex=texture,
+                    main_tex_filter=TextureFilter.Point,
+                    passes=(Pass(cull=Cull.Off, zwrite=True, ztest=ztest, color_mask=frozenset()),
+                            Pass(cull=Cull.Off, zwrite=False, **blend)))
+    stamp = Material(name="Stamp", queue=Queue.Transparent, color=(0.2, 0.5, 0.9, 0.5), lighting=Lighting.Unlit,
+                     passes=(Pass(zwrite=True, color_mask=frozenset(), stencil=True, stencil_ref=2,
+                                  stencil_pass=StencilOp.Replace),
+                             Pass(zwrite=False, stencil=True, stencil_ref=2, stencil_comp=CompareFunction.Equal,
+                                  **blend)))
+    floor = Material(name="Floor", color=(0.4, 0.4, 0.4, 1.0), passes=(Pass(),))
+    scene = DrawScene(camera=sc.camera(96, 80, eye=(0.4, 0.9, 3.5)), light=sc.Light(direction=(0.3, 0.6, 0.7)),
+                      renderers=(sc.renderer(sc.quad(-3, -3, 3, 3, z=-1.2), floor, name="Floor"),
+                                 sc.renderer(sc.uv_sphere(0.9, 18, 12), knot, name="Knot",
+                                             matrix=sc.scale(1.0, 0.6, 1.4)),
+                                 sc.renderer(sc.fan((0.3, -0.2, 0.5), 0.8, 7), stamp, name="Stamp")))
+    colourless, order_free = [], []
+    shade_original, free_original = pipeline._shade_colourless_chunk, merger.order_free_depth
+
+    def counting_shade(*args):
+        colourless.append(1)
+        return shade_original(*args)
+
+    def counting_free(p):
+        free = free_original(p)
+        order_free.append(free)
+        return free
+
+    monkeypatch.setattr(pipeline, "_shade_colourless_chunk", counting_shade)
+    monkeypatch.setattr(merger, "order_free_depth", counting_free)
+    frames = [render_scene(scene, workers=1), render_scene(scene, workers=2, chunk_candidates=301),
+              render_scene(scene, workers=2, observer=pipeline.FrameObserver())]
+    assert colourless  # both prepasses skip shading
+    assert any(order_free) == (ztest is not CompareFunction.Equal)
+    assert not all(order_free)  # the stencil prepass is merged in order
+    color, depth, stencil = render_reference(scene)
+    assert (stencil == 2).sum() > 50
+    for frame in frames:
+        np.testing.assert_array_equal(frame.color, color)
+        np.testing.assert_array_equal(frame.depth, depth)
+        np.testing.assert_array_equal(frame.stencil, stencil)
