@@ -543,10 +543,17 @@ def _draw_state(frame: _FrameContext, call: DrawCall, setup, texels) -> tuple[Dr
     return state, vertex.cull_select(setup, p.cull)
 
 
-def _prepare(frame: _FrameContext, call: DrawCall, setup, texels, pool, parts: int) -> _Prepared:
-    """Cull, coverage and derived state of one draw call."""
+def _prepare(frame: _FrameContext, call: DrawCall, setup, texels, pool, parts: int,
+             rows_by_cull: dict | None = None) -> _Prepared:
+    """Cull, coverage and derived state of one draw call. ``rows_by_cull``: the rows of the
+    renderer's passes prepared so far, by Cull (passes with one Cull cover the same pixels)."""
     state, selected = _draw_state(frame, call, setup, texels)
+    known = None if rows_by_cull is None else rows_by_cull.get(call.state.cull)
+    if known is not None:
+        return _Prepared(call, setup, selected, raster.Rows(**vars(known)), state)
     rows = raster.coverage_rows(setup, selected, frame.width, frame.height, pool=pool, parts=parts)
+    if rows_by_cull is not None:
+        rows_by_cull[call.state.cull] = rows
     return _Prepared(call, setup, selected, rows, state)
 
 
@@ -742,7 +749,8 @@ def _prepare_batch(frame: _FrameContext, runs: list[list[DrawCall]]) -> list[_Pr
 
     def prepare_run(k: int, pool, parts: int):
         setup, notes, degenerate = _setup(frame, runs[k][0].renderer, pool, parts)
-        return notes, degenerate, [_prepare(frame, call, setup, tex, pool, parts)
+        rows_by_cull: dict = {}
+        return notes, degenerate, [_prepare(frame, call, setup, tex, pool, parts, rows_by_cull)
                                    for call, tex in zip(runs[k], texels[k], strict=True)]
 
     triangles = sum(int(run[0].renderer.mesh.triangle_count) for run in runs)
@@ -835,6 +843,7 @@ def _render_observed(frame: _FrameContext, todo, cancelled, should_cancel, progr
     draw call (buffers before and after) and fragment."""
     buf, pool, workers = frame.buf, frame.pool, frame.workers
     setup = setup_of = None
+    rows_by_cull: dict = {}
     zfloor_rows = None  # per buffer row, the smallest stored depth code (while no pass writes depth)
     for done, call in enumerate(todo, start=1):
         cancelled()
@@ -847,7 +856,8 @@ def _render_observed(frame: _FrameContext, todo, cancelled, should_cancel, progr
             setup_of = renderer
             setup, notes, degenerate = _setup(frame, renderer, pool, workers)
             frame.record(notes, degenerate)
-        prepared = _prepare(frame, call, setup, frame.texels_of(renderer.material), pool, workers)
+            rows_by_cull = {}
+        prepared = _prepare(frame, call, setup, frame.texels_of(renderer.material), pool, workers, rows_by_cull)
         state = prepared.state
         if state.zbound is not None:
             if zfloor_rows is None:  # recomputed only after a pass wrote depth

@@ -118,10 +118,30 @@ def coverage_rows_many(passes: list[tuple[TriangleSetup, np.ndarray]], width: in
 
     The spans of a triangle depend on that triangle alone, so the selected triangles of all
     passes are concatenated and covered in one pass of array operations (many small draw
-    calls cost one set of array operations, not one each), then cut per pass.
+    calls cost one set of array operations, not one each), then cut per pass. Passes that
+    select the same triangles of the same setup (two passes of one material with one Cull)
+    share one computation: their Rows hold the same arrays.
     """
-    if len(passes) == 1:
-        return [_coverage_rows(passes[0][0], passes[0][1], width, height)]
+    unique: list[tuple[TriangleSetup, np.ndarray]] = []
+    slot = []  # each pass's index in ``unique``
+    for setup, selected in passes:
+        for k, (other_setup, other_selected) in enumerate(unique):
+            if other_setup is setup and np.array_equal(other_selected, selected):
+                slot.append(k)
+                break
+        else:
+            slot.append(len(unique))
+            unique.append((setup, selected))
+    if len(unique) == 1:
+        rows = _coverage_rows(unique[0][0], unique[0][1], width, height)
+        return [rows] + [Rows(**vars(rows)) for _ in passes[1:]]
+    if len(unique) < len(passes):
+        computed = coverage_rows_many(unique, width, height)
+        out, given = [], set()
+        for k in slot:  # a repeated pass gets its own Rows over the same arrays
+            out.append(computed[k] if k not in given else Rows(**vars(computed[k])))
+            given.add(k)
+        return out
     counts = np.array([sel.size for _, sel in passes], dtype=np.int64)
     offsets = np.concatenate([[0], np.cumsum(counts)])
     gathered = [np.concatenate([np.take(getattr(setup, name), sel, axis=0) for setup, sel in passes])

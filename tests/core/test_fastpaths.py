@@ -734,3 +734,50 @@ def test_colourless_passes_skip_shading_and_take_extreme_depths(ztest, monkeypat
         np.testing.assert_array_equal(frame.color, color)
         np.testing.assert_array_equal(frame.depth, depth)
         np.testing.assert_array_equal(frame.stencil, stencil)
+
+
+def test_passes_selecting_the_same_triangles_share_their_coverage(monkeypatch):
+    """Two passes of one material with one Cull cover the same pixels: their rows are computed
+    once (batched coverage and per-renderer preparation alike) and equal each pass's own."""
+    from blendlib.core import pipeline, raster, vertex
+
+    camera = sc.camera(80, 60, eye=(0.0, 0.0, 2.5))
+    a, b = vertex.setup_renderers([vertex.SetupInput(sc.uv_sphere(0.9, 14, 9), np.eye(4)),
+                                   vertex.SetupInput(sc.quad(-1, -1, 1, 1), sc.translate(0.3, 0.0, 0.2))], camera)
+    passes = [(a, vertex.cull_select(a, Cull.Back)), (b, vertex.cull_select(b, Cull.Off)),
+              (a, vertex.cull_select(a, Cull.Back)), (a, vertex.cull_select(a, Cull.Front)),
+              (b, vertex.cull_select(b, Cull.Off))]
+    spans = []
+    original = raster._spans
+    monkeypatch.setattr(raster, "_spans", lambda *args: spans.append(args[0].shape[0]) or original(*args))
+    many = raster.coverage_rows_many(passes, camera.width, camera.height)
+    assert len(spans) == 1 and spans[0] == sum(sel.size for _, sel in passes[:2]) + passes[3][1].size
+    assert many[2].tri is many[0].tri and many[4].y is many[1].y and many[3].tri is not many[0].tri
+    for (setup, selected), rows in zip(passes, many, strict=True):
+        own = original(np.take(setup.X, selected, axis=0), np.take(setup.Y, selected, axis=0),
+                       np.take(setup.area2, selected), selected, camera.width, camera.height)
+        for name in raster.Rows.__dataclass_fields__:
+            np.testing.assert_array_equal(getattr(rows, name), getattr(own, name), err_msg=name)
+
+    covered = []
+    coverage = raster.coverage_rows
+    monkeypatch.setattr(raster, "coverage_rows", lambda *args, **kw: covered.append(1) or coverage(*args, **kw))
+    monkeypatch.setattr(pipeline, "PARALLEL_PREPARE_TRIANGLES", 0)  # per-renderer preparation
+    glass = Material(name="Glass", queue=Queue.Transparent, color=(0.9, 0.3, 0.2, 0.5),
+                     passes=(Pass(zwrite=True, color_mask=frozenset()),
+                             Pass(zwrite=False, blend=True, src_blend=BlendFactor.SrcAlpha,
+                                  dst_blend=BlendFactor.OneMinusSrcAlpha),
+                             Pass(cull=Cull.Front, zwrite=False, blend=True, src_blend=BlendFactor.One,
+                                  dst_blend=BlendFactor.One)))
+    scene = DrawScene(camera=camera, renderers=(sc.renderer(sc.uv_sphere(0.9, 14, 9), glass, name="Glass"),
+                                                sc.renderer(sc.uv_sphere(0.5, 10, 7), glass, name="Small",
+                                                            matrix=sc.translate(0.4, 0.2, 0.6))),
+                      light=sc.Light(direction=(0.2, 0.5, 0.8)))
+    color, depth, stencil = render_reference(scene)
+    for observer in (None, pipeline.FrameObserver()):
+        covered.clear()
+        frame = render_scene(scene, workers=2, observer=observer)
+        assert len(covered) == 4  # two Culls of two renderers, not six passes
+        np.testing.assert_array_equal(frame.color, color)
+        np.testing.assert_array_equal(frame.depth, depth)
+        np.testing.assert_array_equal(frame.stencil, stencil)
