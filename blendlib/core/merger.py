@@ -215,6 +215,19 @@ def table_rows(p: Pass) -> int:
     return 256 if p.blend else 1
 
 
+def table_pays(p: Pass, hdr: bool, linear: bool, palette: np.ndarray, fragments: int) -> bool:
+    """Whether ``fragments`` of colours from ``palette`` (K, 4) should blend through a
+    :class:`BlendTable`: the pass allows it (:func:`lut_eligible`) and the table is no larger
+    than the fragments it serves, or a render before this one already built it (kept in
+    :data:`RECENT_TABLES`: a viewport's reduced frames after its full ones)."""
+    if not lut_eligible(p, hdr):
+        return False
+    if palette.shape[0] * table_rows(p) <= fragments:
+        return True
+    key = palette.tobytes()
+    return any(RECENT_TABLES.peek((p, hdr, linear, (key, pairs))) for pairs in (False, True))
+
+
 def blend_lut(buf: FrameBuffers, p: Pass, palette: np.ndarray) -> np.ndarray:
     """Stored codes for every (source colour, destination code): (K, 256, 4) uint8, or
     (K, 1, 4) for ``Blend Off`` (:func:`table_rows`).
@@ -445,6 +458,11 @@ class RecentTables:
                 self._tables.move_to_end(key)
             return table
 
+    def peek(self, key) -> bool:
+        """Whether a table is kept under ``key`` (its recency unchanged)."""
+        with self._lock:
+            return key in self._tables
+
     def put(self, key, table: BlendTable) -> None:
         with self._lock:
             if key in self._tables or table.nbytes > self.max_bytes:
@@ -535,7 +553,10 @@ def merge(
                 lut = None if tables is None else tables.get(key)
                 if lut is None:
                     kept = (p, buf.hdr, buf.linear, key)
+                    # Either form of a kept table gives the same values (pairs of channels or one).
                     lut = RECENT_TABLES.get(kept)
+                    if lut is None:
+                        lut = RECENT_TABLES.get((p, buf.hdr, buf.linear, (key[0], not pairs)))
                     if lut is None:
                         lut = BlendTable(blend_lut(buf, p, palette), pairs=pairs)
                         RECENT_TABLES.put(kept, lut)

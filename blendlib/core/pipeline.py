@@ -359,7 +359,7 @@ def _shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> Shaded
         palette = palettes[0] if len(palettes) == 1 else np.concatenate(palettes)
         # 8-bit blending of a constant colour is a function of the destination code: tabulate
         # it (256 rows per colour, one without Blend) when that is cheaper than blending every fragment.
-        if merger.lut_eligible(p, state.hdr) and palette.shape[0] * merger.table_rows(p) <= tabled_count:
+        if merger.table_pays(p, state.hdr, state.color_space is ColorSpace.Linear, palette, tabled_count):
             if tabled_count == n:
                 rgba = None  # every colour comes from the palette
         else:
@@ -699,7 +699,7 @@ def _shade_constant_chunk(setup, rows, start: int, stop: int, state: DrawState, 
         return ShadedFragments(frags.pix, depth, None, None, None, None, None, disjoint)
     ids = raster.run_expander(length, n)(np.take(color_id, rows.tri[start:stop]))
     rgba, chunk_palette = None, palette
-    if not (merger.lut_eligible(p, state.hdr) and palette.shape[0] * merger.table_rows(p) <= n):
+    if not merger.table_pays(p, state.hdr, state.color_space is ColorSpace.Linear, palette, n):
         rgba, ids, chunk_palette = np.take(palette, ids, axis=0), None, None  # blended one by one
     return ShadedFragments(frags.pix, depth, rgba, ids, chunk_palette, None, None, disjoint)
 

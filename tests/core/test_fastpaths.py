@@ -781,3 +781,48 @@ def test_passes_selecting_the_same_triangles_share_their_coverage(monkeypatch):
         np.testing.assert_array_equal(frame.color, color)
         np.testing.assert_array_equal(frame.depth, depth)
         np.testing.assert_array_equal(frame.stencil, stencil)
+
+
+def test_small_frames_blend_through_tables_kept_from_larger_ones(monkeypatch):
+    """A frame too small for building a blend table (fewer fragments than table rows) uses a
+    table an earlier, larger render of the same palette kept (a viewport's reduced frame after
+    its full one), in either of its forms: the frame equals the reference and the same frame
+    drawn without kept tables."""
+    from dataclasses import replace
+
+    lookups = []
+    original = merger.BlendTable.lookup
+
+    def counting(self, stored, ids):
+        lookups.append(ids.size)
+        return original(self, stored, ids)
+
+    monkeypatch.setattr(merger.BlendTable, "lookup", counting)
+    built = []
+    table_class = merger.BlendTable
+
+    class Counting(table_class):
+        def __init__(self, lut, pairs=False):
+            built.append(pairs)
+            super().__init__(lut, pairs)
+
+    monkeypatch.setattr(merger, "BlendTable", Counting)
+    # The large frame's 1280 fragments of the top colour get a table of channel pairs; the small
+    # frame's 63 would ask for the other form, which the kept table stands in for.
+    monkeypatch.setattr(merger, "PAIR_TABLE_FRAGMENTS", 512)
+    over = Pass(cull=Cull.Off, zwrite=False, blend=True, src_blend=BlendFactor.SrcAlpha,
+                dst_blend=BlendFactor.OneMinusSrcAlpha)
+    big = _scene(over, ColorSpace.Linear)
+    small = replace(big, camera=sc.screen_camera(9, 7))  # 63 pixels, fewer than a table's 256 rows
+    merger.RECENT_TABLES.clear()
+    fresh = render_scene(small)
+    assert not lookups
+    render_scene(big)
+    assert built == [True]
+    lookups.clear()
+    kept = render_scene(small)
+    assert lookups and built == [True]  # the top quad's colour blended through the kept table
+    color, depth, stencil = render_reference(small)
+    for frame in (fresh, kept):
+        np.testing.assert_array_equal(frame.color, color)
+        np.testing.assert_array_equal(frame.depth, depth)
