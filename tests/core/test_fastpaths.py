@@ -16,6 +16,7 @@ import pytest
 
 from blendlib import render_scene
 from blendlib.core import merger
+from blendlib.core.pipeline import BAND_PIXELS as PRODUCTION_BAND_PIXELS  # read before the tests' override
 from blendlib.core.scene import DrawScene
 from blendlib.core.vocabulary import (
     BlendFactor,
@@ -826,3 +827,32 @@ def test_small_frames_blend_through_tables_kept_from_larger_ones(monkeypatch):
     for frame in (fresh, kept):
         np.testing.assert_array_equal(frame.color, color)
         np.testing.assert_array_equal(frame.depth, depth)
+
+
+def test_small_frames_use_bands_only_for_fragments_shaded_one_by_one(monkeypatch):
+    """Below BAND_PIXELS, a batch is drawn in screen bands only when it holds enough fragments
+    shaded one by one (smooth Lambert, filtered textures): cheap per-fragment work (flat or
+    constant colours, texel palettes) runs faster in one thread than two contending for the GIL.
+    Either way the frame equals one thread's."""
+    from blendlib.core import pipeline, raster
+
+    monkeypatch.setattr(pipeline, "BAND_PIXELS", PRODUCTION_BAND_PIXELS)
+    cuts = []
+    original = raster.band_cuts
+    monkeypatch.setattr(raster, "band_cuts", lambda *args: cuts.append(1) or original(*args))
+    smooth = Material(name="Smooth", color=(0.8, 0.6, 0.4, 1.0), passes=(Pass(),))
+    flat = sc.unlit((0.3, 0.7, 0.2, 1.0), name="Flat")
+    camera = sc.camera(600, 400, eye=(0.0, 0.0, 1.5))  # 240k pixels, below BAND_PIXELS, the ball filling them
+    for material, banded in ((flat, False), (smooth, True)):
+        scene = DrawScene(camera=camera, light=sc.Light(direction=(0.2, 0.5, 0.8)),
+                          renderers=(sc.renderer(sc.uv_sphere(0.9, 24, 16), material, name="Ball"),))
+        cuts.clear()
+        two = render_scene(scene, workers=2)
+        assert bool(cuts) == banded
+        one = render_scene(scene, workers=1)
+        np.testing.assert_array_equal(two.color, one.color)
+        np.testing.assert_array_equal(two.depth, one.depth)
+    monkeypatch.setattr(pipeline, "BAND_PIXELS", 600 * 400)  # a frame this large: bands whatever the work
+    cuts.clear()
+    render_scene(DrawScene(camera=camera, renderers=(sc.renderer(sc.uv_sphere(0.9, 24, 16), flat),)), workers=2)
+    assert cuts
