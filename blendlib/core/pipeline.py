@@ -130,6 +130,9 @@ class ShadedFragments:
     depth_fn: Callable[[np.ndarray | None], np.ndarray] | None = None
     #: ``triangle_fn(index)``: the source triangles of fragments ``index`` (None: all), deferred.
     triangle_fn: Callable[[np.ndarray | None], np.ndarray] | None = None
+    #: ``colors_fn(index)``: the shader colours (M, 4) of fragments ``index`` (None: all), deferred
+    #: (a pass that writes no colour, observed: colours only for the fragments an observer reads).
+    colors_fn: Callable[[np.ndarray | None], np.ndarray] | None = None
 
     @property
     def triangle(self) -> np.ndarray | None:
@@ -151,6 +154,8 @@ class ShadedFragments:
 
     def colors(self) -> np.ndarray:
         """(N, 4) float64 shader colours, table entries filled in."""
+        if self.ids is None and self.rgba is None and self.colors_fn is not None:
+            return self.colors_fn(None)
         if self.ids is None:
             return self.rgba
         if self.rgba is None:
@@ -176,9 +181,10 @@ class ShadedFragments:
 
         depth_fn = deferred(self.stored_depth, self.depth_fn)
         triangle_fn = deferred(self.stored_triangle, self.triangle_fn)
+        colors_fn = deferred(self.rgba if self.ids is None else self.ids, self.colors_fn)
         return ShadedFragments(take(self.pix), take(self.stored_depth), take(self.rgba), take(self.ids),
                                self.palette, take(self.stored_triangle), take(self.alive), self.disjoint, depth_fn,
-                               triangle_fn)
+                               triangle_fn, colors_fn)
 
 
 class FrameObserver:
@@ -674,8 +680,24 @@ def _skip_unused_shading(prepared: list[_Prepared]) -> list[_Prepared]:
 
 def _shade_colourless_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedFragments | None:
     """:func:`_shade_chunk` of a pass that writes no colour and has no alpha test: pixels and
-    depth only (the merger reads no colour of such a pass)."""
-    return _shade_constant_chunk(setup, rows, start, stop, state, None, None)
+    depth only (the merger reads no colour of such a pass). Observed, the colours, deferred
+    depths and source triangles an observer reads come from :func:`_shade_chunk` of the chunk,
+    run only when read (a pixel history reads the chunks on its pixel; a draw list none)."""
+    light = _shade_constant_chunk(setup, rows, start, stop, state, None, None)
+    if light is None or not state.observed:
+        return light
+    full: list[ShadedFragments] = []
+
+    def part(index: np.ndarray | None) -> ShadedFragments:
+        if not full:
+            full.append(_shade_chunk(setup, rows, start, stop, state))
+        return full[0] if index is None else full[0].select(index)
+
+    light.colors_fn = lambda index: part(index).colors()
+    light.triangle_fn = lambda index: part(index).triangle
+    if light.stored_depth is None:
+        light.depth_fn = lambda index: part(index).depth
+    return light
 
 
 def _shade_constant_chunk(setup, rows, start: int, stop: int, state: DrawState, color_id: np.ndarray | None,
@@ -839,8 +861,9 @@ def _render_batched(frame: _FrameContext, todo, cancelled, should_cancel, progre
     for runs in _batches(todo):
         cancelled()
         prepared = _prepare_batch(frame, runs)
-        if observer is None:  # an observer is told of each call's own fragments and colours
-            prepared = _fuse_constant_calls(_skip_unused_shading(prepared))
+        prepared = _skip_unused_shading(prepared)
+        if observer is None:  # an observer is told of each call's own fragments
+            prepared = _fuse_constant_calls(prepared)
         calls = [call for run in runs for call in run]
         if observer is not None:
             for call in calls:
