@@ -792,8 +792,8 @@ def _prepare_batch(frame: _FrameContext, runs: list[list[DrawCall]]) -> list[_Pr
 #: Frames of at least this many pixels draw every batch in screen bands, one per worker. In
 #: smaller frames (a 960x540 viewport) bands pay only for fragments shaded one by one: the
 #: cheap per-fragment work of palettes, constant colours and blend tables is mostly array calls
-#: holding the GIL, which two threads contend for (960x540 example scenes: 8-27 % faster in one
-#: thread, except the smooth-lit one, 25 % faster in two; at 1280x720, two threads won on 6 of 9).
+#: holding the GIL, which two threads contend for (960x540 example scenes: 6 of 9 ran 8-23 %
+#: faster in one thread, the smooth-lit one 25-30 % faster in two; at 1280x720, two won on 6 of 9).
 BAND_PIXELS = 600_000
 #: ... unless the batch holds at least this many candidate fragments of per-fragment shading.
 BAND_SHADED_FRAGMENTS = 1 << 17
