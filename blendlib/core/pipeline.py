@@ -507,13 +507,9 @@ class _Prepared:
     state: DrawState
     #: Blend tables of the call's palettes, built once and shared by the bands that draw it.
     tables: merger.BlendTables = field(default_factory=merger.BlendTables)
-    #: Raster + interpolate + shade of a chunk of rows (:func:`_shade_chunk`, or the constant
-    #: colours of fused draw calls: :func:`_fuse_constant_calls`).
-    shade: Callable = None
-
-    def __post_init__(self) -> None:
-        if self.shade is None:
-            self.shade = _shade_chunk
+    #: Raster + interpolate + shade of a chunk of rows (:func:`_shade_chunk`, or a specialised
+    #: one: :func:`_skip_unused_shading`, :func:`_fuse_constant_calls`).
+    shade: Callable = _shade_chunk
 
 
 def _setup_input(renderer) -> vertex.SetupInput:
@@ -589,6 +585,8 @@ def _constant_color(prepared: _Prepared) -> np.ndarray | None:
     depend on the fragment (Unlit, no texture, no alpha test); else None."""
     state = prepared.state
     material = state.material
+    if prepared.shade is not _shade_chunk:  # already specialised (a colourless pass)
+        return None
     if material.lighting is not Lighting.Unlit or state.texels is not None or state.pass_state.alpha_test:
         return None
     # What _shade_chunk's flat path computes for each of the call's triangles.
