@@ -410,11 +410,10 @@ def _shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> Shaded
 
 
 def _draw_band(buf, setup, rows, chunk_candidates: int, state: DrawState, stop_flag, observer,
-               tables: dict | None = None, shade_chunk: Callable | None = None) -> None:
+               tables: dict | None = None, shade_chunk: Callable = _shade_chunk) -> None:
     """Raster, shade and merge one screen band of a draw call, chunk by chunk in draw order.
     ``tables``: the draw call's blend tables (:class:`merger.BlendTables`), shared by its bands;
-    ``shade_chunk``: how a chunk is shaded (default :func:`_shade_chunk`)."""
-    shade_chunk = _shade_chunk if shade_chunk is None else shade_chunk
+    ``shade_chunk``: how a chunk is shaded."""
     p = state.pass_state
     if tables is None:
         tables = {}  # blend tables of this band's palettes, shared by its chunks

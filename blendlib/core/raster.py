@@ -132,9 +132,6 @@ def coverage_rows_many(passes: list[tuple[TriangleSetup, np.ndarray]], width: in
         else:
             slot.append(len(unique))
             unique.append((setup, selected))
-    if len(unique) == 1:
-        rows = _coverage_rows(unique[0][0], unique[0][1], width, height)
-        return [rows] + [Rows(**vars(rows)) for _ in passes[1:]]
     if len(unique) < len(passes):
         computed = coverage_rows_many(unique, width, height)
         out, given = [], set()
@@ -142,6 +139,8 @@ def coverage_rows_many(passes: list[tuple[TriangleSetup, np.ndarray]], width: in
             out.append(computed[k] if k not in given else Rows(**vars(computed[k])))
             given.add(k)
         return out
+    if len(passes) == 1:
+        return [_coverage_rows(passes[0][0], passes[0][1], width, height)]
     counts = np.array([sel.size for _, sel in passes], dtype=np.int64)
     offsets = np.concatenate([[0], np.cumsum(counts)])
     gathered = [np.concatenate([np.take(getattr(setup, name), sel, axis=0) for setup, sel in passes])

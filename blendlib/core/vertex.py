@@ -26,13 +26,9 @@ _PLANES_MASK = np.uint8(0x3F)
 _NONFINITE_MASK = np.uint8(1 << _NONFINITE_BIT)
 
 
-def matmul4(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """4x4 product with the explicit left-to-right sums of docs/pipeline.md §1 (float64)."""
-    return matmul4_many(a, np.asarray(b, dtype=np.float64)[None])[0]
-
-
 def matmul4_many(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """:func:`matmul4` of ``a`` (4, 4) with each of ``b`` (R, 4, 4): (R, 4, 4) float64, element
+    """The 4x4 products of docs/pipeline.md §1 of ``a`` (4, 4) with each of ``b`` (R, 4, 4):
+    (R, 4, 4) float64, element
     ``[k, i, j] = ((a[i,0]*b[k,0,j] + a[i,1]*b[k,1,j]) + a[i,2]*b[k,2,j]) + a[i,3]*b[k,3,j]``
     (one multiply or add per array operation: the same roundings as written out)."""
     a = np.asarray(a, dtype=np.float64)
@@ -43,21 +39,16 @@ def matmul4_many(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return out
 
 
-def normal_matrix(matrix_world: np.ndarray) -> tuple[np.ndarray, float]:
-    """Sign-corrected cofactor matrix of the upper 3x3 and its determinant (docs/pipeline.md §1)."""
-    c, det = normal_matrices(np.asarray(matrix_world, dtype=np.float64)[None])
-    return c[0], float(det[0])
-
-
 def normal_matrices(matrices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`normal_matrix` of each of ``matrices`` (R, 4, 4): sign-corrected cofactors
-    (R, 3, 3) and determinants (R,) float64."""
+    """The normal matrices of docs/pipeline.md §1 of ``matrices`` (R, 4, 4): sign-corrected
+    cofactors of the upper 3x3 (R, 3, 3) and determinants (R,) float64."""
     c, det = cofactors3_many(matrices)
     return np.where((det < 0)[:, None, None], -c, c), det
 
 
 def _affine_rows(m: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray, rows: int) -> list[np.ndarray]:
-    """``((m[i,0]*x + m[i,1]*y) + m[i,2]*z) + m[i,3]`` for i < rows (m[i,3] omitted when m has 3 columns)."""
+    """``((m[i,0]*x + m[i,1]*y) + m[i,2]*z) + m[i,3]`` for i < rows (m[i,3] omitted when m has 3 columns);
+    ``m`` (rows, 3|4) of scalars, or (rows, 3|4, n) of per-element entries."""
     out = []
     for i in range(rows):
         v = (m[i, 0] * x + m[i, 1] * y) + m[i, 2] * z
@@ -300,18 +291,13 @@ def setup_renderers(items: list[SetupInput], camera: Camera, pool=None, parts: i
 
     # Many renderers: each vertex's matrix entries (16, V), so that the affine rows are one set
     # of array operations for all of them (the same products and sums as _affine_rows).
-    entries = None if len(items) == 1 else np.repeat(mvps.reshape(-1, 16).T, v_counts, axis=1)
+    entries = None if len(items) == 1 else np.repeat(mvps.reshape(-1, 16).T, v_counts, axis=1).reshape(4, 4, -1)
 
     def vertex_part(lo: int, hi: int) -> None:
         p = pos_columns[:, lo:hi]
-        if entries is None:
-            for i, row in enumerate(_affine_rows(mvps[0], p[0], p[1], p[2], 4)):
-                clip_v[i, lo:hi] = row
-        else:
-            m = entries[:, lo:hi]
-            for i in range(4):
-                row = (m[4 * i] * p[0] + m[4 * i + 1] * p[1]) + m[4 * i + 2] * p[2]
-                np.add(row, m[4 * i + 3], out=clip_v[i, lo:hi])
+        m = mvps[0] if entries is None else entries[:, :, lo:hi]
+        for i, row in enumerate(_affine_rows(m, p[0], p[1], p[2], 4)):
+            clip_v[i, lo:hi] = row
         cv = clip_v[:, lo:hi].T  # (n, 4) view with contiguous columns
         finite = np.isfinite(clip_v[0, lo:hi])
         for k in range(1, 4):
