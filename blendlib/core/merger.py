@@ -138,17 +138,20 @@ class FrameBuffers:
             return out
         return stored / 255.0
 
-    def output(self, pool=None, parts: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def output(self, pool=None, parts: int = 1,
+               band: tuple[int, int] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(color (H, W, 4) float32, depth (H, W) float32, stencil (H, W) uint8), row 0 = top.
 
         ``pool`` / ``parts``: a thread pool to convert row ranges on (numpy's divisions
-        release the GIL); the result does not depend on the split.
+        release the GIL); the result does not depend on the split. ``band`` (y0, y1): only
+        buffer rows ``[y0, y1)`` (from the bottom), so H = y1 - y0.
         """
-        h, w = self.height, self.width
+        y0, y1 = (0, self.height) if band is None else band
+        h, w = y1 - y0, self.width
         color = np.empty((h, w, 4), dtype=np.float32)
         depth = np.empty((h, w), dtype=np.float32)
-        src_color = self.color.reshape(h, w, 4)[::-1]
-        src_depth = self.depth.reshape(h, w)[::-1]
+        src_color = self.color.reshape(self.height, w, 4)[y0:y1][::-1]
+        src_depth = self.depth.reshape(self.height, w)[y0:y1][::-1]
 
         def rows(lo: int, hi: int) -> None:
             if self.hdr:
@@ -161,7 +164,7 @@ class FrameBuffers:
             np.divide(src_depth[lo:hi], _FLOAT32_DEPTH_MAX, out=depth[lo:hi], dtype=np.float32)
 
         run_parts(pool, parts, h, rows, min_part=64)
-        stencil = self.stencil.reshape(h, w)[::-1].copy()
+        stencil = self.stencil.reshape(self.height, w)[y0:y1][::-1].copy()
         return color, depth, stencil
 
 

@@ -466,6 +466,9 @@ class _FrameContext:
     workers: int
     stop_flag: threading.Event
     observed: bool = False
+    #: Buffer rows ``[y0, y1)`` (y from the bottom) this render draws, or None for all
+    #: (:func:`render_scene`'s ``band``: one process's share of a frame, :mod:`blendlib.core.bandprocs`).
+    band: tuple[int, int] | None = None
     texels: dict = field(default_factory=dict)  # id(texture) -> shade.Texels
     warnings: list[str] = field(default_factory=list)
     degenerate: list[tuple[str, int]] = field(default_factory=list)  # (object, zero-area triangles)
@@ -552,7 +555,7 @@ def _prepare(frame: _FrameContext, call: DrawCall, setup, texels, pool, parts: i
     known = None if rows_by_cull is None else rows_by_cull.get(call.state.cull)
     if known is not None:
         return _Prepared(call, setup, selected, raster.Rows(**vars(known)), state)
-    rows = raster.coverage_rows(setup, selected, frame.width, frame.height, pool=pool, parts=parts)
+    rows = raster.coverage_rows(setup, selected, frame.width, frame.height, pool=pool, parts=parts, band=frame.band)
     if rows_by_cull is not None:
         rows_by_cull[call.state.cull] = rows
     return _Prepared(call, setup, selected, rows, state)
@@ -568,7 +571,7 @@ def _prepare_together(frame: _FrameContext, runs: list[list[DrawCall]], texels) 
         items.extend((call, setup, *_draw_state(frame, call, setup, tex)) for call, tex in zip(run, run_texels,
                                                                                               strict=True))
     rows = raster.coverage_rows_many([(setup, selected) for _, setup, _, selected in items], frame.width,
-                                     frame.height)
+                                     frame.height, frame.band)
     return [_Prepared(call, setup, selected, r, state)
             for (call, setup, state, selected), r in zip(items, rows, strict=True)]
 
@@ -869,7 +872,8 @@ def _render_batched(frame: _FrameContext, todo, cancelled, should_cancel, progre
         if frame.pool is not None and _bands_pay(frame, prepared):
             cuts = raster.band_cuts([pr.rows for pr in prepared], frame.workers, frame.height)
         if cuts is None:
-            _draw_batch_band(frame, [(pr, pr.rows) for pr in prepared], 0, frame.height, cancelled, observer)
+            lo, hi = frame.band or (0, frame.height)
+            _draw_batch_band(frame, [(pr, pr.rows) for pr in prepared], lo, hi, cancelled, observer)
         else:
             splits = [pr.rows.split_at(cuts) for pr in prepared]
             edges = [0, *(int(c) for c in cuts), frame.height]
@@ -946,6 +950,7 @@ def render_scene(
     until_draw: int | None = None,
     resume: tuple[FrameBuffers, int] | None = None,
     observer: FrameObserver | None = None,
+    band: tuple[int, int] | None = None,
 ) -> Frame:
     """Render a draw scene exactly as Unity's built-in pipeline would (docs/pipeline.md).
 
@@ -957,6 +962,10 @@ def render_scene(
     ``resume`` (buffers, K0): start from a copy of ``buffers`` as left after draw call K0
     (a snapshot taken by an observer's :meth:`FrameObserver.draw_end`), drawing K0+1 on.
     ``observer``: a :class:`FrameObserver` that receives every draw call and fragment.
+    ``band`` (y0, y1): draw only buffer rows ``y0 <= y < y1`` (counted from the bottom) and
+    return just those rows (the Frame's arrays are ``y1 - y0`` rows high, top row first): every
+    pixel there equals the full render's, since pixels never depend on one another (one
+    process's share of a frame split across processes, :mod:`blendlib.core.bandprocs`).
     Raises :class:`blendlib.core.scene.SceneError` (one line) for input that cannot render.
     """
     warnings = list(scene.warnings) + validate_scene(scene)
@@ -964,6 +973,12 @@ def render_scene(
         raise SceneError(f"until_draw must be 0 or more (got {until_draw})")
     cam = scene.camera
     width, height = int(cam.width), int(cam.height)
+    if band is not None:
+        band = (int(band[0]), int(band[1]))
+        if not 0 <= band[0] < band[1] <= height:
+            raise SceneError(f"band {band} is not a range of rows within 0..{height}")
+        if observer is not None or resume is not None:
+            raise SceneError("a band render takes no observer and resumes nothing")
     cs = scene.color_space
     if resume is not None:
         buf, first = resume[0].copy(), int(resume[1])
@@ -982,7 +997,7 @@ def render_scene(
     stop_flag = threading.Event()
     pool = ThreadPoolExecutor(max_workers=workers) if workers > 1 else None
     frame = _FrameContext(buf, cam, lights, cs, scene.hdr, chunk_candidates, pool, workers, stop_flag,
-                          observed=observer is not None)
+                          observed=observer is not None, band=band)
 
     def cancelled() -> None:
         if should_cancel is not None and should_cancel():
@@ -993,7 +1008,7 @@ def render_scene(
             _render_batched(frame, todo, cancelled, should_cancel, progress, observer)
         else:
             _render_observed(frame, todo, cancelled, should_cancel, progress, observer)
-        color, depth, stencil = buf.output(pool, workers)
+        color, depth, stencil = buf.output(pool, workers, band)
     finally:
         if pool is not None:
             pool.shutdown(wait=True, cancel_futures=True)

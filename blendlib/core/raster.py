@@ -94,17 +94,18 @@ def band_cuts(parts: list[Rows], bands: int, height: int) -> np.ndarray | None:
 
 
 def coverage_rows(
-    setup: TriangleSetup, selected: np.ndarray, width: int, height: int, pool=None, parts: int = 1
+    setup: TriangleSetup, selected: np.ndarray, width: int, height: int, pool=None, parts: int = 1,
+    band: tuple[int, int] | None = None,
 ) -> Rows:
     """Per-row spans of exactly the covered pixels of the selected triangles (docs/pipeline.md §4).
 
     With a thread ``pool``, contiguous parts of ``selected`` are done in parallel and joined
-    in order (rows stay in draw order).
+    in order (rows stay in draw order). ``band`` (y0, y1): only pixel rows ``y0 <= y < y1``.
     """
     results: dict[int, Rows] = {}
 
     def part(lo: int, hi: int) -> None:
-        results[lo] = _coverage_rows(setup, selected[lo:hi], width, height)
+        results[lo] = _coverage_rows(setup, selected[lo:hi], width, height, band)
 
     run_parts(pool, parts, selected.size, part)
     if len(results) == 1:
@@ -113,7 +114,8 @@ def coverage_rows(
     return Rows(**{name: np.concatenate([getattr(r, name) for r in pieces]) for name in Rows.__dataclass_fields__})
 
 
-def coverage_rows_many(passes: list[tuple[TriangleSetup, np.ndarray]], width: int, height: int) -> list[Rows]:
+def coverage_rows_many(passes: list[tuple[TriangleSetup, np.ndarray]], width: int, height: int,
+                       band: tuple[int, int] | None = None) -> list[Rows]:
     """:func:`coverage_rows` of several passes at once: (setup, selected triangles) each → its Rows.
 
     The spans of a triangle depend on that triangle alone, so the selected triangles of all
@@ -133,14 +135,14 @@ def coverage_rows_many(passes: list[tuple[TriangleSetup, np.ndarray]], width: in
             slot.append(len(unique))
             unique.append((setup, selected))
     if len(unique) < len(passes):
-        computed = coverage_rows_many(unique, width, height)
+        computed = coverage_rows_many(unique, width, height, band)
         out, given = [], set()
         for k in slot:  # a repeated pass gets its own Rows over the same arrays
             out.append(computed[k] if k not in given else Rows(**vars(computed[k])))
             given.add(k)
         return out
     if len(passes) == 1:
-        return [_coverage_rows(passes[0][0], passes[0][1], width, height)]
+        return [_coverage_rows(passes[0][0], passes[0][1], width, height, band)]
     counts = np.array([sel.size for _, sel in passes], dtype=np.int64)
     offsets = np.concatenate([[0], np.cumsum(counts)])
     gathered = [np.concatenate([np.take(getattr(setup, name), sel, axis=0) for setup, sel in passes])
@@ -148,7 +150,7 @@ def coverage_rows_many(passes: list[tuple[TriangleSetup, np.ndarray]], width: in
     # Rows come out labelled with their position in the concatenation: ascending, so each
     # pass's rows are one contiguous range; the labels then become the pass's own triangles.
     labels = np.arange(int(offsets[-1]), dtype=np.int64)
-    rows = _spans(*gathered, labels, width, height)
+    rows = _spans(*gathered, labels, width, height, band)
     cuts = np.searchsorted(rows.tri, offsets)
     local = np.concatenate([sel for _, sel in passes]).astype(np.int64, copy=False)
     out = []
@@ -160,16 +162,18 @@ def coverage_rows_many(passes: list[tuple[TriangleSetup, np.ndarray]], width: in
     return out
 
 
-def _coverage_rows(setup: TriangleSetup, selected: np.ndarray, width: int, height: int) -> Rows:
+def _coverage_rows(setup: TriangleSetup, selected: np.ndarray, width: int, height: int,
+                   band: tuple[int, int] | None = None) -> Rows:
     """:func:`coverage_rows` for one contiguous part."""
     return _spans(np.take(setup.X, selected, axis=0), np.take(setup.Y, selected, axis=0),
-                  np.take(setup.area2, selected), selected, width, height)
+                  np.take(setup.area2, selected), selected, width, height, band)
 
 
 def _spans(X: np.ndarray, Y: np.ndarray, area2: np.ndarray, selected: np.ndarray, width: int,
-           height: int) -> Rows:
+           height: int, band: tuple[int, int] | None = None) -> Rows:
     """The spans of triangles with snapped corners ``X``, ``Y`` (n, 3) int64 and twice their
-    signed areas ``area2`` (n,) int64, labelled ``selected`` (n,) in the rows' ``tri``.
+    signed areas ``area2`` (n,) int64, labelled ``selected`` (n,) in the rows' ``tri``; within
+    pixel rows ``band`` (y0, y1) when given, else all ``height`` rows.
 
     A pixel centre ``Px = x*S + S/2`` of row ``y`` is covered when every edge has
     ``E_k = c_k - dy_k*Px >= bias_k`` (bias 0 on top-left edges, else 1), i.e.
@@ -187,8 +191,9 @@ def _spans(X: np.ndarray, Y: np.ndarray, area2: np.ndarray, selected: np.ndarray
     # Floor and ceiling divisions by S = 2**SHIFT as arithmetic shifts (exact for negatives too).
     x_lo = np.maximum(-((HALF - np.minimum(np.minimum(ax, bx), cx)) >> _SHIFT), 0)
     x_hi = np.minimum((np.maximum(np.maximum(ax, bx), cx) - HALF) >> _SHIFT, width - 1)
-    y_lo = np.maximum(-((HALF - np.minimum(np.minimum(ay, by), cy)) >> _SHIFT), 0)
-    y_hi = np.minimum((np.maximum(np.maximum(ay, by), cy) - HALF) >> _SHIFT, height - 1)
+    row_lo, row_hi = (0, height) if band is None else band
+    y_lo = np.maximum(-((HALF - np.minimum(np.minimum(ay, by), cy)) >> _SHIFT), row_lo)
+    y_hi = np.minimum((np.maximum(np.maximum(ay, by), cy) - HALF) >> _SHIFT, row_hi - 1)
     has = (x_lo <= x_hi) & (y_lo <= y_hi)  # most tiny triangles hold no pixel centre at all
     if not np.all(has):
         index = np.flatnonzero(has)
