@@ -381,7 +381,7 @@ def traced_peak_mb(call, *args) -> float:
 #: Timed series of ProjectWorker.explain (medians), in their alternation order.
 EXPLAIN_TIMES = ("plain_s", "drawlist_s", "pixel_s", "capture_s", "step_s", "analyze_s")
 #: Timed series of ProjectWorker.viewport (medians).
-VIEWPORT_TIMES = ("extract_s", "reduced_s", "full_s", "first_frame_s", "render_view_s",
+VIEWPORT_TIMES = ("extract_s", "reduced_s", "full_s", "full_one_process_s", "first_frame_s", "render_view_s",
                   "scheduler_first_s", "scheduler_full_s")
 
 
@@ -520,7 +520,9 @@ class ProjectWorker:
     def viewport(self, width: int, height: int, repeats: int) -> dict:
         """The viewport through the scene camera's view and projection matrices at
         ``width`` x ``height``: extraction of the viewport template, the reduced first frame
-        (1/4 per side) and the full frame, each timed directly; the time from a change to the
+        (1/4 per side) and the full frame, each timed directly as the viewport renders them
+        (a :class:`~blendlib.core.bandprocs.BandRenderer` with its helper process started), the
+        full frame also by ``render_scene`` in this process alone; the time from a change to the
         first frame (extraction + reduced frame); :func:`render_view` end to end; and the same
         through a :class:`ViewportScheduler` (extraction on this thread, frames on its worker
         thread: from the start of the extraction to each frame's ``on_ready``). A change is a
@@ -532,6 +534,7 @@ class ProjectWorker:
         import numpy as np
 
         from blendlib.blender import viewport as vp
+        from blendlib.core.bandprocs import BandRenderer
         from blendlib.core.pipeline import render_scene
 
         scene = self.scene
@@ -560,6 +563,8 @@ class ProjectWorker:
                 ready.notify_all()
 
         sched = vp.ViewportScheduler(on_ready=on_ready)
+        bands = BandRenderer()
+        bands.wait_ready()
         runs: dict[str, list[float]] = {k: [] for k in VIEWPORT_TIMES}
         try:
             for i in range(repeats):
@@ -568,12 +573,15 @@ class ProjectWorker:
                     template = vp.extract_template(scene, depsgraph)
                 draw = dataclasses.replace(template, camera=camera)
                 with Timer() as tr:
-                    render_scene(dataclasses.replace(template, camera=reduced))
+                    bands(dataclasses.replace(template, camera=reduced))
                 with Timer() as tf:
+                    bands(draw)
+                with Timer() as t1:
                     render_scene(draw)
                 runs["extract_s"].append(te.wall)
                 runs["reduced_s"].append(tr.wall)
                 runs["full_s"].append(tf.wall)
+                runs["full_one_process_s"].append(t1.wall)
                 runs["first_frame_s"].append(te.wall + tr.wall)
                 change()
                 with Timer() as tv:
@@ -590,10 +598,12 @@ class ProjectWorker:
                 runs["scheduler_full_s"].append(stamps[-1] - t0)
         finally:
             sched.close()
+            bands.close()
             if target is not None and nudges[0] % 2:
                 target.location.x -= 1e-4  # leave the scene as it was
         out = {k: median(v) for k, v in runs.items()}
-        out.update(size=[width, height], reduced_size=[reduced.width, reduced.height], runs=repeats)
+        out.update(size=[width, height], reduced_size=[reduced.width, reduced.height], runs=repeats,
+                   split_frames=bands.split_frames, helper_failure=bands.failure)
         return {"viewport": out}
 
     def profile(self, top: int) -> dict:
@@ -930,7 +940,7 @@ def format_table(results: list[dict], markdown: bool = False, columns=COLUMNS, r
 
 EXPLAIN_COLUMNS = ("scene", "size", "draws", "fragments", "plain s", "draw list", "pixel", "capture",
                    "step (to<-from)", "analyze", "plain MB", "capture MB", "analyze MB")
-VIEWPORT_COLUMNS = ("scene", "size", "extract ms", "reduced ms", "full ms", "change->first ms",
+VIEWPORT_COLUMNS = ("scene", "size", "extract ms", "reduced ms", "full ms", "full 1 proc. ms", "change->first ms",
                     "render_view ms", "sched. first ms", "sched. full ms")
 
 
@@ -959,7 +969,7 @@ def viewport_rows(results: list[dict]) -> list[list[str]]:
         if not v:
             continue
         rows.append([res["case"]["id"], f"{v['size'][0]}x{v['size'][1]}"]
-                    + [f"{v[k] * 1000:.1f}" for k in VIEWPORT_TIMES])
+                    + [f"{v[k] * 1000:.1f}" if k in v else "-" for k in VIEWPORT_TIMES])
     return rows
 
 

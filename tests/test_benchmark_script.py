@@ -91,9 +91,10 @@ def test_quick_run_prints_the_table(tmp_path):
     assert {i for i, r in by_id.items() if "viewport" in r} == {"S3:alpha_blend"}
     v = by_id["S3:alpha_blend"]["viewport"]
     assert v["size"] == [320, 180] and v["reduced_size"] == [80, 45] and v["runs"] == 5
-    for key in ("extract_s", "reduced_s", "full_s", "first_frame_s", "render_view_s", "scheduler_first_s",
-                "scheduler_full_s"):
+    for key in ("extract_s", "reduced_s", "full_s", "full_one_process_s", "first_frame_s", "render_view_s",
+                "scheduler_first_s", "scheduler_full_s"):
         assert 0 < v[key] < 60, key
+    assert v["helper_failure"] is None  # the band helper started (quick frames are too small to split)
     assert v["scheduler_full_s"] >= v["scheduler_first_s"]
     assert {t[0] for t in data["targets"]} >= {"5 (round 1)", "14 (round 2)", "11", "12", "13"}
 
@@ -217,7 +218,8 @@ def test_from_json_prints_and_writes_a_saved_run_without_running_it(tmp_path, ca
                    drawlist_ratio=1.05, pixel_ratio=1.0, capture_ratio=1.4, step_ratio=0.05, step_to=25, step_from=24,
                    analyze_ratio=2.5, plain_peak_mb=140.0, capture_peak_mb=560.0, analyze_peak_mb=1000.0,
                    snapshots=16, snapshot_mb=411.0)
-    viewport = dict(size=[960, 540], extract_s=0.004, reduced_s=0.015, full_s=0.050, first_frame_s=0.019,
+    viewport = dict(size=[960, 540], extract_s=0.004, reduced_s=0.015, full_s=0.050, full_one_process_s=0.081,
+                    first_frame_s=0.019,
                     render_view_s=0.055, scheduler_first_s=0.021, scheduler_full_s=0.072)
     res = {"case": case, "setup": {"project": {"triangles": 100, "covered_px": 2_000_000, "first_s": 2.5}},
            "median": {"project": {"extract_s": 0.01, "render_s": 2.0, "total_s": 2.01, "peak_mb": 140.0,
@@ -238,6 +240,6 @@ def test_from_json_prints_and_writes_a_saved_run_without_running_it(tmp_path, ca
     assert text.startswith(f"# Benchmark\n\n{bench.RESULTS_START}\nCommand: `python -m scripts.benchmark --scenes S2`")
     assert ("| S2 | 1920x1080 | 50 | 51.84M | 2.00 | 1.1x | 1.0x | 1.4x | 0.050x (25<-24) | 2.5x | 140 | 560 | 1000 |"
             in text)
-    assert "| S2 | 960x540 | 4.0 | 15.0 | 50.0 | 19.0 | 55.0 | 21.0 | 72.0 |" in text
+    assert "| S2 | 960x540 | 4.0 | 15.0 | 50.0 | 81.0 | 19.0 | 55.0 | 21.0 | 72.0 |" in text
     assert "| 11 | S2 capture at 1920x1080 peak memory under 2 GB | 560 MB (16 snapshots, 411 MB) | yes |" in text
     assert "Load average (1, 5, 15 min) at the start 5.9, 4.7, 4.7, at the end 4.0, 4.5, 4.7 on 2 CPUs" in text

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from ..core import pipeline
+from ..core import bandprocs, pipeline
 from ..core.pipeline import Frame, RenderCancelled
 from ..core.scene import Camera, DrawScene, SceneError, affine_inverse
 
@@ -210,14 +210,18 @@ class ViewportScheduler:
     so it stops between chunks) and queues the new scene. Each finished frame becomes
     :meth:`latest` and ``on_ready()`` is called (from the worker thread; the add-on tags a
     redraw). ``render`` is :func:`blendlib.core.pipeline.render_scene` or a stand-in with its
-    signature. ``error`` holds the last render's one-line error, cleared by the next success.
+    signature; by default a :class:`~blendlib.core.bandprocs.BandRenderer` of the scheduler's own
+    (large frames drawn in two bands by this process and a helper process, ended by :meth:`close`;
+    the helper starts with the first large frame, which renders here meanwhile). ``error``
+    holds the last render's one-line error, cleared by the next success.
     """
 
     def __init__(self, on_ready: Callable[[], None] = lambda: None,
-                 render: Callable[..., Frame] = pipeline.render_scene,
+                 render: Callable[..., Frame] | None = None,
                  factor: int = REDUCED_FACTOR, min_pixels: int = REDUCED_MIN_PIXELS):
         self._on_ready = on_ready
-        self._render = render
+        self.bands = bandprocs.BandRenderer(start=False) if render is None else None
+        self._render = self.bands if render is None else render
         self._factor = factor
         self._min_pixels = min_pixels
         self._cond = threading.Condition()
@@ -267,6 +271,8 @@ class ViewportScheduler:
             thread = self._thread
         if thread is not None and thread is not threading.current_thread():
             thread.join(timeout)
+        if self.bands is not None:
+            self.bands.close()
 
     # -- worker thread -------------------------------------------------------------------------
     def _stages(self, camera: Camera) -> list[tuple[Camera, bool]]:

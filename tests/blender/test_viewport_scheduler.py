@@ -189,3 +189,26 @@ def test_camera_frame_rect():
     shifted = np.eye(4)
     shifted[0, 3] = 0.5  # NDC x + 0.5: a quarter of the region to the right
     assert viewport.camera_frame_rect(corners, shifted, 200, 100) == (100, 25, 100, 50)
+
+
+def test_the_scheduler_splits_large_frames_in_two_processes_and_ends_its_helper():
+    """By default the scheduler renders through a BandRenderer of its own (blendlib.core.bandprocs):
+    a large frame comes out split and equal to render_scene; close() ends the helper."""
+    done = threading.Event()
+    sched = ViewportScheduler(on_ready=done.set, min_pixels=1 << 30)  # full frames only
+    assert sched.bands is not None
+    draw = scene_at(72, 48, seed=9)
+    try:
+        sched.bands.min_pixels = 0
+        assert sched.bands.wait_ready(WAIT)
+        sched.submit(draw, key=1)
+        assert sched.wait_idle(WAIT) and done.is_set()
+        assert sched.bands.split_frames == 1
+        frame, expected = sched.latest().frame, render_scene(draw)
+        np.testing.assert_array_equal(frame.color, expected.color)
+        np.testing.assert_array_equal(frame.depth, expected.depth)
+        np.testing.assert_array_equal(frame.stencil, expected.stencil)
+        proc = sched.bands._helper.proc
+    finally:
+        sched.close()
+    assert proc.wait(timeout=WAIT) == 0

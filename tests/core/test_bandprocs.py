@@ -1,0 +1,174 @@
+"""Frames split across processes (blendlib.core.bandprocs) and render_scene's ``band``.
+
+The split frame must equal one render_scene bit for bit, whatever the cut; the helper process
+must stop on cancel, survive errors and, when it dies, leave frames to this process.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from blendlib import render_scene
+from blendlib.core import raster
+from blendlib.core.bandprocs import BandRenderer
+from blendlib.core.pipeline import RenderCancelled
+from blendlib.core.scene import SceneError
+from tests.reference.random_scenes import seeded_scene
+
+WAIT = 30.0
+
+
+def scene_at(seed: int, width: int = 72, height: int = 48):
+    draw = seeded_scene(seed)
+    return dataclasses.replace(draw, camera=dataclasses.replace(draw.camera, width=width, height=height))
+
+
+def assert_same_frame(a, b) -> None:
+    np.testing.assert_array_equal(a.color, b.color)
+    np.testing.assert_array_equal(a.depth, b.depth)
+    np.testing.assert_array_equal(a.stencil, b.stencil)
+    assert a.warnings == b.warnings
+    assert a.encoded == b.encoded
+
+
+@pytest.fixture(scope="module")
+def bands():
+    renderer = BandRenderer(min_pixels=0)
+    assert renderer.wait_ready(WAIT), renderer.failure
+    yield renderer
+    renderer.close()
+
+
+@pytest.mark.parametrize("seed", [1, 4, 7, 12])
+def test_band_renders_are_the_rows_of_the_full_frame(seed):
+    """render_scene(band=...) draws exactly the full frame's rows, for cuts at the edges too
+    (stencil, blending and depth writes of random scenes)."""
+    draw = scene_at(seed)
+    full = render_scene(draw, workers=1)
+    height = draw.camera.height
+    for cut in (1, 17, height // 2, height - 1):
+        low = render_scene(draw, workers=1, band=(0, cut))
+        high = render_scene(draw, workers=2, band=(cut, height))
+        assert low.color.shape == (cut, draw.camera.width, 4)
+        np.testing.assert_array_equal(np.concatenate([high.color, low.color]), full.color)
+        np.testing.assert_array_equal(np.concatenate([high.depth, low.depth]), full.depth)
+        np.testing.assert_array_equal(np.concatenate([high.stencil, low.stencil]), full.stencil)
+        assert low.warnings == full.warnings == high.warnings
+
+
+def test_coverage_rows_in_a_band_are_the_full_rows_there():
+    draw = scene_at(5, 64, 40)
+    from blendlib.core import vertex
+    from blendlib.core.pipeline import _setup_input
+
+    renderer = next(r for r in draw.renderers if r.mesh.triangle_count)
+    setup = vertex.setup_renderers([_setup_input(renderer)], draw.camera)[0]
+    selected = np.arange(setup.X.shape[0], dtype=np.int64)
+    full = raster.coverage_rows(setup, selected, 64, 40)
+    part = raster.coverage_rows(setup, selected, 64, 40, band=(9, 23))
+    keep = (full.y >= 9) & (full.y < 23)
+    assert 0 < part.count < full.count
+    for name in raster.Rows.__dataclass_fields__:
+        np.testing.assert_array_equal(getattr(part, name), getattr(full, name)[keep])
+
+
+def test_bad_bands_are_one_line_errors():
+    draw = scene_at(2)
+    for band in ((0, 0), (-1, 4), (10, 49), (30, 20)):
+        with pytest.raises(SceneError, match="band"):
+            render_scene(draw, band=band)
+
+
+@pytest.mark.parametrize("seed", [1, 3, 4, 7, 9, 12])
+def test_split_frames_equal_render_scene(bands, seed):
+    draw = scene_at(seed)
+    before = bands.split_frames
+    assert_same_frame(bands(draw), render_scene(draw))
+    assert bands.split_frames == before + 1
+
+
+def test_cut_follows_the_measured_times(bands):
+    """Whatever the cut, the frame is the same; the cut moves towards the slower band's side."""
+    draw = scene_at(9)
+    expected = render_scene(draw)
+    for fraction in (0.02, 0.3, 0.97):
+        bands.fraction = fraction
+        assert_same_frame(bands(draw), expected)
+    bands.fraction = 0.5
+    bands._balance(24, 48, own_s=0.030, helper_s=0.010)  # this process slower: draw fewer rows here
+    assert bands.fraction == pytest.approx(0.5 * 0.5 + 0.5 * (24 * 0.020 / 0.030) / 48)
+    bands.fraction = 0.5
+    bands._balance(24, 48, own_s=0.010, helper_s=0.030)  # the helper slower: draw more rows here
+    assert bands.fraction == pytest.approx(0.5 * 0.5 + 0.5 * (24 + 24 * 0.010 / 0.030) / 48)
+    bands.fraction = 0.5
+
+
+def test_small_frames_and_other_options_stay_in_this_process():
+    renderer = BandRenderer(min_pixels=10_000, start=False)
+    try:
+        draw = scene_at(3)  # 72x48 < 10000 pixels
+        assert_same_frame(renderer(draw), render_scene(draw))
+        assert renderer._helper is None and renderer.split_frames == 0
+        renderer.min_pixels = 0
+        assert_same_frame(renderer(draw, until_draw=1), render_scene(draw, until_draw=1))
+        assert renderer.split_frames == 0
+    finally:
+        renderer.close()
+
+
+def test_scene_errors_come_back_as_scene_errors(bands):
+    draw = scene_at(4)
+    broken = dataclasses.replace(draw.renderers[0], matrix_world=np.full((4, 4), np.nan))
+    bad = dataclasses.replace(draw, renderers=(broken, *draw.renderers[1:]))
+    with pytest.raises(SceneError) as direct:
+        render_scene(bad)
+    with pytest.raises(SceneError) as split:
+        bands(bad)
+    assert str(split.value) == str(direct.value)
+    assert_same_frame(bands(draw), render_scene(draw))  # the helper serves on
+
+
+def test_cancel_stops_both_bands_and_the_helper_serves_on(bands):
+    draw = scene_at(7, 160, 120)
+    calls = []
+
+    def should_cancel() -> bool:
+        calls.append(1)
+        return len(calls) > 2
+
+    with pytest.raises(RenderCancelled):
+        bands(draw, should_cancel=should_cancel)
+    before = bands.split_frames
+    assert_same_frame(bands(draw), render_scene(draw))
+    assert bands.split_frames == before + 1
+
+
+def test_a_dead_helper_leaves_frames_to_this_process():
+    renderer = BandRenderer(min_pixels=0)
+    try:
+        assert renderer.wait_ready(WAIT)
+        draw = scene_at(12)
+        renderer._helper.proc.kill()
+        renderer._helper.proc.wait()
+        assert_same_frame(renderer(draw), render_scene(draw))
+        assert renderer.failure is not None and "exited" in renderer.failure
+        assert renderer._helper is None
+        assert_same_frame(renderer(draw), render_scene(draw))
+        assert renderer.split_frames == 0
+    finally:
+        renderer.close()
+
+
+def test_close_ends_the_helper_and_frames_go_on_here():
+    renderer = BandRenderer(min_pixels=0)
+    assert renderer.wait_ready(WAIT)
+    proc = renderer._helper.proc
+    renderer.close()
+    renderer.close()  # idempotent
+    assert proc.wait(timeout=WAIT) == 0
+    draw = scene_at(1)
+    assert_same_frame(renderer(draw), render_scene(draw))
+    assert renderer.split_frames == 0
