@@ -86,20 +86,26 @@ class FrameBuffers:
     ``depth``: (H*W,) int64 in 0..2**24-1. ``stencil``: (H*W,) uint8.
     """
 
-    def __init__(self, width: int, height: int, hdr: bool, color_space: ColorSpace, clear_rgba) -> None:
+    def __init__(self, width: int, height: int, hdr: bool, color_space: ColorSpace, clear_rgba,
+                 band: tuple[int, int] | None = None) -> None:
+        """Buffers cleared to ``clear_rgba``, depth 1.0 and stencil 0; with ``band`` (y0, y1)
+        only those rows are cleared (a band render never reads the others)."""
         self.width, self.height = int(width), int(height)
         self.hdr = bool(hdr)
         self.linear = color_space is ColorSpace.Linear
         n = self.width * self.height
+        lo, hi = (0, n) if band is None else (band[0] * self.width, band[1] * self.width)
         clear = np.array([float(c) for c in clear_rgba], dtype=np.float64)[None, :]
         if self.hdr:
             self.color = np.empty((n, 4), dtype=np.float32)
         else:
             self.color = np.empty((n, 4), dtype=np.uint8)
         # One fill of whole packed pixels (a (1, 4) broadcast copies byte by byte, 50x slower).
-        self.packed().fill(np.ascontiguousarray(self.encode(clear)).view(self.packed().dtype)[0, 0])
-        self.depth = np.full(n, DEPTH_MAX, dtype=np.int64)
-        self.stencil = np.zeros(n, dtype=np.uint8)
+        self.packed()[lo:hi].fill(np.ascontiguousarray(self.encode(clear)).view(self.packed().dtype)[0, 0])
+        self.depth = np.empty(n, dtype=np.int64)
+        self.depth[lo:hi] = DEPTH_MAX
+        self.stencil = np.empty(n, dtype=np.uint8)
+        self.stencil[lo:hi] = 0
 
     def packed(self) -> np.ndarray:
         """The colour buffer with one element per pixel, for gathers and scatters of whole pixels:

@@ -984,7 +984,7 @@ def render_scene(
         buf, first = resume[0].copy(), int(resume[1])
     else:
         clear = shade.gamma_color_to_shading(scene.clear_color[:3], cs) + (float(scene.clear_color[3]),)
-        buf, first = FrameBuffers(width, height, scene.hdr, cs, clear), 0
+        buf, first = FrameBuffers(width, height, scene.hdr, cs, clear, band), 0
     lights = shade.frame_lights(scene)
     try:
         calls = draw_calls(scene)
