@@ -113,6 +113,7 @@ class _Helper:
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, pass_fds=(self.fd,), env=env,
         )
         self.ready = False
+        self.closed = False
 
     def poll_ready(self, timeout: float = 0.0) -> bool:
         """Whether the helper has started (read its hello if it has arrived)."""
@@ -134,6 +135,10 @@ class _Helper:
         return self.buffer
 
     def close(self) -> None:
+        """End the process and release the file, once (the descriptor's number may be reused after)."""
+        if self.closed:
+            return
+        self.closed = True
         _shutdown(self.proc, self.fd)
         if self.buffer is not None:
             try:

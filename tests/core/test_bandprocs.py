@@ -7,6 +7,7 @@ must stop on cancel, survive errors and, when it dies, leave frames to this proc
 from __future__ import annotations
 
 import dataclasses
+import os
 
 import numpy as np
 import pytest
@@ -166,9 +167,16 @@ def test_close_ends_the_helper_and_frames_go_on_here():
     renderer = BandRenderer(min_pixels=0)
     assert renderer.wait_ready(WAIT)
     proc = renderer._helper.proc
+    helper = renderer._helper
     renderer.close()
     renderer.close()  # idempotent
     assert proc.wait(timeout=WAIT) == 0
+    spare = os.open(os.devnull, os.O_RDONLY)  # may take the shared file's old descriptor number
+    try:
+        helper.close()  # what the finalizer does at exit: must not close a reused descriptor
+        os.fstat(spare)
+    finally:
+        os.close(spare)
     draw = scene_at(1)
     assert_same_frame(renderer(draw), render_scene(draw))
     assert renderer.split_frames == 0
