@@ -871,12 +871,12 @@ def _render_batched(frame: _FrameContext, todo, cancelled, should_cancel, progre
         cuts = None
         if frame.pool is not None and _bands_pay(frame, prepared):
             cuts = raster.band_cuts([pr.rows for pr in prepared], frame.workers, frame.height)
+        lo, hi = frame.band or (0, frame.height)  # the rows drawn (a band render's own)
         if cuts is None:
-            lo, hi = frame.band or (0, frame.height)
             _draw_batch_band(frame, [(pr, pr.rows) for pr in prepared], lo, hi, cancelled, observer)
         else:
             splits = [pr.rows.split_at(cuts) for pr in prepared]
-            edges = [0, *(int(c) for c in cuts), frame.height]
+            edges = [lo, *(int(c) for c in cuts), hi]
             futures = [frame.pool.submit(_draw_batch_band, frame, [(pr, split[k]) for pr, split in
                                                                    zip(prepared, splits, strict=True)],
                                          edges[k], min(max(edges[k + 1], edges[k]), frame.height), _no_check,
