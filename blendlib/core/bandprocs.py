@@ -248,14 +248,17 @@ class BandRenderer:
             return pipeline.render_scene(scene, should_cancel=should_cancel, progress=progress, **options)
         try:
             helper = self._usable(width * height, 0.0)
-            if helper is None:
-                return pipeline.render_scene(scene, should_cancel=should_cancel, progress=progress)
-            return self._split(helper, scene, width, height, should_cancel, progress)
+            frame = None if helper is None else self._split(helper, scene, width, height, should_cancel, progress)
         finally:
             self._lock.release()
+        if frame is None:  # no helper, or it stopped during this frame: the frame in this process
+            frame = pipeline.render_scene(scene, should_cancel=should_cancel, progress=progress)
+        return frame
 
     def _split(self, helper: _Helper, scene: DrawScene, width: int, height: int,
-               should_cancel: Callable[[], bool] | None, progress: Callable[[float], None] | None) -> Frame:
+               should_cancel: Callable[[], bool] | None,
+               progress: Callable[[float], None] | None) -> Frame | None:
+        """The frame drawn in two bands, or None when the helper stopped (it is not used again)."""
         cut = min(max(int(round(self.fraction * height)), 1), height - 1)
         top = height - cut
         buffer = helper.reserve(_band_bytes(top, width))
@@ -265,7 +268,7 @@ class BandRenderer:
             _send(helper.proc.stdin, (scene, cut, height, BAND_CHUNK_CANDIDATES))
         except (OSError, ValueError) as exc:
             self._fail(f"helper process stopped: {exc}")
-            return pipeline.render_scene(scene, should_cancel=should_cancel, progress=progress)
+            return None
         try:
             own = pipeline.render_scene(scene, band=(0, cut), workers=1, chunk_candidates=BAND_CHUNK_CANDIDATES,
                                         should_cancel=should_cancel,
@@ -276,15 +279,15 @@ class BandRenderer:
             raise
         own_s = time.perf_counter() - started
         reply = self._reply(helper, should_cancel, buffer)
-        if reply is None:  # the helper died: this frame in one process, later ones too
-            return pipeline.render_scene(scene, should_cancel=should_cancel, progress=progress)
+        if reply is None:  # the helper died
+            return None
         if reply[0] == "cancelled":
             raise RenderCancelled("render cancelled")
         if reply[0] == "error":
             raise SceneError(reply[1])
         if reply[0] != "ok":
             self._fail(f"helper process failed: {reply[1]}")
-            return pipeline.render_scene(scene, should_cancel=should_cancel, progress=progress)
+            return None
         color = np.empty((height, width, 4), dtype=np.float32)
         depth = np.empty((height, width), dtype=np.float32)
         stencil = np.empty((height, width), dtype=np.uint8)
