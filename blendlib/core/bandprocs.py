@@ -18,6 +18,7 @@ cannot run (one core, Windows, a helper that failed) go to ``render_scene`` unch
 
 from __future__ import annotations
 
+import dataclasses
 import mmap
 import os
 import pickle
@@ -75,16 +76,26 @@ def _send(stream, message) -> None:
     stream.flush()
 
 
-def _receive(stream):
-    """The next message, or None at the end of the stream."""
+def _receive(stream, arrived: list[float] | None = None):
+    """The next message, or None at the end of the stream; appends to ``arrived`` the
+    ``perf_counter`` time its first bytes came (the wait for them excluded)."""
     head = stream.read(_LENGTH.size)
     if len(head) < _LENGTH.size:
         return None
+    if arrived is not None:
+        arrived.append(time.perf_counter())
     (n,) = _LENGTH.unpack(head)
     data = stream.read(n)
     if len(data) < n:
         return None
     return pickle.loads(data)
+
+
+def _same_but_camera(scene: DrawScene, other: DrawScene | None) -> bool:
+    """Whether ``scene`` differs from ``other`` at most in its camera, every other field being
+    the very same object (the viewport's frames are ``dataclasses.replace(template, camera=…)``)."""
+    return other is not None and all(getattr(scene, f.name) is getattr(other, f.name)
+                                     for f in dataclasses.fields(DrawScene) if f.name != "camera")
 
 
 def _anonymous_file() -> int:
@@ -108,12 +119,20 @@ class _Helper:
         # The helper imports blendlib and numpy from wherever this process found them (a venv,
         # Blender's bundled Python plus the extension's wheels).
         env["PYTHONPATH"] = os.pathsep.join(p for p in sys.path if p and os.path.isdir(p))
+        # glibc's allocator: keep freed memory mapped. Each frame allocates the same large
+        # arrays again, and memory given back to the system comes back as fresh pages the
+        # kernel zeroes (up to 6 % of a 960x540 band). The helper's peak is a band's arrays.
+        env.setdefault("MALLOC_MMAP_THRESHOLD_", str(32 << 20))
+        env.setdefault("MALLOC_TRIM_THRESHOLD_", str(1 << 30))
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "blendlib.core.bandprocs", str(self.fd)],
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, pass_fds=(self.fd,), env=env,
         )
         self.ready = False
         self.closed = False
+        #: The last scene sent: the helper keeps it, so a frame that differs only in its camera
+        #: sends just the camera (pickling a scene takes 1-2 ms of a 60 ms frame).
+        self.scene: DrawScene | None = None
 
     def poll_ready(self, timeout: float = 0.0) -> bool:
         """Whether the helper has started (read its hello if it has arrived)."""
@@ -173,6 +192,10 @@ class BandRenderer:
     option renders in this process). ``start=False`` defers starting the helper to the first
     large frame. While the helper is starting, or after it failed (:attr:`failure` says why),
     frames render in this process. One frame at a time; :meth:`close` ends the helper.
+
+    A frame whose scene differs from the previous one only in its camera (every other field the
+    very same object, as in the viewport's frames of one template) sends the helper just the
+    camera: change a scene by building a new one, never by writing into its arrays.
     """
 
     def __init__(self, min_pixels: int = MIN_PIXELS, start: bool = True):
@@ -264,18 +287,29 @@ class BandRenderer:
         buffer = helper.reserve(_band_bytes(top, width))
         buffer[0] = 0  # the stop flag
         started = time.perf_counter()
+        if _same_but_camera(scene, helper.scene):
+            request = ("view", scene.camera, cut, height, BAND_CHUNK_CANDIDATES)
+        else:
+            request = ("scene", scene, cut, height, BAND_CHUNK_CANDIDATES)
         try:
-            _send(helper.proc.stdin, (scene, cut, height, BAND_CHUNK_CANDIDATES))
+            _send(helper.proc.stdin, request)
         except (OSError, ValueError) as exc:
             self._fail(f"helper process stopped: {exc}")
             return None
+        helper.scene = scene
+        sent_s = time.perf_counter() - started
+        # This process's band goes straight into its rows of the frame (row 0 is the top of the image).
+        color = np.empty((height, width, 4), dtype=np.float32)
+        depth = np.empty((height, width), dtype=np.float32)
+        stencil = np.empty((height, width), dtype=np.uint8)
         try:
             own = pipeline.render_scene(scene, band=(0, cut), workers=1, chunk_candidates=BAND_CHUNK_CANDIDATES,
-                                        should_cancel=should_cancel,
+                                        should_cancel=should_cancel, out=(color[top:], depth[top:], stencil[top:]),
                                         progress=None if progress is None else lambda f: progress(0.5 * f))
         except BaseException:
             buffer[0] = 1
             self._reply(helper, None)  # let the helper finish (it stops at its next check)
+            helper.scene = None  # it may have refused the scene too: send it whole next time
             raise
         own_s = time.perf_counter() - started
         reply = self._reply(helper, should_cancel, buffer)
@@ -284,21 +318,18 @@ class BandRenderer:
         if reply[0] == "cancelled":
             raise RenderCancelled("render cancelled")
         if reply[0] == "error":
+            helper.scene = None  # it holds no scene after an error
             raise SceneError(reply[1])
         if reply[0] != "ok":
             self._fail(f"helper process failed: {reply[1]}")
             return None
-        color = np.empty((height, width, 4), dtype=np.float32)
-        depth = np.empty((height, width), dtype=np.float32)
-        stencil = np.empty((height, width), dtype=np.uint8)
         views = _band_views(buffer, top, width)
-        for out, mine, theirs in zip((color, depth, stencil), (own.color, own.depth, own.stencil), views,
-                                     strict=True):
-            out[:top] = theirs  # row 0 is the top of the image: the helper's band
-            out[top:] = mine
+        for whole, theirs in zip((color, depth, stencil), views, strict=True):
+            whole[:top] = theirs
         del views
         self.split_frames += 1
-        self._balance(cut, height, own_s, float(reply[1]))
+        # The helper started on its band once the request had been written.
+        self._balance(cut, height, own_s, sent_s + float(reply[1]))
         if progress is not None:
             progress(1.0)
         return Frame(color=color, depth=depth, stencil=stencil, warnings=own.warnings, encoded=own.encoded)
@@ -335,38 +366,43 @@ class BandRenderer:
 
 
 def serve(fd: int) -> int:
-    """The helper's loop: read (scene, y0, y1, chunk) requests, draw band [y0, y1) into the shared
-    file ``fd``, answer ("ok", seconds), ("cancelled",), ("error", line) or ("failed", line)."""
+    """The helper's loop: read ("scene", scene, y0, y1, chunk) or ("view", camera, y0, y1, chunk)
+    requests (the latter: the last scene seen through ``camera``), draw band [y0, y1) into the
+    shared file ``fd``, answer ("ok", seconds since the request arrived), ("cancelled",),
+    ("error", line) or ("failed", line)."""
     replies = os.fdopen(os.dup(1), "wb")
     os.dup2(2, 1)  # anything printed goes to stderr, never into the replies
     requests = sys.stdin.buffer
     _send(replies, ("ready",))
     buffer: mmap.mmap | None = None
+    scene: DrawScene | None = None
     while True:
-        request = _receive(requests)
+        arrived: list[float] = []
+        request = _receive(requests, arrived)
         if request is None:
             return 0
-        scene, y0, y1, chunk = request
-        started = time.perf_counter()
-        width = int(scene.camera.width)
-        size = _band_bytes(y1 - y0, width)
-        if buffer is None or len(buffer) < size:
-            if buffer is not None:
-                buffer.close()
-            buffer = mmap.mmap(fd, os.fstat(fd).st_size)
-
+        kind, content, y0, y1, chunk = request
         try:
-            frame = pipeline.render_scene(scene, band=(y0, y1), workers=1, chunk_candidates=chunk,
-                                          should_cancel=lambda stop=buffer: stop[0] != 0)
-            color, depth, stencil = _band_views(buffer, y1 - y0, width)
-            color[...] = frame.color
-            depth[...] = frame.depth
-            stencil[...] = frame.stencil
-            del color, depth, stencil
-            reply = ("ok", time.perf_counter() - started)
+            if kind == "scene":
+                scene = content
+            elif scene is None:
+                raise RuntimeError("a view request before any scene")
+            else:
+                scene = dataclasses.replace(scene, camera=content)
+            width = int(scene.camera.width)
+            size = _band_bytes(y1 - y0, width)
+            if buffer is None or len(buffer) < size:
+                if buffer is not None:
+                    buffer.close()
+                buffer = mmap.mmap(fd, os.fstat(fd).st_size)
+            pipeline.render_scene(scene, band=(y0, y1), workers=1, chunk_candidates=chunk,
+                                  should_cancel=lambda stop=buffer: stop[0] != 0,
+                                  out=_band_views(buffer, y1 - y0, width))
+            reply = ("ok", time.perf_counter() - arrived[0])
         except RenderCancelled:
             reply = ("cancelled",)
         except SceneError as exc:
+            scene = None
             reply = ("error", str(exc))
         except Exception as exc:  # noqa: BLE001 - reported to the parent, which renders alone from then on
             reply = ("failed", f"{type(exc).__name__}: {exc}")

@@ -144,18 +144,28 @@ class FrameBuffers:
             return out
         return stored / 255.0
 
-    def output(self, pool=None, parts: int = 1,
-               band: tuple[int, int] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def output(self, pool=None, parts: int = 1, band: tuple[int, int] | None = None,
+               out: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(color (H, W, 4) float32, depth (H, W) float32, stencil (H, W) uint8), row 0 = top.
 
         ``pool`` / ``parts``: a thread pool to convert row ranges on (numpy's divisions
         release the GIL); the result does not depend on the split. ``band`` (y0, y1): only
-        buffer rows ``[y0, y1)`` (from the bottom), so H = y1 - y0.
+        buffer rows ``[y0, y1)`` (from the bottom), so H = y1 - y0. ``out``: three arrays of
+        those shapes and dtypes to write into (and return) instead of new ones.
         """
         y0, y1 = (0, self.height) if band is None else band
         h, w = y1 - y0, self.width
-        color = np.empty((h, w, 4), dtype=np.float32)
-        depth = np.empty((h, w), dtype=np.float32)
+        if out is None:
+            color = np.empty((h, w, 4), dtype=np.float32)
+            depth = np.empty((h, w), dtype=np.float32)
+            stencil = np.empty((h, w), dtype=np.uint8)
+        else:
+            color, depth, stencil = out
+            for array, shape, dtype in zip(out, ((h, w, 4), (h, w), (h, w)), (np.float32, np.float32, np.uint8),
+                                           strict=True):
+                if array.shape != shape or array.dtype != dtype:
+                    raise ValueError(f"out array {array.dtype} {array.shape} is not {np.dtype(dtype)} {shape}")
         src_color = self.color.reshape(self.height, w, 4)[y0:y1][::-1]
         src_depth = self.depth.reshape(self.height, w)[y0:y1][::-1]
 
@@ -170,7 +180,7 @@ class FrameBuffers:
             np.divide(src_depth[lo:hi], _FLOAT32_DEPTH_MAX, out=depth[lo:hi], dtype=np.float32)
 
         run_parts(pool, parts, h, rows, min_part=64)
-        stencil = self.stencil.reshape(self.height, w)[y0:y1][::-1].copy()
+        stencil[...] = self.stencil.reshape(self.height, w)[y0:y1][::-1]
         return color, depth, stencil
 
 

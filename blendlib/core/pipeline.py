@@ -951,6 +951,7 @@ def render_scene(
     resume: tuple[FrameBuffers, int] | None = None,
     observer: FrameObserver | None = None,
     band: tuple[int, int] | None = None,
+    out: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
 ) -> Frame:
     """Render a draw scene exactly as Unity's built-in pipeline would (docs/pipeline.md).
 
@@ -966,6 +967,8 @@ def render_scene(
     return just those rows (the Frame's arrays are ``y1 - y0`` rows high, top row first): every
     pixel there equals the full render's, since pixels never depend on one another (one
     process's share of a frame split across processes, :mod:`blendlib.core.bandprocs`).
+    ``out``: (color, depth, stencil) arrays of the Frame's shapes and dtypes to write the
+    result into (a band straight into its rows of a whole frame, or into shared memory).
     Raises :class:`blendlib.core.scene.SceneError` (one line) for input that cannot render.
     """
     warnings = list(scene.warnings) + validate_scene(scene)
@@ -1008,7 +1011,7 @@ def render_scene(
             _render_batched(frame, todo, cancelled, should_cancel, progress, observer)
         else:
             _render_observed(frame, todo, cancelled, should_cancel, progress, observer)
-        color, depth, stencil = buf.output(pool, workers, band)
+        color, depth, stencil = buf.output(pool, workers, band, out)
     finally:
         if pool is not None:
             pool.shutdown(wait=True, cancel_futures=True)

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from blendlib import render_scene
-from blendlib.core import raster
+from blendlib.core import bandprocs, raster
 from blendlib.core.bandprocs import BandRenderer
 from blendlib.core.pipeline import RenderCancelled
 from blendlib.core.scene import SceneError
@@ -89,6 +89,66 @@ def test_split_frames_equal_render_scene(bands, seed):
     before = bands.split_frames
     assert_same_frame(bands(draw), render_scene(draw))
     assert bands.split_frames == before + 1
+
+
+def test_band_renders_write_into_given_arrays():
+    """``out``: a band goes straight into its rows of a whole frame's arrays."""
+    draw = scene_at(7)
+    full = render_scene(draw, workers=1)
+    height, width = draw.camera.height, draw.camera.width
+    color = np.full((height, width, 4), -1.0, dtype=np.float32)
+    depth = np.full((height, width), -1.0, dtype=np.float32)
+    stencil = np.full((height, width), 7, dtype=np.uint8)
+    cut = 20  # buffer rows [0, 20) are the bottom 20 rows of the image
+    frame = render_scene(draw, band=(0, cut), out=(color[height - cut:], depth[height - cut:], stencil[height - cut:]))
+    assert np.shares_memory(frame.color, color) and np.shares_memory(frame.stencil, stencil)
+    np.testing.assert_array_equal(color[height - cut:], full.color[height - cut:])
+    np.testing.assert_array_equal(depth[height - cut:], full.depth[height - cut:])
+    np.testing.assert_array_equal(stencil[height - cut:], full.stencil[height - cut:])
+    assert np.all(color[:height - cut] == -1.0) and np.all(stencil[:height - cut] == 7)  # other rows untouched
+    with pytest.raises(ValueError, match="out array"):
+        render_scene(draw, band=(0, cut), out=(color, depth[height - cut:], stencil[height - cut:]))
+
+
+def moved(camera, dx: float):
+    """The camera moved sideways by ``dx`` (a new view matrix, same projection)."""
+    view = np.array(camera.view_matrix, dtype=np.float64)
+    view[0, 3] += dx
+    return dataclasses.replace(camera, view_matrix=view)
+
+
+def test_view_changes_send_only_the_camera(bands, monkeypatch):
+    """A frame that differs from the last only in its camera sends the camera alone, and its
+    pixels are those of the new view; any other change sends the whole scene."""
+    sent = []
+    real_send = bandprocs._send
+    monkeypatch.setattr(bandprocs, "_send", lambda stream, message: (sent.append(message[0]),
+                                                                     real_send(stream, message)))
+    template = scene_at(12)
+    views = [template, dataclasses.replace(template, camera=moved(template.camera, 0.3)),
+             dataclasses.replace(template, camera=moved(template.camera, -0.2))]
+    for view in views:
+        assert_same_frame(bands(view), render_scene(view))
+    assert sent == ["scene", "view", "view"]
+    assert not np.array_equal(render_scene(views[1]).color, render_scene(views[2]).color)
+    fewer = dataclasses.replace(views[2], renderers=views[2].renderers[1:])
+    assert_same_frame(bands(fewer), render_scene(fewer))
+    assert sent[-1] == "scene"
+
+
+def test_after_a_refused_scene_the_next_view_sends_the_scene_again(bands, monkeypatch):
+    sent = []
+    real_send = bandprocs._send
+    monkeypatch.setattr(bandprocs, "_send", lambda stream, message: (sent.append(message[0]),
+                                                                     real_send(stream, message)))
+    template = scene_at(3)
+    bad = dataclasses.replace(template, camera=dataclasses.replace(template.camera,
+                                                                   view_matrix=np.full((4, 4), np.nan)))
+    with pytest.raises(SceneError, match="view_matrix"):
+        bands(bad)
+    good = dataclasses.replace(bad, camera=template.camera)  # the same renderers, a good camera
+    assert_same_frame(bands(good), render_scene(good))
+    assert sent == ["scene", "scene"]
 
 
 def test_cut_follows_the_measured_times(bands):
