@@ -720,6 +720,11 @@ WORKERS = {"project": ProjectWorker, "opengl": OpenGLWorker, "eevee": EeveeWorke
 def worker_main(kind: str) -> int:
     """Serve JSON-line commands on stdin; answers go to the original stdout, everything else
     (Blender's own prints) to stderr."""
+    from blendlib.core.allocator import keep_freed_memory
+
+    # As the command line does (and as Blender's own jemalloc behaves): freed memory is kept
+    # for reuse, in every backend's worker alike (blendlib/core/allocator.py).
+    keep_freed_memory()
     proto = os.fdopen(os.dup(1), "w", buffering=1)
     os.dup2(2, 1)
     sys.stdout = sys.stderr

@@ -34,7 +34,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from blendlib.core import pipeline
+from blendlib.core import allocator, pipeline
 from blendlib.core.pipeline import Frame, RenderCancelled
 from blendlib.core.scene import DrawScene, SceneError
 
@@ -119,11 +119,6 @@ class _Helper:
         # The helper imports blendlib and numpy from wherever this process found them (a venv,
         # Blender's bundled Python plus the extension's wheels).
         env["PYTHONPATH"] = os.pathsep.join(p for p in sys.path if p and os.path.isdir(p))
-        # glibc's allocator: keep freed memory mapped. Each frame allocates the same large
-        # arrays again, and memory given back to the system comes back as fresh pages the
-        # kernel zeroes (up to 6 % of a 960x540 band). The helper's peak is a band's arrays.
-        env.setdefault("MALLOC_MMAP_THRESHOLD_", str(32 << 20))
-        env.setdefault("MALLOC_TRIM_THRESHOLD_", str(1 << 30))
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "blendlib.core.bandprocs", str(self.fd)],
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, pass_fds=(self.fd,), env=env,
@@ -370,6 +365,7 @@ def serve(fd: int) -> int:
     requests (the latter: the last scene seen through ``camera``), draw band [y0, y1) into the
     shared file ``fd``, answer ("ok", seconds since the request arrived), ("cancelled",),
     ("error", line) or ("failed", line)."""
+    allocator.keep_freed_memory()  # every frame allocates the same arrays again (allocator.py)
     replies = os.fdopen(os.dup(1), "wb")
     os.dup2(2, 1)  # anything printed goes to stderr, never into the replies
     requests = sys.stdin.buffer
