@@ -521,8 +521,10 @@ class ProjectWorker:
         """The viewport through the scene camera's view and projection matrices at
         ``width`` x ``height``: extraction of the viewport template, the reduced first frame
         (1/4 per side) and the full frame, each timed directly as the viewport renders them
-        (a :class:`~blendlib.core.bandprocs.BandRenderer` with its helper process started), the
-        full frame also by ``render_scene`` in this process alone; the time from a change to the
+        (a :class:`~blendlib.core.bandprocs.BandRenderer` with its helper process started; as in
+        the scheduler, the helper begins the full frame's band before the reduced frame renders,
+        and the reduced time includes that request), the full frame also by ``render_scene`` in
+        this process alone; the time from a change to the
         first frame (extraction + reduced frame); :func:`render_view` end to end; and the same
         through a :class:`ViewportScheduler` (extraction on this thread, frames on its worker
         thread: from the start of the extraction to each frame's ``on_ready``). A change is a
@@ -572,7 +574,9 @@ class ProjectWorker:
                 with Timer() as te:
                     template = vp.extract_template(scene, depsgraph)
                 draw = dataclasses.replace(template, camera=camera)
-                with Timer() as tr:
+                with Timer() as tr:  # as the scheduler does: the helper begins the full frame first
+                    if small:
+                        bands.begin(draw)
                     bands(dataclasses.replace(template, camera=reduced))
                 with Timer() as tf:
                     bands(draw)
@@ -603,7 +607,8 @@ class ProjectWorker:
                 target.location.x -= 1e-4  # leave the scene as it was
         out = {k: median(v) for k, v in runs.items()}
         out.update(size=[width, height], reduced_size=[reduced.width, reduced.height], runs=repeats,
-                   split_frames=bands.split_frames, helper_failure=bands.failure)
+                   split_frames=bands.split_frames, begun_frames=bands.begun_frames,
+                   helper_failure=bands.failure)
         return {"viewport": out}
 
     def profile(self, top: int) -> dict:

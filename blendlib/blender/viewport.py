@@ -212,7 +212,8 @@ class ViewportScheduler:
     redraw). ``render`` is :func:`blendlib.core.pipeline.render_scene` or a stand-in with its
     signature; by default a :class:`~blendlib.core.bandprocs.BandRenderer` of the scheduler's own
     (large frames drawn in two bands by this process and a helper process, ended by :meth:`close`;
-    the helper starts with the first large frame, which renders here meanwhile). ``error``
+    the helper starts with the first large frame, which renders here meanwhile; from then on it
+    begins each full frame's band while the reduced frame renders here). ``error``
     holds the last render's one-line error, cleared by the next success.
     """
 
@@ -295,11 +296,16 @@ class ViewportScheduler:
             def stale(generation=generation) -> bool:
                 return self._generation != generation
 
-            for camera, full in self._stages(draw.camera):
+            stages = [(dataclasses.replace(draw, camera=camera), full) for camera, full in self._stages(draw.camera)]
+            if self.bands is not None and len(stages) > 1 and not stale():
+                # The helper process starts on the full frame's top band while this thread
+                # renders the reduced frame (both cores busy from the start).
+                self.bands.begin(stages[-1][0])
+            for scene, full in stages:
                 if stale():
                     break
                 try:
-                    frame = self._render(dataclasses.replace(draw, camera=camera), should_cancel=stale)
+                    frame = self._render(scene, should_cancel=stale)
                 except RenderCancelled:
                     break
                 except (SceneError, MemoryError) as exc:

@@ -1,4 +1,4 @@
-"""Frames split across processes: two horizontal bands drawn at the same time (docs/pipeline.md §9).
+"""Frames split across processes: two horizontal bands drawn at the same time (docs/pipeline.md §8).
 
 Threads of one process share one interpreter lock, and on a 960x540 viewport frame numpy's array
 calls are short enough that two rendering threads spend much of their time waiting for it (py-spy:
@@ -10,7 +10,9 @@ frame the helper draws the top band and this process the bottom one, both throug
 :func:`~blendlib.core.pipeline.render_scene`'s ``band`` (each does the whole vertex setup and
 draws only its rows); the helper's rows come back through a shared memory file. Pixels never
 depend on one another, so the joined frame equals ``render_scene``'s bit for bit. The cut between
-the bands follows the measured times of the previous frame, so both halves take about as long.
+the bands follows the measured times of the previous frame, so both halves end together.
+:meth:`BandRenderer.begin` starts the helper's band of a frame early (during the viewport's
+reduced frame); the helper keeps the last scene, so a view change sends only the camera.
 
 Frames below :data:`MIN_PIXELS`, renders with other options, and machines where the helper
 cannot run (one core, Windows, a helper that failed) go to ``render_scene`` unchanged.
@@ -179,6 +181,17 @@ def _shutdown(proc: subprocess.Popen, fd: int) -> None:
             pass
 
 
+@dataclasses.dataclass(eq=False)
+class _HelperBand:
+    """The helper's band of a frame, requested and not yet collected."""
+
+    scene: DrawScene
+    cut: int  # rows [0, cut) are drawn here, [cut, height) by the helper
+    buffer: mmap.mmap
+    sent_at: float  # perf_counter when the request was written: the helper starts then
+    begun: bool  # requested by :meth:`BandRenderer.begin` (ahead of the call that collects it)
+
+
 class BandRenderer:
     """:func:`~blendlib.core.pipeline.render_scene` for viewport frames, large ones split in two
     bands drawn at once by this process and a helper process (see the module docstring).
@@ -188,6 +201,9 @@ class BandRenderer:
     large frame. While the helper is starting, or after it failed (:attr:`failure` says why),
     frames render in this process. One frame at a time; :meth:`close` ends the helper.
 
+    :meth:`begin` starts the helper on a frame's band ahead of the call for that frame, so it
+    works while this process does something else (the viewport's reduced frame).
+
     A frame whose scene differs from the previous one only in its camera (every other field the
     very same object, as in the viewport's frames of one template) sends the helper just the
     camera: change a scene by building a new one, never by writing into its arrays.
@@ -195,13 +211,17 @@ class BandRenderer:
 
     def __init__(self, min_pixels: int = MIN_PIXELS, start: bool = True):
         self.min_pixels = int(min_pixels)
-        #: Share of the rows drawn here (the bottom band), tuned frame by frame.
+        #: Share of the rows drawn here (the bottom band), tuned frame by frame; frames started
+        #: by :meth:`begin` keep a share of their own (the helper has a head start there).
         self.fraction = 0.5
+        self.begun_fraction = 0.5
         #: Why the helper is not used (None while it is usable or not yet needed).
         self.failure: str | None = None
-        #: Frames drawn split in two (for tests and the benchmark).
+        #: Frames drawn split in two, and how many of them :meth:`begin` started (tests, benchmark).
         self.split_frames = 0
+        self.begun_frames = 0
         self._helper: _Helper | None = None
+        self._pending: _HelperBand | None = None
         self._lock = threading.Lock()
         self._closed = False
         if os.name == "nt" or (os.cpu_count() or 1) < 2:
@@ -236,6 +256,7 @@ class BandRenderer:
 
     def _fail(self, reason: str) -> None:
         self.failure = reason
+        self._pending = None
         if self._helper is not None:
             self._helper.close()
             self._helper = None
@@ -252,6 +273,9 @@ class BandRenderer:
         self._closed = True
         locked = self._lock.acquire(timeout=timeout)
         try:
+            if self._pending is not None:
+                self._pending.buffer[0] = 1  # a band nobody will collect: stop it
+                self._pending = None
             if self._helper is not None:
                 self._helper.close()
                 self._helper = None
@@ -259,29 +283,54 @@ class BandRenderer:
             if locked:
                 self._lock.release()
 
+    def begin(self, scene: DrawScene) -> bool:
+        """Start the helper on its band of ``scene`` now; the call ``self(scene)`` with this very
+        scene object draws this process's band and joins them. Meanwhile other calls may render
+        smaller frames here (the viewport's reduced frame); a large frame of another scene, a
+        later :meth:`begin` or :meth:`close` drops the band. False when the frame will not be
+        split (too small, no helper, another thread rendering)."""
+        width, height = int(scene.camera.width), int(scene.camera.height)
+        if height < 2 or not self._lock.acquire(blocking=False):
+            return False
+        try:
+            helper = self._usable(width * height, 0.0)
+            if helper is None:
+                return False
+            self._drop_pending(helper)
+            self._pending = self._request(helper, scene, self.begun_fraction, begun=True)
+            return self._pending is not None
+        finally:
+            self._lock.release()
+
     def __call__(self, scene: DrawScene, *, should_cancel: Callable[[], bool] | None = None,
                  progress: Callable[[float], None] | None = None, **options) -> Frame:
         width, height = int(scene.camera.width), int(scene.camera.height)
         if options or height < 2 or not self._lock.acquire(blocking=False):
             return pipeline.render_scene(scene, should_cancel=should_cancel, progress=progress, **options)
         try:
+            frame = None
             helper = self._usable(width * height, 0.0)
-            frame = None if helper is None else self._split(helper, scene, width, height, should_cancel, progress)
+            if helper is not None:
+                band = self._pending if self._pending is not None and self._pending.scene is scene else None
+                if band is None:
+                    self._drop_pending(helper)
+                    band = self._request(helper, scene, self.fraction, begun=False)
+                self._pending = None
+                if band is not None:
+                    frame = self._join(helper, band, should_cancel, progress)
         finally:
             self._lock.release()
         if frame is None:  # no helper, or it stopped during this frame: the frame in this process
             frame = pipeline.render_scene(scene, should_cancel=should_cancel, progress=progress)
         return frame
 
-    def _split(self, helper: _Helper, scene: DrawScene, width: int, height: int,
-               should_cancel: Callable[[], bool] | None,
-               progress: Callable[[float], None] | None) -> Frame | None:
-        """The frame drawn in two bands, or None when the helper stopped (it is not used again)."""
-        cut = min(max(int(round(self.fraction * height)), 1), height - 1)
-        top = height - cut
-        buffer = helper.reserve(_band_bytes(top, width))
+    def _request(self, helper: _Helper, scene: DrawScene, fraction: float, begun: bool) -> _HelperBand | None:
+        """Ask the helper for the top band of ``scene`` (the cut at ``fraction`` of the rows);
+        None when the helper stopped (it is not used again)."""
+        width, height = int(scene.camera.width), int(scene.camera.height)
+        cut = min(max(int(round(fraction * height)), 1), height - 1)
+        buffer = helper.reserve(_band_bytes(height - cut, width))
         buffer[0] = 0  # the stop flag
-        started = time.perf_counter()
         if _same_but_camera(scene, helper.scene):
             request = ("view", scene.camera, cut, height, BAND_CHUNK_CANDIDATES)
         else:
@@ -292,7 +341,25 @@ class BandRenderer:
             self._fail(f"helper process stopped: {exc}")
             return None
         helper.scene = scene
-        sent_s = time.perf_counter() - started
+        return _HelperBand(scene, cut, buffer, time.perf_counter(), begun)
+
+    def _drop_pending(self, helper: _Helper) -> None:
+        """Stop and collect a band requested by :meth:`begin` that no call came for."""
+        band, self._pending = self._pending, None
+        if band is not None:
+            band.buffer[0] = 1
+            reply = self._reply(helper, None)
+            if reply is not None and reply[0] == "error":
+                helper.scene = None
+
+    def _join(self, helper: _Helper, band: _HelperBand, should_cancel: Callable[[], bool] | None,
+              progress: Callable[[float], None] | None) -> Frame | None:
+        """This process's band of ``band.scene``, then the helper's: the whole frame, or None
+        when the helper stopped (it is not used again)."""
+        scene, cut, buffer = band.scene, band.cut, band.buffer
+        width, height = int(scene.camera.width), int(scene.camera.height)
+        top = height - cut
+        started = time.perf_counter()
         # This process's band goes straight into its rows of the frame (row 0 is the top of the image).
         color = np.empty((height, width, 4), dtype=np.float32)
         depth = np.empty((height, width), dtype=np.float32)
@@ -323,8 +390,13 @@ class BandRenderer:
             whole[:top] = theirs
         del views
         self.split_frames += 1
-        # The helper started on its band once the request had been written.
-        self._balance(cut, height, own_s, sent_s + float(reply[1]))
+        fraction = balanced_fraction(self.begun_fraction if band.begun else self.fraction, cut, height,
+                                     own_s, float(reply[1]), lead_s=started - band.sent_at)
+        if band.begun:
+            self.begun_frames += 1
+            self.begun_fraction = fraction
+        else:
+            self.fraction = fraction
         if progress is not None:
             progress(1.0)
         return Frame(color=color, depth=depth, stencil=stencil, warnings=own.warnings, encoded=own.encoded)
@@ -346,18 +418,20 @@ class BandRenderer:
             self._fail(f"helper process exited with code {helper.proc.poll()}")
             return None
 
-    def _balance(self, cut: int, height: int, own_s: float, helper_s: float) -> None:
-        """Move the cut towards equal times, taking time per row as even within each band; half
-        way each frame, so one odd frame does not swing it."""
-        total = own_s + helper_s
-        if total <= 0.0:
-            return
-        half = 0.5 * total
-        if own_s > half:
-            target = cut * half / own_s
-        else:
-            target = cut + (height - cut) * (half - own_s) / max(helper_s, 1e-9)
-        self.fraction = min(max(0.5 * self.fraction + 0.5 * target / height, 0.05), 0.95)
+
+def balanced_fraction(fraction: float, cut: int, height: int, own_s: float, helper_s: float,
+                      lead_s: float = 0.0) -> float:
+    """The share of rows to draw here next time, after a frame cut at ``cut`` of ``height`` rows
+    took ``own_s`` here and ``helper_s`` in the helper, which started ``lead_s`` seconds before
+    this process's band. Takes each band's time per row as even; the cut where both would end
+    together is ``(r_h * height - lead) / (r_own + r_h)``. Moves half way there from
+    ``fraction`` (one odd frame does not swing it), within 0.05..0.95."""
+    per_row_own = own_s / max(cut, 1)
+    per_row_helper = helper_s / max(height - cut, 1)
+    if per_row_own + per_row_helper <= 0.0:
+        return fraction
+    target = (per_row_helper * height - lead_s) / (per_row_own + per_row_helper)
+    return min(max(0.5 * fraction + 0.5 * target / height, 0.05), 0.95)
 
 
 def serve(fd: int) -> int:

@@ -191,6 +191,28 @@ def test_camera_frame_rect():
     assert viewport.camera_frame_rect(corners, shifted, 200, 100) == (100, 25, 100, 50)
 
 
+def test_the_helper_begins_the_full_frame_while_the_reduced_frame_renders():
+    """With a reduced stage, the scheduler starts the helper on the full frame's band first
+    (BandRenderer.begin); the reduced frame renders in this process; both frames are exact."""
+    frames = []
+    sched = ViewportScheduler(on_ready=lambda: frames.append(sched.latest()), factor=4, min_pixels=0)
+    draw = scene_at(96, 64, seed=7)
+    try:
+        sched.bands.min_pixels = 1000  # the 24x16 reduced frame stays here, the 96x64 full one splits
+        assert sched.bands.wait_ready(WAIT)
+        sched.submit(draw, key=1)
+        assert sched.wait_idle(WAIT)
+        assert [f.full for f in frames] == [False, True]
+        assert (sched.bands.begun_frames, sched.bands.split_frames) == (1, 1)
+        expected = render_scene(draw)
+        np.testing.assert_array_equal(frames[1].frame.color, expected.color)
+        np.testing.assert_array_equal(frames[1].frame.depth, expected.depth)
+        reduced = dataclasses.replace(draw, camera=dataclasses.replace(draw.camera, width=24, height=16))
+        np.testing.assert_array_equal(frames[0].frame.color, render_scene(reduced).color)
+    finally:
+        sched.close()
+
+
 def test_the_scheduler_splits_large_frames_in_two_processes_and_ends_its_helper():
     """By default the scheduler renders through a BandRenderer of its own (blendlib.core.bandprocs):
     a large frame comes out split and equal to render_scene; close() ends the helper."""

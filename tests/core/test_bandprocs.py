@@ -14,7 +14,7 @@ import pytest
 
 from blendlib import render_scene
 from blendlib.core import bandprocs, raster
-from blendlib.core.bandprocs import BandRenderer
+from blendlib.core.bandprocs import BandRenderer, balanced_fraction
 from blendlib.core.pipeline import RenderCancelled
 from blendlib.core.scene import SceneError
 from tests.reference.random_scenes import seeded_scene
@@ -152,19 +152,63 @@ def test_after_a_refused_scene_the_next_view_sends_the_scene_again(bands, monkey
 
 
 def test_cut_follows_the_measured_times(bands):
-    """Whatever the cut, the frame is the same; the cut moves towards the slower band's side."""
+    """Whatever the cut, the frame is the same; the cut moves towards where both bands end together."""
     draw = scene_at(9)
     expected = render_scene(draw)
     for fraction in (0.02, 0.3, 0.97):
         bands.fraction = fraction
         assert_same_frame(bands(draw), expected)
     bands.fraction = 0.5
-    bands._balance(24, 48, own_s=0.030, helper_s=0.010)  # this process slower: draw fewer rows here
-    assert bands.fraction == pytest.approx(0.5 * 0.5 + 0.5 * (24 * 0.020 / 0.030) / 48)
-    bands.fraction = 0.5
-    bands._balance(24, 48, own_s=0.010, helper_s=0.030)  # the helper slower: draw more rows here
-    assert bands.fraction == pytest.approx(0.5 * 0.5 + 0.5 * (24 + 24 * 0.010 / 0.030) / 48)
-    bands.fraction = 0.5
+    # 24 of 48 rows each: 30 ms here, 10 ms in the helper -> 1.25 and 0.42 ms a row; both end
+    # together at 12 rows here; half way from 24 rows is 18.
+    assert balanced_fraction(0.5, 24, 48, own_s=0.030, helper_s=0.010) == pytest.approx(18 / 48)
+    assert balanced_fraction(0.5, 24, 48, own_s=0.010, helper_s=0.030) == pytest.approx(30 / 48)
+    # The helper started 10 ms earlier (its band begun during another frame): 0.625 ms a row
+    # each, 10 ms are 16 rows of head start, so 16 fewer here: 16 rows, half way 20.
+    assert balanced_fraction(0.5, 24, 48, own_s=0.015, helper_s=0.015, lead_s=0.010) == pytest.approx(20 / 48)
+    assert balanced_fraction(0.95, 24, 48, own_s=0.001, helper_s=0.300) == 0.95  # clamped
+    assert balanced_fraction(0.05, 24, 48, own_s=0.015, helper_s=0.015, lead_s=1.0) == 0.05
+    assert balanced_fraction(0.3, 24, 48, own_s=0.0, helper_s=0.0) == 0.3  # nothing measured
+
+
+def test_a_begun_band_is_collected_by_the_call_for_its_frame(bands):
+    """begin() starts the helper on a frame's band; smaller frames render here meanwhile; the
+    call for that very scene joins the bands (as the viewport does with its reduced frame)."""
+    full = scene_at(7, 96, 64)
+    small = scene_at(7, 24, 16)
+    bands.min_pixels = 1000
+    try:
+        before_split, before_begun = bands.split_frames, bands.begun_frames
+        assert bands.begin(full)
+        assert_same_frame(bands(small), render_scene(small))  # in this process, the band still pending
+        assert bands._pending is not None and bands._pending.scene is full
+        assert_same_frame(bands(full), render_scene(full))
+        assert (bands.split_frames, bands.begun_frames) == (before_split + 1, before_begun + 1)
+        assert not bands.begin(small)  # too small to split
+    finally:
+        bands.min_pixels = 0
+
+
+def test_a_begun_band_of_another_frame_is_dropped(bands):
+    first, second, third = scene_at(3, 80, 60), scene_at(4, 80, 60), scene_at(12, 80, 60)
+    before_begun = bands.begun_frames
+    assert bands.begin(first)
+    assert_same_frame(bands(second), render_scene(second))  # another large frame: first's band dropped
+    assert bands.begin(first)
+    assert bands.begin(third)  # a later begin drops the earlier one
+    assert_same_frame(bands(third), render_scene(third))
+    assert bands.begun_frames == before_begun + 1
+    assert_same_frame(bands(first), render_scene(first))  # the helper serves on
+
+
+def test_close_stops_a_begun_band():
+    renderer = BandRenderer(min_pixels=0)
+    assert renderer.wait_ready(WAIT)
+    assert renderer.begin(scene_at(7, 640, 480))
+    proc = renderer._helper.proc
+    renderer.close()
+    assert proc.wait(timeout=WAIT) == 0
+    assert renderer._pending is None
 
 
 def test_small_frames_and_other_options_stay_in_this_process():
