@@ -38,7 +38,7 @@ import numpy as np
 
 from blendlib.core import allocator, pipeline
 from blendlib.core.pipeline import Frame, RenderCancelled
-from blendlib.core.scene import DrawScene, SceneError
+from blendlib.core.scene import DrawScene, SceneError, SceneMemo
 
 #: Frames of fewer pixels render in one process: the hand-over (pickling the scene, copying the
 #: helper's rows back: about 3 ms at 960x540) outweighs the half frame it saves.
@@ -222,6 +222,9 @@ class BandRenderer:
         self.begun_frames = 0
         self._helper: _Helper | None = None
         self._pending: _HelperBand | None = None
+        # Checked renderers and converted textures of the current template (SceneMemo).
+        self._memo: SceneMemo | None = None
+        self._memo_scene: DrawScene | None = None
         self._lock = threading.Lock()
         self._closed = False
         if os.name == "nt" or (os.cpu_count() or 1) < 2:
@@ -308,7 +311,7 @@ class BandRenderer:
         if options or height < 2 or not self._lock.acquire(blocking=False):
             return pipeline.render_scene(scene, should_cancel=should_cancel, progress=progress, **options)
         try:
-            frame = None
+            memo = self._memo_for(scene)
             helper = self._usable(width * height, 0.0)
             if helper is not None:
                 band = self._pending if self._pending is not None and self._pending.scene is scene else None
@@ -317,12 +320,20 @@ class BandRenderer:
                     band = self._request(helper, scene, self.fraction, begun=False)
                 self._pending = None
                 if band is not None:
-                    frame = self._join(helper, band, should_cancel, progress)
+                    frame = self._join(helper, band, should_cancel, progress, memo)
+                    if frame is not None:
+                        return frame
+            # A small frame, no helper, or it stopped during this frame: the frame in this process.
+            return pipeline.render_scene(scene, should_cancel=should_cancel, progress=progress, memo=memo)
         finally:
             self._lock.release()
-        if frame is None:  # no helper, or it stopped during this frame: the frame in this process
-            frame = pipeline.render_scene(scene, should_cancel=should_cancel, progress=progress)
-        return frame
+
+    def _memo_for(self, scene: DrawScene) -> SceneMemo:
+        """The memo of renders of ``scene``'s template: kept while frames differ in their camera only."""
+        if self._memo is None or not _same_but_camera(scene, self._memo_scene):
+            self._memo = SceneMemo()
+        self._memo_scene = scene
+        return self._memo
 
     def _request(self, helper: _Helper, scene: DrawScene, fraction: float, begun: bool) -> _HelperBand | None:
         """Ask the helper for the top band of ``scene`` (the cut at ``fraction`` of the rows);
@@ -353,7 +364,7 @@ class BandRenderer:
                 helper.scene = None
 
     def _join(self, helper: _Helper, band: _HelperBand, should_cancel: Callable[[], bool] | None,
-              progress: Callable[[float], None] | None) -> Frame | None:
+              progress: Callable[[float], None] | None, memo: SceneMemo) -> Frame | None:
         """This process's band of ``band.scene``, then the helper's: the whole frame, or None
         when the helper stopped (it is not used again)."""
         scene, cut, buffer = band.scene, band.cut, band.buffer
@@ -367,7 +378,8 @@ class BandRenderer:
         try:
             own = pipeline.render_scene(scene, band=(0, cut), workers=1, chunk_candidates=BAND_CHUNK_CANDIDATES,
                                         should_cancel=should_cancel, out=(color[top:], depth[top:], stencil[top:]),
-                                        progress=None if progress is None else lambda f: progress(0.5 * f))
+                                        progress=None if progress is None else lambda f: progress(0.5 * f),
+                                        memo=memo)
         except BaseException:
             buffer[0] = 1
             self._reply(helper, None)  # let the helper finish (it stops at its next check)
@@ -446,6 +458,7 @@ def serve(fd: int) -> int:
     _send(replies, ("ready",))
     buffer: mmap.mmap | None = None
     scene: DrawScene | None = None
+    memo = SceneMemo()
     while True:
         arrived: list[float] = []
         request = _receive(requests, arrived)
@@ -454,7 +467,7 @@ def serve(fd: int) -> int:
         kind, content, y0, y1, chunk = request
         try:
             if kind == "scene":
-                scene = content
+                scene, memo = content, SceneMemo()
             elif scene is None:
                 raise RuntimeError("a view request before any scene")
             else:
@@ -467,7 +480,7 @@ def serve(fd: int) -> int:
                 buffer = mmap.mmap(fd, os.fstat(fd).st_size)
             pipeline.render_scene(scene, band=(y0, y1), workers=1, chunk_candidates=chunk,
                                   should_cancel=lambda stop=buffer: stop[0] != 0,
-                                  out=_band_views(buffer, y1 - y0, width))
+                                  out=_band_views(buffer, y1 - y0, width), memo=memo)
             reply = ("ok", time.perf_counter() - arrived[0])
         except RenderCancelled:
             reply = ("cancelled",)

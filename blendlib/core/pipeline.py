@@ -19,7 +19,7 @@ import numpy as np
 from . import merger, raster, shade, vertex
 from .drawlist import DrawCall, draw_calls
 from .merger import FrameBuffers, merge
-from .scene import DrawScene, SceneError, validate_scene
+from .scene import DrawScene, SceneError, SceneMemo, validate_scene
 from .vocabulary import ColorSpace, CompareFunction, Lighting, Material, Pass, TextureFilter
 
 #: Candidate pixels per chunk. Small enough that a chunk's per-fragment arrays (1 MB each for
@@ -470,6 +470,7 @@ class _FrameContext:
     #: (:func:`render_scene`'s ``band``: one process's share of a frame, :mod:`blendlib.core.bandprocs`).
     band: tuple[int, int] | None = None
     texels: dict = field(default_factory=dict)  # id(texture) -> shade.Texels
+    memo: SceneMemo | None = None  # converted textures kept across renders (render_scene's memo)
     warnings: list[str] = field(default_factory=list)
     degenerate: list[tuple[str, int]] = field(default_factory=list)  # (object, zero-area triangles)
 
@@ -493,7 +494,12 @@ class _FrameContext:
             return None
         key = id(material.main_tex)
         if key not in self.texels:
-            self.texels[key] = shade.texture_texels(material.main_tex, self.color_space)
+            texture, color_space = material.main_tex, self.color_space
+            if self.memo is None:
+                self.texels[key] = shade.texture_texels(texture, color_space)
+            else:
+                self.texels[key] = self.memo.lookup(("texels", color_space), texture,
+                                                    lambda: shade.texture_texels(texture, color_space))
         return self.texels[key]
 
 
@@ -952,6 +958,7 @@ def render_scene(
     observer: FrameObserver | None = None,
     band: tuple[int, int] | None = None,
     out: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+    memo: SceneMemo | None = None,
 ) -> Frame:
     """Render a draw scene exactly as Unity's built-in pipeline would (docs/pipeline.md).
 
@@ -969,9 +976,11 @@ def render_scene(
     process's share of a frame split across processes, :mod:`blendlib.core.bandprocs`).
     ``out``: (color, depth, stencil) arrays of the Frame's shapes and dtypes to write the
     result into (a band straight into its rows of a whole frame, or into shared memory).
+    ``memo``: a :class:`~blendlib.core.scene.SceneMemo` shared by renders of scenes with the
+    same renderers (the viewport's frames): renderers are checked and textures converted once.
     Raises :class:`blendlib.core.scene.SceneError` (one line) for input that cannot render.
     """
-    warnings = list(scene.warnings) + validate_scene(scene)
+    warnings = list(scene.warnings) + validate_scene(scene, memo)
     if until_draw is not None and int(until_draw) < 0:
         raise SceneError(f"until_draw must be 0 or more (got {until_draw})")
     cam = scene.camera
@@ -1000,7 +1009,7 @@ def render_scene(
     stop_flag = threading.Event()
     pool = ThreadPoolExecutor(max_workers=workers) if workers > 1 else None
     frame = _FrameContext(buf, cam, lights, cs, scene.hdr, chunk_candidates, pool, workers, stop_flag,
-                          observed=observer is not None, band=band)
+                          observed=observer is not None, band=band, memo=memo)
 
     def cancelled() -> None:
         if should_cancel is not None and should_cancel():

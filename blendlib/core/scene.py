@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -181,12 +182,36 @@ class DrawScene:
 MAX_PIXELS = 64 * 1024 * 1024
 
 
-def validate_scene(scene: DrawScene) -> list[str]:
+class SceneMemo:
+    """What renders derive from a scene's renderers and materials alone, kept across renders of
+    scenes that share those objects (the viewport's frames of one template: reduced and full,
+    every view change): checked renderers, converted textures.
+
+    Entries are keyed by the objects themselves, which the memo keeps alive (an id is never
+    reused while its entry exists); they stay valid while nobody writes into those objects'
+    arrays, so build a new scene (and a new memo) for a changed one. One render at a time.
+    """
+
+    def __init__(self) -> None:
+        self._entries: dict[tuple, tuple[object, object]] = {}
+
+    def lookup(self, kind, obj, compute: Callable[[], object]):
+        """``compute()`` for (``kind``, ``obj``), computed once."""
+        key = (kind, id(obj))
+        hit = self._entries.get(key)
+        if hit is None or hit[0] is not obj:
+            hit = (obj, compute())
+            self._entries[key] = hit
+        return hit[1]
+
+
+def validate_scene(scene: DrawScene, memo: SceneMemo | None = None) -> list[str]:
     """Check a draw scene; raise :class:`SceneError` for what cannot render, return warnings.
 
     Fatal: bad camera matrices or size, absurd resolutions, non-finite matrices,
     mismatched array shapes. Warned (and rendered around): empty meshes.
     Non-finite or degenerate triangles are skipped by the rasterizer with a warning.
+    With a ``memo``, renderers checked before are not checked again.
     """
     cam = scene.camera
     warnings: list[str] = []
@@ -205,30 +230,40 @@ def validate_scene(scene: DrawScene) -> list[str]:
     if not all(math.isfinite(c) for c in scene.clear_color):
         raise SceneError("scene: clear_color is not finite")
     for r in scene.renderers:
-        label = f"object {r.name!r} slot {r.slot}"
-        mesh = r.mesh
-        m = np.asarray(r.matrix_world, dtype=np.float64)
-        if m.shape != (4, 4) or not np.all(np.isfinite(m)):
-            raise SceneError(f"{label}: matrix_world must be a finite 4x4 matrix")
-        center = np.asarray(r.bounds_center, dtype=np.float64)
-        if center.shape != (3,) or not np.all(np.isfinite(center)):
-            raise SceneError(f"{label}: bounds_center must be a finite 3-vector (it is the sort point)")
-        pos, tri = np.asarray(mesh.positions), np.asarray(mesh.triangles)
-        if pos.ndim != 2 or pos.shape[1] != 3:
-            raise SceneError(f"{label}: positions must be (V, 3), got {pos.shape}")
-        if tri.ndim != 2 or tri.shape[1] != 3 or not np.issubdtype(tri.dtype, np.integer):
-            raise SceneError(f"{label}: triangles must be integer (T, 3), got {tri.dtype} {tri.shape}")
-        t = tri.shape[0]
-        if t and (tri.min() < 0 or tri.max() >= pos.shape[0]):
-            raise SceneError(f"{label}: triangle indices out of range 0..{pos.shape[0] - 1}")
-        if np.asarray(mesh.normals).shape != (t, 3, 3):
-            raise SceneError(f"{label}: normals must be (T, 3, 3), got {np.asarray(mesh.normals).shape}")
-        if mesh.uvs is not None and np.asarray(mesh.uvs).shape != (t, 3, 2):
-            raise SceneError(f"{label}: uvs must be (T, 3, 2), got {np.asarray(mesh.uvs).shape}")
-        for name in ("polygons", "loop_triangles"):
-            ids = getattr(mesh, name)
-            if ids is not None and np.asarray(ids).shape != (t,):
-                raise SceneError(f"{label}: {name} must be (T,), got {np.asarray(ids).shape}")
-        if t == 0:
-            warnings.append(f"{label}: empty mesh, nothing drawn")
+        if memo is None:
+            warnings += _validate_renderer(r)
+        else:
+            warnings += memo.lookup("valid", r, lambda r=r: _validate_renderer(r))
+    return warnings
+
+
+def _validate_renderer(r: Renderer) -> list[str]:
+    """:func:`validate_scene`'s checks of one renderer: raises SceneError, returns warnings."""
+    warnings: list[str] = []
+    label = f"object {r.name!r} slot {r.slot}"
+    mesh = r.mesh
+    m = np.asarray(r.matrix_world, dtype=np.float64)
+    if m.shape != (4, 4) or not np.all(np.isfinite(m)):
+        raise SceneError(f"{label}: matrix_world must be a finite 4x4 matrix")
+    center = np.asarray(r.bounds_center, dtype=np.float64)
+    if center.shape != (3,) or not np.all(np.isfinite(center)):
+        raise SceneError(f"{label}: bounds_center must be a finite 3-vector (it is the sort point)")
+    pos, tri = np.asarray(mesh.positions), np.asarray(mesh.triangles)
+    if pos.ndim != 2 or pos.shape[1] != 3:
+        raise SceneError(f"{label}: positions must be (V, 3), got {pos.shape}")
+    if tri.ndim != 2 or tri.shape[1] != 3 or not np.issubdtype(tri.dtype, np.integer):
+        raise SceneError(f"{label}: triangles must be integer (T, 3), got {tri.dtype} {tri.shape}")
+    t = tri.shape[0]
+    if t and (tri.min() < 0 or tri.max() >= pos.shape[0]):
+        raise SceneError(f"{label}: triangle indices out of range 0..{pos.shape[0] - 1}")
+    if np.asarray(mesh.normals).shape != (t, 3, 3):
+        raise SceneError(f"{label}: normals must be (T, 3, 3), got {np.asarray(mesh.normals).shape}")
+    if mesh.uvs is not None and np.asarray(mesh.uvs).shape != (t, 3, 2):
+        raise SceneError(f"{label}: uvs must be (T, 3, 2), got {np.asarray(mesh.uvs).shape}")
+    for name in ("polygons", "loop_triangles"):
+        ids = getattr(mesh, name)
+        if ids is not None and np.asarray(ids).shape != (t,):
+            raise SceneError(f"{label}: {name} must be (T,), got {np.asarray(ids).shape}")
+    if t == 0:
+        warnings.append(f"{label}: empty mesh, nothing drawn")
     return warnings
