@@ -240,12 +240,13 @@ def test_cancel_stops_both_bands_and_the_helper_serves_on(bands):
     draw = scene_at(7, 160, 120)
     calls = []
 
-    def should_cancel() -> bool:
-        calls.append(1)
-        return len(calls) > 2
+    def should_cancel() -> bool:  # True from this process's first check in its own band (so
+        calls.append(1)  # always before the frame ends, however fast the helper is)
+        return True
 
     with pytest.raises(RenderCancelled):
         bands(draw, should_cancel=should_cancel)
+    assert calls
     before = bands.split_frames
     assert_same_frame(bands(draw), render_scene(draw))
     assert bands.split_frames == before + 1
