@@ -191,24 +191,34 @@ def test_camera_frame_rect():
     assert viewport.camera_frame_rect(corners, shifted, 200, 100) == (100, 25, 100, 50)
 
 
-def test_the_helper_begins_the_full_frame_while_the_reduced_frame_renders():
-    """With a reduced stage, the scheduler starts the helper on the full frame's band first
-    (BandRenderer.begin); the reduced frame renders in this process; both frames are exact."""
+@pytest.mark.parametrize("begin_after_s", [0.0, 60.0])
+def test_the_helper_begins_heavy_full_frames_while_the_reduced_frame_renders(begin_after_s):
+    """With a reduced stage, once a full frame took ``begin_after_s`` or longer the scheduler
+    starts the helper on the next full frame's band first (BandRenderer.begin); the reduced
+    frame renders in this process; every frame is exact."""
     frames = []
-    sched = ViewportScheduler(on_ready=lambda: frames.append(sched.latest()), factor=4, min_pixels=0)
+    sched = ViewportScheduler(on_ready=lambda: frames.append(sched.latest()), factor=4, min_pixels=0,
+                              begin_after_s=begin_after_s)
     draw = scene_at(96, 64, seed=7)
+    view = np.array(draw.camera.view_matrix, dtype=np.float64)
+    view[0, 3] += 0.2  # the view moved sideways
+    moved = dataclasses.replace(draw, camera=dataclasses.replace(draw.camera, view_matrix=view))
     try:
-        sched.bands.min_pixels = 1000  # the 24x16 reduced frame stays here, the 96x64 full one splits
+        sched.bands.min_pixels = 1000  # the 24x16 reduced frames stay here, the 96x64 full ones split
         assert sched.bands.wait_ready(WAIT)
-        sched.submit(draw, key=1)
-        assert sched.wait_idle(WAIT)
-        assert [f.full for f in frames] == [False, True]
-        assert (sched.bands.begun_frames, sched.bands.split_frames) == (1, 1)
-        expected = render_scene(draw)
-        np.testing.assert_array_equal(frames[1].frame.color, expected.color)
-        np.testing.assert_array_equal(frames[1].frame.depth, expected.depth)
-        reduced = dataclasses.replace(draw, camera=dataclasses.replace(draw.camera, width=24, height=16))
-        np.testing.assert_array_equal(frames[0].frame.color, render_scene(reduced).color)
+        for key, scene in enumerate((draw, moved)):
+            sched.submit(scene, key=key)
+            assert sched.wait_idle(WAIT)
+        assert [f.full for f in frames] == [False, True, False, True]
+        # The first full frame has no time to go by; the second begins when the first was heavy.
+        assert sched.bands.split_frames == 2
+        assert sched.bands.begun_frames == (1 if begin_after_s == 0.0 else 0)
+        for scene, (small, full) in zip((draw, moved), (frames[:2], frames[2:]), strict=True):
+            expected = render_scene(scene)
+            np.testing.assert_array_equal(full.frame.color, expected.color)
+            np.testing.assert_array_equal(full.frame.depth, expected.depth)
+            reduced = dataclasses.replace(scene, camera=dataclasses.replace(scene.camera, width=24, height=16))
+            np.testing.assert_array_equal(small.frame.color, render_scene(reduced).color)
     finally:
         sched.close()
 
