@@ -522,8 +522,8 @@ class ProjectWorker:
         ``width`` x ``height``: extraction of the viewport template, the reduced first frame
         (1/4 per side) and the full frame, each timed directly as the viewport renders them
         (a :class:`~blendlib.core.bandprocs.BandRenderer` with its helper process started; as in
-        the scheduler, after a full frame of ``BEGIN_AFTER_FULL_S`` or more the helper begins the
-        next full frame's band before the reduced frame renders, and the reduced time includes
+        the scheduler, after a split frame of ``BEGIN_AFTER_WORK_S`` or more of work the helper
+        begins the next full frame's band before the reduced frame renders, and the reduced time includes
         that request), the full frame also by ``render_scene`` in
         this process alone; the time from a change to the
         first frame (extraction + reduced frame); :func:`render_view` end to end; and the same
@@ -575,8 +575,8 @@ class ProjectWorker:
                 with Timer() as te:
                     template = vp.extract_template(scene, depsgraph)
                 draw = dataclasses.replace(template, camera=camera)
-                with Timer() as tr:  # as the scheduler does: after a heavy full frame the helper
-                    if small and runs["full_s"] and runs["full_s"][-1] >= vp.BEGIN_AFTER_FULL_S:
+                with Timer() as tr:  # as the scheduler does: after a heavy split frame the helper
+                    if small and (bands.last_work_s or 0.0) >= vp.BEGIN_AFTER_WORK_S:
                         bands.begin(draw)  # begins the next one before the reduced frame renders
                     bands(dataclasses.replace(template, camera=reduced))
                 with Timer() as tf:

@@ -17,7 +17,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import threading
-import time
 from collections.abc import Callable, Hashable
 from typing import Any
 
@@ -31,11 +30,12 @@ from ..core.scene import Camera, DrawScene, SceneError, affine_inverse
 REDUCED_FACTOR = 4
 #: Frames of at most this many pixels are rendered at full size at once (no reduced frame first).
 REDUCED_MIN_PIXELS = 128 * 128
-#: The helper process begins a full frame during the reduced one when the previous full frame
-#: took at least this long. Both cores then work from the start, which brings heavy full frames
-#: 17-24 ms sooner, but the reduced frame shares the machine and takes 3-17 ms longer: light
-#: scenes, whose full frames are fast anyway, keep their reduced frames quick.
-BEGIN_AFTER_FULL_S = 0.040
+#: The helper process begins a full frame during the reduced one when the previous split frame
+#: took at least this many seconds of work in both processes together (80 ms: a full frame of
+#: about 40 ms). Both cores then work from the start, which brings heavy full frames 17-24 ms
+#: sooner, but the reduced frame shares the machine and takes 3-17 ms longer: light scenes,
+#: whose full frames are fast anyway, keep their reduced frames quick.
+BEGIN_AFTER_WORK_S = 0.080
 
 #: The camera the viewport template is extracted with; :meth:`ViewportScheduler.submit` replaces it.
 PLACEHOLDER_CAMERA = Camera(view_matrix=np.eye(4), projection=np.eye(4), width=1, height=1)
@@ -219,22 +219,21 @@ class ViewportScheduler:
     signature; by default a :class:`~blendlib.core.bandprocs.BandRenderer` of the scheduler's own
     (large frames drawn in two bands by this process and a helper process, ended by :meth:`close`;
     the helper starts with the first large frame, which renders here meanwhile; from then on it
-    begins each full frame's band while the reduced frame renders here when the previous full
-    frame took ``begin_after_s`` or longer). ``error``
+    begins each full frame's band while the reduced frame renders here when the previous split
+    frame took ``begin_after_work_s`` or more, both processes' times together). ``error``
     holds the last render's one-line error, cleared by the next success.
     """
 
     def __init__(self, on_ready: Callable[[], None] = lambda: None,
                  render: Callable[..., Frame] | None = None,
                  factor: int = REDUCED_FACTOR, min_pixels: int = REDUCED_MIN_PIXELS,
-                 begin_after_s: float = BEGIN_AFTER_FULL_S):
+                 begin_after_work_s: float = BEGIN_AFTER_WORK_S):
         self._on_ready = on_ready
         self.bands = bandprocs.BandRenderer(start=False) if render is None else None
         self._render = self.bands if render is None else render
         self._factor = factor
         self._min_pixels = min_pixels
-        self._begin_after_s = begin_after_s
-        self._last_full_s: float | None = None  # how long the last full frame took to render
+        self._begin_after_work_s = begin_after_work_s
         self._cond = threading.Condition()
         self._generation = 0
         self._pending: tuple[int, DrawScene, Hashable] | None = None
@@ -307,8 +306,8 @@ class ViewportScheduler:
                 return self._generation != generation
 
             stages = [(dataclasses.replace(draw, camera=camera), full) for camera, full in self._stages(draw.camera)]
-            heavy = self._last_full_s is not None and self._last_full_s >= self._begin_after_s
-            if self.bands is not None and len(stages) > 1 and heavy and not stale():
+            heavy = self.bands is not None and (self.bands.last_work_s or 0.0) >= self._begin_after_work_s
+            if heavy and len(stages) > 1 and not stale():
                 # The helper process starts on the full frame's top band while this thread
                 # renders the reduced frame (both cores busy from the start).
                 self.bands.begin(stages[-1][0])
@@ -316,10 +315,7 @@ class ViewportScheduler:
                 if stale():
                     break
                 try:
-                    started = time.perf_counter()
                     frame = self._render(scene, should_cancel=stale)
-                    if full:
-                        self._last_full_s = time.perf_counter() - started
                 except RenderCancelled:
                     break
                 except (SceneError, MemoryError) as exc:

@@ -220,6 +220,8 @@ class BandRenderer:
         #: Frames drawn split in two, and how many of them :meth:`begin` started (tests, benchmark).
         self.split_frames = 0
         self.begun_frames = 0
+        #: Seconds of work of the last split frame, both bands' times together (None before one).
+        self.last_work_s: float | None = None
         self._helper: _Helper | None = None
         self._pending: _HelperBand | None = None
         # Checked renderers and converted textures of the current template (SceneMemo).
@@ -402,6 +404,7 @@ class BandRenderer:
             whole[:top] = theirs
         del views
         self.split_frames += 1
+        self.last_work_s = own_s + float(reply[1])
         fraction = balanced_fraction(self.begun_fraction if band.begun else self.fraction, cut, height,
                                      own_s, float(reply[1]), lead_s=started - band.sent_at)
         if band.begun:

@@ -191,14 +191,14 @@ def test_camera_frame_rect():
     assert viewport.camera_frame_rect(corners, shifted, 200, 100) == (100, 25, 100, 50)
 
 
-@pytest.mark.parametrize("begin_after_s", [0.0, 60.0])
-def test_the_helper_begins_heavy_full_frames_while_the_reduced_frame_renders(begin_after_s):
-    """With a reduced stage, once a full frame took ``begin_after_s`` or longer the scheduler
-    starts the helper on the next full frame's band first (BandRenderer.begin); the reduced
-    frame renders in this process; every frame is exact."""
+@pytest.mark.parametrize("begin_after_work_s", [0.0, 60.0])
+def test_the_helper_begins_heavy_full_frames_while_the_reduced_frame_renders(begin_after_work_s):
+    """With a reduced stage, once a split frame took ``begin_after_work_s`` or more the
+    scheduler starts the helper on the next full frame's band first (BandRenderer.begin); the
+    reduced frame renders in this process; every frame is exact."""
     frames = []
     sched = ViewportScheduler(on_ready=lambda: frames.append(sched.latest()), factor=4, min_pixels=0,
-                              begin_after_s=begin_after_s)
+                              begin_after_work_s=begin_after_work_s)
     draw = scene_at(96, 64, seed=7)
     view = np.array(draw.camera.view_matrix, dtype=np.float64)
     view[0, 3] += 0.2  # the view moved sideways
@@ -212,7 +212,8 @@ def test_the_helper_begins_heavy_full_frames_while_the_reduced_frame_renders(beg
         assert [f.full for f in frames] == [False, True, False, True]
         # The first full frame has no time to go by; the second begins when the first was heavy.
         assert sched.bands.split_frames == 2
-        assert sched.bands.begun_frames == (1 if begin_after_s == 0.0 else 0)
+        assert sched.bands.begun_frames == (1 if begin_after_work_s == 0.0 else 0)
+        assert sched.bands.last_work_s > 0.0
         for scene, (small, full) in zip((draw, moved), (frames[:2], frames[2:]), strict=True):
             expected = render_scene(scene)
             np.testing.assert_array_equal(full.frame.color, expected.color)
