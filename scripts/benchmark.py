@@ -576,7 +576,7 @@ class ProjectWorker:
                     template = vp.extract_template(scene, depsgraph)
                 draw = dataclasses.replace(template, camera=camera)
                 with Timer() as tr:  # as the scheduler does: after a heavy split frame the helper
-                    if small and (bands.last_work_s or 0.0) >= vp.BEGIN_AFTER_WORK_S:
+                    if small and bands.last_work_s is not None and bands.last_work_s >= vp.BEGIN_AFTER_WORK_S:
                         bands.begin(draw)  # begins the next one before the reduced frame renders
                     bands(dataclasses.replace(template, camera=reduced))
                 with Timer() as tf:

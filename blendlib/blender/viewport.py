@@ -306,7 +306,8 @@ class ViewportScheduler:
                 return self._generation != generation
 
             stages = [(dataclasses.replace(draw, camera=camera), full) for camera, full in self._stages(draw.camera)]
-            heavy = self.bands is not None and (self.bands.last_work_s or 0.0) >= self._begin_after_work_s
+            work = None if self.bands is None else self.bands.last_work_s  # of the last split frame
+            heavy = work is not None and work >= self._begin_after_work_s
             if heavy and len(stages) > 1 and not stale():
                 # The helper process starts on the full frame's top band while this thread
                 # renders the reduced frame (both cores busy from the start).
