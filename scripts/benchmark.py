@@ -1292,6 +1292,7 @@ def main(argv=None) -> int:
     log_path = Path(args.log) if args.log else Path(tempfile.mkstemp(prefix="benchmark-", suffix=".log")[1])
     started = time.perf_counter()
     load_start = _loadavg()
+    ticks_start = _cpu_ticks()
 
     def say(msg):
         print(msg, file=sys.stderr, flush=True)
@@ -1330,6 +1331,7 @@ def main(argv=None) -> int:
         "machine": platform.machine(), "processor": _cpu_name(), "repeats": args.repeats,
         "quick": bool(args.quick), "addon_registered": addon, "elapsed_s": elapsed,
         "loadavg": [load_start, _loadavg()] if load_start else None,
+        "steal_pct": _steal_pct(ticks_start, _cpu_ticks()),
         "command": " ".join(["python", "-m", "scripts.benchmark", *(argv if argv is not None else sys.argv[1:])]),
     }
     return report(args, results, env, log_path)
@@ -1345,6 +1347,8 @@ def report(args, results: list[dict], env: dict, log_path: Path | None) -> int:
     if env["loadavg"]:
         print(f"load average (1, 5, 15 min): {_fmt_load(env['loadavg'][0])} at the start, "
               f"{_fmt_load(env['loadavg'][1])} at the end")
+    if env.get("steal_pct") is not None:
+        print(f"CPU time the virtual machine's host took (steal) during the run: {env['steal_pct']:.1f} %")
     print("times in seconds; 'project s' = extract + render; proj/GL = render / OpenGL (draw + readback); "
           "proj/EEVEE = project / EEVEE;")
     print("peak MB = peak memory allocated during render_scene (tracemalloc: numpy buffers + Python objects, "
@@ -1433,7 +1437,9 @@ def results_markdown(results, env, sc, tg, plot) -> str:
         f"{env['elapsed_s'] / 60:.0f} min in all."
         + (f"  \nLoad average (1, 5, 15 min) at the start {_fmt_load(load[0])}, at the end {_fmt_load(load[1])} "
            f"on {env['cpus']} CPUs: the machine was shared, absolute times are noisy; ratios come from "
-           "alternating runs." if load else ""),
+           "alternating runs." if load else "")
+        + (f" The host took {env['steal_pct']:.1f} % of the CPU time during the run (steal)."
+           if env.get("steal_pct") is not None else ""),
         "",
         format_table(results, markdown=True),
         "",
@@ -1467,6 +1473,24 @@ def write_doc(doc: Path, results, env, sc, tg, plot) -> None:
     _, tail = rest.split(RESULTS_END, 1)
     body = results_markdown(results, env, sc, tg, plot)
     doc.write_text(f"{head}{RESULTS_START}\n{body}\n{RESULTS_END}{tail}")
+
+
+def _cpu_ticks() -> list[int] | None:
+    """All CPUs' time counters of /proc/stat (user, nice, system, idle, iowait, irq, softirq,
+    steal, ...), or None where there is no such file."""
+    try:
+        with open("/proc/stat") as f:
+            return [int(v) for v in f.readline().split()[1:]]
+    except (OSError, ValueError):
+        return None
+
+
+def _steal_pct(start: list[int] | None, end: list[int] | None) -> float | None:
+    """Percent of the CPU time between two :func:`_cpu_ticks` that a hypervisor gave to others."""
+    if not start or not end or len(start) < 8 or len(end) < 8:
+        return None
+    total = sum(end[:8]) - sum(start[:8])
+    return 100.0 * (end[7] - start[7]) / total if total > 0 else None
 
 
 def _loadavg() -> list[float] | None:

@@ -51,6 +51,7 @@ def test_quick_run_prints_the_table(tmp_path):
                   "issue 14 (round 2): S2p render within 3x", "issue 12: S2 analyze at 480x270 peak memory"):
         assert title in out
     assert "load average (1, 5, 15 min)" in out
+    assert "CPU time the virtual machine's host took (steal) during the run:" in out
     data = json.loads(out_json.read_text())
     assert len(data["env"]["loadavg"]) == 2 and all(len(v) == 3 for v in data["env"]["loadavg"])
     by_id = {r["case"]["id"]: r for r in data["results"]}
@@ -151,6 +152,18 @@ def test_table_and_slope_helpers():
     tg = {(issue, label): (fig, ok) for issue, label, fig, ok in bench.targets([res], quick=True)}
     assert tg[("5 (round 1)", "S1 render within 8x of OpenGL/llvmpipe")] == ("4.0x", True)
     assert tg[("14 (round 2)", "S1 render within 4x of OpenGL/llvmpipe")] == ("4.0x", True)
+
+
+def test_steal_share_from_proc_stat_counters():
+    bench = _load_module()
+    #        user nice system idle iowait irq softirq steal guest
+    start = [100, 0, 20, 500, 0, 0, 0, 10, 0]
+    end = [400, 0, 50, 560, 0, 0, 0, 70, 0]  # 450 ticks went by, 60 of them stolen
+    assert bench._steal_pct(start, end) == pytest.approx(100.0 * 60 / 450)
+    assert bench._steal_pct(None, end) is None
+    assert bench._steal_pct(start, start) is None  # no time went by
+    ticks = bench._cpu_ticks()
+    assert ticks is None or (len(ticks) >= 8 and all(t >= 0 for t in ticks))
 
 
 def test_targets_of_the_frame_debugger_sorted_reference_and_viewport():
