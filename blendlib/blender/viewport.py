@@ -31,11 +31,11 @@ REDUCED_FACTOR = 4
 #: Frames of at most this many pixels are rendered at full size at once (no reduced frame first).
 REDUCED_MIN_PIXELS = 128 * 128
 #: The helper process begins a full frame during the reduced one when the previous split frame
-#: took at least this many seconds of work in both processes together (80 ms: a full frame of
-#: about 40 ms). Both cores then work from the start, which brings heavy full frames 17-24 ms
-#: sooner, but the reduced frame shares the machine and takes 3-17 ms longer: light scenes,
-#: whose full frames are fast anyway, keep their reduced frames quick.
-BEGIN_AFTER_WORK_S = 0.080
+#: took at least this many seconds of work in both processes together (100 ms: a full frame of
+#: about 50 ms). Both cores then work from the start, which brings heavy full frames 17-24 ms
+#: sooner, but the reduced frame shares the machine and takes 3-17 ms longer: scenes whose full
+#: frames are well within a 60 ms budget keep their reduced frames quick.
+BEGIN_AFTER_WORK_S = 0.100
 
 #: The camera the viewport template is extracted with; :meth:`ViewportScheduler.submit` replaces it.
 PLACEHOLDER_CAMERA = Camera(view_matrix=np.eye(4), projection=np.eye(4), width=1, height=1)
