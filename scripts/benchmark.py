@@ -42,8 +42,9 @@ More series of the project worker (docs/benchmark.md, "What is timed"):
   same through :class:`blendlib.blender.viewport.ViewportScheduler`;
 - S2p: S2's planes through a perspective camera, at varied depths and angles.
 
-The load average at the start and the end of the run is printed and written to the doc: on a
-shared machine absolute times are noisy, ratios from alternating runs less so.
+The load average at the start and the end of the run, the CPU time the host took (steal) and
+a host speed probe (:func:`speed_probe_ms`, sampled between scenes) are printed and written
+to the doc: on a shared machine absolute times are noisy, ratios from alternating runs less so.
 """
 
 from __future__ import annotations
@@ -1293,6 +1294,7 @@ def main(argv=None) -> int:
     started = time.perf_counter()
     load_start = _loadavg()
     ticks_start = _cpu_ticks()
+    probes = [speed_probe_ms()]
 
     def say(msg):
         print(msg, file=sys.stderr, flush=True)
@@ -1318,6 +1320,7 @@ def main(argv=None) -> int:
                 say(f"{case['id']}: {case['label']}, {case['width']}x{case['height']}")
                 profile = args.profile if case["group"] in ("S1", "S2", "S2p", "S4") else 0
                 results.append(run_case(case, workers, args.repeats, say, profile))
+                probes.append(speed_probe_ms())  # between scenes: no worker is busy
         finally:
             addon = workers.get("project").addon if "project" in workers else False
             for w in workers.values():
@@ -1332,6 +1335,7 @@ def main(argv=None) -> int:
         "quick": bool(args.quick), "addon_registered": addon, "elapsed_s": elapsed,
         "loadavg": [load_start, _loadavg()] if load_start else None,
         "steal_pct": _steal_pct(ticks_start, _cpu_ticks()),
+        "speed_probe_ms": probes,
         "command": " ".join(["python", "-m", "scripts.benchmark", *(argv if argv is not None else sys.argv[1:])]),
     }
     return report(args, results, env, log_path)
@@ -1349,6 +1353,8 @@ def report(args, results: list[dict], env: dict, log_path: Path | None) -> int:
               f"{_fmt_load(env['loadavg'][1])} at the end")
     if env.get("steal_pct") is not None:
         print(f"CPU time the virtual machine's host took (steal) during the run: {env['steal_pct']:.1f} %")
+    if env.get("speed_probe_ms"):
+        print(f"host speed probe: {_fmt_probes(env['speed_probe_ms'])}")
     print("times in seconds; 'project s' = extract + render; proj/GL = render / OpenGL (draw + readback); "
           "proj/EEVEE = project / EEVEE;")
     print("peak MB = peak memory allocated during render_scene (tracemalloc: numpy buffers + Python objects, "
@@ -1439,7 +1445,8 @@ def results_markdown(results, env, sc, tg, plot) -> str:
            f"on {env['cpus']} CPUs: the machine was shared, absolute times are noisy; ratios come from "
            "alternating runs." if load else "")
         + (f" The host took {env['steal_pct']:.1f} % of the CPU time during the run (steal)."
-           if env.get("steal_pct") is not None else ""),
+           if env.get("steal_pct") is not None else "")
+        + (f" Host speed probe: {_fmt_probes(env['speed_probe_ms'])}." if env.get("speed_probe_ms") else ""),
         "",
         format_table(results, markdown=True),
         "",
@@ -1491,6 +1498,34 @@ def _steal_pct(start: list[int] | None, end: list[int] | None) -> float | None:
         return None
     total = sum(end[:8]) - sum(start[:8])
     return 100.0 * (end[7] - start[7]) / total if total > 0 else None
+
+
+def speed_probe_ms(samples: int = 9) -> float:
+    """Milliseconds of a fixed single-thread workload like the renderer's (an interpreter loop and
+    numpy operations on 100k-element arrays), the median of ``samples``: how fast the host runs
+    right now. Steal and load average miss the slow phases of a shared host (the same render took
+    up to twice as long for minutes at a time with no steal): this probe shows them."""
+    import numpy as np
+
+    values = np.arange(100_000, dtype=np.float64)
+    times = []
+    for _ in range(samples):
+        start = time.perf_counter()
+        total = 0
+        for i in range(40_000):
+            total += i & 7
+        for _ in range(4):
+            np.sort(np.sqrt(values * 1.5 + total))
+        times.append(time.perf_counter() - start)
+    return float(np.median(times) * 1e3)
+
+
+def _fmt_probes(probes: list[float]) -> str:
+    """'12.3 ms median, 11.9–14.0 ms over 6 samples (start, between scenes, lower is faster)'."""
+    import numpy as np
+
+    return (f"{np.median(probes):.1f} ms median, {min(probes):.1f}–{max(probes):.1f} ms over {len(probes)} "
+            "samples (start and between scenes; lower is faster)")
 
 
 def _loadavg() -> list[float] | None:

@@ -52,8 +52,11 @@ def test_quick_run_prints_the_table(tmp_path):
         assert title in out
     assert "load average (1, 5, 15 min)" in out
     assert "CPU time the virtual machine's host took (steal) during the run:" in out
+    assert "host speed probe: " in out
     data = json.loads(out_json.read_text())
     assert len(data["env"]["loadavg"]) == 2 and all(len(v) == 3 for v in data["env"]["loadavg"])
+    probes = data["env"]["speed_probe_ms"]
+    assert len(probes) == 1 + len(data["results"]) and all(0 < v < 10_000 for v in probes)  # start + per scene
     by_id = {r["case"]["id"]: r for r in data["results"]}
     assert by_id["S1"]["setup"]["project"]["triangles"] == 4 * 71 * 71  # the quick sphere, 2k segments k+1 rings
     assert by_id["S4"]["setup"]["project"]["triangles"] == 62976  # Suzanne, subdivision level 3
@@ -164,6 +167,15 @@ def test_steal_share_from_proc_stat_counters():
     assert bench._steal_pct(start, start) is None  # no time went by
     ticks = bench._cpu_ticks()
     assert ticks is None or (len(ticks) >= 8 and all(t >= 0 for t in ticks))
+
+
+def test_host_speed_probe_times_a_fixed_workload(monkeypatch):
+    bench = _load_module()
+    clock = iter(np.arange(0.0, 100.0, 0.5))  # each sample takes 0.5 s of the fake clock
+    monkeypatch.setattr(bench.time, "perf_counter", lambda: float(next(clock)))
+    assert bench.speed_probe_ms(samples=3) == pytest.approx(500.0)
+    text = bench._fmt_probes([20.0, 31.5, 23.0])
+    assert text.startswith("23.0 ms median, 20.0–31.5 ms over 3 samples")
 
 
 def test_targets_of_the_frame_debugger_sorted_reference_and_viewport():
