@@ -1500,14 +1500,18 @@ def _steal_pct(start: list[int] | None, end: list[int] | None) -> float | None:
     return 100.0 * (end[7] - start[7]) / total if total > 0 else None
 
 
-def speed_probe_ms(samples: int = 9) -> float:
-    """Milliseconds of a fixed single-thread workload like the renderer's (an interpreter loop and
-    numpy operations on 100k-element arrays), the median of ``samples``: how fast the host runs
-    right now. Steal and load average miss the slow phases of a shared host (the same render took
-    up to twice as long for minutes at a time with no steal): this probe shows them."""
+def speed_probe_ms(samples: int = 5) -> float:
+    """Milliseconds of a fixed single-thread workload like the renderer's, the median of
+    ``samples``: an interpreter loop, numpy operations on 100k-element arrays (in cache) and
+    two passes over 32 MB arrays (memory bandwidth). Steal and load average miss the slow
+    phases of a shared host (the same render took up to 1.5x as long for minutes at a time
+    with no steal); this probe shows much of them."""
     import numpy as np
 
     values = np.arange(100_000, dtype=np.float64)
+    big = np.arange(4_000_000, dtype=np.float64)
+    scratch = np.empty_like(big)
+    scratch.fill(0.0)  # pages touched before the timing
     times = []
     for _ in range(samples):
         start = time.perf_counter()
@@ -1516,6 +1520,9 @@ def speed_probe_ms(samples: int = 9) -> float:
             total += i & 7
         for _ in range(4):
             np.sort(np.sqrt(values * 1.5 + total))
+        for _ in range(2):
+            np.multiply(big, 1.5, out=scratch)
+            np.add(scratch, big, out=scratch)
         times.append(time.perf_counter() - start)
     return float(np.median(times) * 1e3)
 
