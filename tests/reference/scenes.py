@@ -163,7 +163,8 @@ def renderer(mesh: Mesh, material: Material | None = None, *, name: str = "Objec
     matrix = np.eye(4) if matrix is None else np.asarray(matrix, np.float64)
     pos = np.asarray(mesh.positions, np.float64)
     if len(pos):
-        world = pos @ matrix[:3, :3].T + matrix[:3, 3]
+        with np.errstate(invalid="ignore", over="ignore"):  # bad-input tests give non-finite vertices
+            world = pos @ matrix[:3, :3].T + matrix[:3, 3]
         center = (world.min(axis=0) + world.max(axis=0)) / 2
     else:
         center = matrix[:3, 3].copy()
