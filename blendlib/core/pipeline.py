@@ -469,8 +469,8 @@ class _FrameContext:
     #: Buffer rows ``[y0, y1)`` (y from the bottom) this render draws, or None for all
     #: (:func:`render_scene`'s ``band``: one process's share of a frame, :mod:`blendlib.core.bandprocs`).
     band: tuple[int, int] | None = None
-    texels: dict = field(default_factory=dict)  # id(texture) -> shade.Texels
-    memo: SceneMemo | None = None  # converted textures kept across renders (render_scene's memo)
+    #: Converted textures, kept across renders when render_scene is given a memo.
+    memo: SceneMemo = field(default_factory=SceneMemo)
     warnings: list[str] = field(default_factory=list)
     degenerate: list[tuple[str, int]] = field(default_factory=list)  # (object, zero-area triangles)
 
@@ -489,18 +489,11 @@ class _FrameContext:
             self.degenerate.append(degenerate)
 
     def texels_of(self, material: Material):
-        """The material's texture in shading space, converted once per render (main thread only)."""
-        if material.main_tex is None:
+        """The material's texture in shading space, converted once per memo (main thread only)."""
+        texture, color_space = material.main_tex, self.color_space
+        if texture is None:
             return None
-        key = id(material.main_tex)
-        if key not in self.texels:
-            texture, color_space = material.main_tex, self.color_space
-            if self.memo is None:
-                self.texels[key] = shade.texture_texels(texture, color_space)
-            else:
-                self.texels[key] = self.memo.lookup(("texels", color_space), texture,
-                                                    lambda: shade.texture_texels(texture, color_space))
-        return self.texels[key]
+        return self.memo.lookup(("texels", color_space), texture, lambda: shade.texture_texels(texture, color_space))
 
 
 @dataclass(eq=False)
@@ -980,6 +973,7 @@ def render_scene(
     same renderers (the viewport's frames): renderers are checked and textures converted once.
     Raises :class:`blendlib.core.scene.SceneError` (one line) for input that cannot render.
     """
+    memo = SceneMemo() if memo is None else memo
     warnings = list(scene.warnings) + validate_scene(scene, memo)
     if until_draw is not None and int(until_draw) < 0:
         raise SceneError(f"until_draw must be 0 or more (got {until_draw})")
