@@ -523,10 +523,10 @@ class ProjectWorker:
         ``width`` x ``height``: extraction of the viewport template, the reduced first frame
         (1/4 per side) and the full frame, each timed directly as the viewport renders them
         (a :class:`~blendlib.core.bandprocs.BandRenderer` with its helper process started; as in
-        the scheduler, after a split frame of ``BEGIN_AFTER_WORK_S`` or more of work the helper
-        begins the next full frame's band before the reduced frame renders, and the reduced time includes
-        that request), the full frame also by ``render_scene`` in
-        this process alone; the time from a change to the
+        the scheduler, after a heavy split frame (:func:`viewport.begins_early`) the helper begins
+        the next full frame's band before the reduced frame renders, and the reduced time
+        includes that request), the full frame also by ``render_scene`` in this process alone;
+        the time from a change to the
         first frame (extraction + reduced frame); :func:`render_view` end to end; and the same
         through a :class:`ViewportScheduler` (extraction on this thread, frames on its worker
         thread: from the start of the extraction to each frame's ``on_ready``). A change is a
@@ -577,7 +577,7 @@ class ProjectWorker:
                     template = vp.extract_template(scene, depsgraph)
                 draw = dataclasses.replace(template, camera=camera)
                 with Timer() as tr:  # as the scheduler does: after a heavy split frame the helper
-                    if small and bands.last_work_s is not None and bands.last_work_s >= vp.BEGIN_AFTER_WORK_S:
+                    if small and vp.begins_early(bands):
                         bands.begin(draw)  # begins the next one before the reduced frame renders
                     bands(dataclasses.replace(template, camera=reduced))
                 with Timer() as tf:
@@ -1528,7 +1528,7 @@ def speed_probe_ms(samples: int = 5) -> float:
 
 
 def _fmt_probes(probes: list[float]) -> str:
-    """'12.3 ms median, 11.9–14.0 ms over 6 samples (start, between scenes, lower is faster)'."""
+    """'12.3 ms median, 11.9–14.0 ms over 6 samples (start and between scenes; lower is faster)'."""
     import numpy as np
 
     return (f"{np.median(probes):.1f} ms median, {min(probes):.1f}–{max(probes):.1f} ms over {len(probes)} "

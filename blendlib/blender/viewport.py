@@ -32,7 +32,7 @@ REDUCED_FACTOR = 4
 REDUCED_MIN_PIXELS = 128 * 128
 #: The helper process begins a full frame during the reduced one when the previous split frame
 #: took at least this many seconds of work in both processes together (100 ms: a full frame of
-#: about 50 ms). Both cores then work from the start, which brings heavy full frames 17-24 ms
+#: about 50 ms). Both cores then work from the start, which brings heavy full frames 5-24 ms
 #: sooner, but the reduced frame shares the machine and takes 3-17 ms longer: scenes whose full
 #: frames are well within a 60 ms budget keep their reduced frames quick.
 BEGIN_AFTER_WORK_S = 0.100
@@ -191,6 +191,14 @@ def region_view(scene: Any, depsgraph: Any, region: Any, region_data: Any) -> Vi
 # ---------------------------------------------------------------------------------------------
 
 
+def begins_early(bands: bandprocs.BandRenderer | None, begin_after_work_s: float = BEGIN_AFTER_WORK_S) -> bool:
+    """Whether the helper of ``bands`` should begin the next full frame while the reduced one
+    renders: after a split frame of ``begin_after_work_s`` or more of work in both processes
+    together (never before the first split frame, nor without a helper)."""
+    work = None if bands is None else bands.last_work_s
+    return work is not None and work >= begin_after_work_s
+
+
 def reduced_size(width: int, height: int, factor: int = REDUCED_FACTOR,
                  min_pixels: int = REDUCED_MIN_PIXELS) -> tuple[int, int] | None:
     """The size of the quick first frame (each side divided by ``factor``, rounded up), or None
@@ -306,9 +314,7 @@ class ViewportScheduler:
                 return self._generation != generation
 
             stages = [(dataclasses.replace(draw, camera=camera), full) for camera, full in self._stages(draw.camera)]
-            work = None if self.bands is None else self.bands.last_work_s  # of the last split frame
-            heavy = work is not None and work >= self._begin_after_work_s
-            if heavy and len(stages) > 1 and not stale():
+            if len(stages) > 1 and begins_early(self.bands, self._begin_after_work_s) and not stale():
                 # The helper process starts on the full frame's top band while this thread
                 # renders the reduced frame (both cores busy from the start).
                 self.bands.begin(stages[-1][0])

@@ -245,3 +245,17 @@ def test_the_scheduler_splits_large_frames_in_two_processes_and_ends_its_helper(
     finally:
         sched.close()
     assert proc.wait(timeout=WAIT) == 0
+
+
+def test_begins_early_only_after_a_heavy_split_frame():
+    class Bands:
+        last_work_s = None
+
+    bands = Bands()
+    assert not viewport.begins_early(bands, 0.1)  # no split frame measured yet
+    assert not viewport.begins_early(None, 0.0)  # no helper (a stand-in renderer)
+    bands.last_work_s = 0.0999
+    assert not viewport.begins_early(bands, 0.1)
+    bands.last_work_s = 0.1
+    assert viewport.begins_early(bands, 0.1)
+    assert viewport.begins_early(bands) == (0.1 >= viewport.BEGIN_AFTER_WORK_S)
