@@ -245,6 +245,14 @@ def texture_uv(material: Material, uv: np.ndarray) -> np.ndarray:
     return uvp
 
 
+def shading_key(material: Material) -> tuple:
+    """What of ``material`` :func:`shade` reads (its texture aside), numbers by their bytes:
+    materials with equal keys give a fragment the same colour bit for bit (-0.0 and 0.0 apart)."""
+    numbers = np.array([*material.color, *material.main_tex_tiling, *material.main_tex_offset,
+                        material.alpha_scale], dtype=np.float64)
+    return material.lighting, material.main_tex_filter, material.main_tex_wrap, numbers.tobytes()
+
+
 def shade(
     material: Material,
     texels: Texels | None,

@@ -96,6 +96,8 @@ class TriangleSetup:
 
     def world_normals_of(self, src: np.ndarray) -> np.ndarray:
         """World-space corner normals (K, 3, 3) float64 of source triangles ``src`` (K,)."""
+        if self.normal_matrix is None:
+            return self.object_normals[src]
         return _world_normals(self.object_normals[src], self.normal_matrix)
 
     def uvs_of(self, src: np.ndarray) -> np.ndarray:
@@ -118,6 +120,46 @@ class TriangleSetup:
                 dzdy = ((z[:, 2] - z[:, 0]) * (x[:, 1] - x[:, 0]) - (z[:, 1] - z[:, 0]) * (x[:, 2] - x[:, 0])) / a
             self._slope = np.maximum(np.abs(dzdx), np.abs(dzdy))
         return self._slope
+
+
+def _source_count(setup: TriangleSetup) -> int:
+    """How many source triangles ``setup.src`` numbers: its corner arrays' length, else max + 1."""
+    for corners in (setup.object_uvs, setup.object_normals):
+        if corners is not None:
+            return int(corners.shape[0])
+    return int(setup.src.max()) + 1 if setup.count else 0
+
+
+def concatenate_setups(setups: list[TriangleSetup]) -> TriangleSetup:
+    """The triangles of ``setups`` (all with normals or none, all with UVs or none) as one
+    setup, in order: several draw calls drawn as one (pipeline's fused calls).
+
+    Source triangles are renumbered past the setups before them, so ``src`` stays distinct
+    between setups and indexes the concatenated corner arrays. World normals are computed here
+    for every source triangle (each setup has its own normal matrix; the arithmetic per
+    triangle is the same, so the values are equal bit for bit), and ``normal_matrix`` is None.
+    """
+    counts = [_source_count(s) for s in setups]
+    offsets = np.cumsum([0, *counts[:-1]]).astype(np.int64)
+
+    def cat(name: str) -> np.ndarray:
+        return np.concatenate([getattr(s, name) for s in setups])
+
+    weights = None
+    if any(s.weights is not None for s in setups):
+        # Only rows of clipped triangles are read (raster.interpolate): zeros elsewhere.
+        weights = np.concatenate([np.zeros((s.count, 3, 3), dtype=np.float64) if s.weights is None
+                                  else s.weights for s in setups])
+    normals = uvs = None
+    if setups[0].object_normals is not None:
+        normals = np.concatenate([s.object_normals if s.normal_matrix is None else
+                                  _world_normals(s.object_normals, s.normal_matrix) for s in setups])
+    if setups[0].object_uvs is not None:
+        uvs = cat("object_uvs")
+    return TriangleSetup(X=cat("X"), Y=cat("Y"), zw=cat("zw"), iw=cat("iw"), area2=cat("area2"),
+                         src=np.concatenate([s.src + o for s, o in zip(setups, offsets, strict=True)]),
+                         weights=weights, clipped=cat("clipped"), front=cat("front"), object_normals=normals,
+                         normal_matrix=None, object_uvs=uvs)
 
 
 def _plane_distance(v: np.ndarray, plane: int) -> np.ndarray:

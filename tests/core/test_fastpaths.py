@@ -654,6 +654,96 @@ def test_constant_colour_draw_calls_fused_equal_reference(hdr, color_space, monk
         np.testing.assert_array_equal(frame.stencil, stencil)
 
 
+def _rotation(axis: int, degrees: float) -> np.ndarray:
+    c, s = np.cos(np.radians(degrees)), np.sin(np.radians(degrees))
+    m = np.eye(4)
+    i, j = [k for k in range(3) if k != axis]
+    m[i, i], m[i, j], m[j, i], m[j, j] = c, -s, s, c
+    return m
+
+
+@pytest.mark.parametrize("hdr,color_space", [(False, ColorSpace.Gamma), (False, ColorSpace.Linear),
+                                             (True, ColorSpace.Linear)])
+def test_draw_calls_sharing_shading_fused_equal_reference(hdr, color_space, monkeypatch):
+    """Consecutive draw calls whose materials differ only in pass and cutoff are shaded as one
+    and merged call by call (``_fuse_shared_shading``). Two groups: lit quads with a Point
+    texture (texel palettes) under different object matrices (one mirrored, one crossing the
+    near plane: clipped), overlapping, with blend modes the tables serve and one they cannot
+    (DstAlpha), alpha tests with different cutoffs, stencil, ColorMask, and two passes of one
+    renderer; before them smooth-lit spheres with a Bilinear texture (shaded per fragment), Cull
+    and cutoff per call. The frame equals the reference with one thread and two and with chunks
+    that cut a call's rows, and equals the frame drawn call by call."""
+    import dataclasses
+
+    from blendlib.core import pipeline
+    from blendlib.core.scene import Light
+    from blendlib.core.vocabulary import StencilOp, Texture
+
+    rng = np.random.default_rng(5)
+    texture = Texture(rng.uniform(0, 1, (4, 4, 4)).astype(np.float32), name="cells")
+    over = Pass(cull=Cull.Off, zwrite=False, blend=True, src_blend=BlendFactor.SrcAlpha,
+                dst_blend=BlendFactor.OneMinusSrcAlpha)
+    passes = [
+        (over,),
+        (Pass(zwrite=False, blend=True, src_blend=BlendFactor.DstAlpha, dst_blend=BlendFactor.One),),
+        (Pass(alpha_test=True, stencil=True, stencil_ref=2, stencil_pass=StencilOp.Replace),),
+        (Pass(alpha_test=True, color_mask=frozenset("RG"), ztest=CompareFunction.Greater),),
+        (Pass(zwrite=False, blend=True, src_blend=BlendFactor.One, dst_blend=BlendFactor.One),
+         Pass(offset_factor=0.0, stencil=True, stencil_comp=CompareFunction.NotEqual, stencil_ref=2,
+              stencil_pass=StencilOp.IncrSat, blend=True, src_blend=BlendFactor.DstColor,
+              dst_blend=BlendFactor.Zero)),
+    ]
+    matrices = [_rotation(2, 20) @ sc.translate(-0.6, 0.2, 0.3), sc.scale(-1.0, 1.0, 1.0) @ _rotation(1, 35),
+                _rotation(1, -50) @ sc.translate(0.4, -0.3, -0.2),
+                sc.translate(0.0, -0.4, 0.0) @ _rotation(0, -90) @ sc.scale(1.5, 4.0, 1.0),  # through the near plane
+                _rotation(0, 30) @ sc.translate(0.5, 0.5, 0.5)]
+    renderers = []
+    for k, (own, matrix) in enumerate(zip(passes, matrices, strict=True)):
+        mat = Material(name=f"Cell{k}", queue=Queue.Transparent, color=(0.9, 0.8, 0.7, 0.8), main_tex=texture,
+                       main_tex_filter=TextureFilter.Point, main_tex_tiling=(3.0, 2.0), lighting=Lighting.Lambert,
+                       cutoff=0.2 * k, passes=own)
+        renderers.append(sc.renderer(sc.quad(-1, -1, 1, 1), mat, name=f"Cell{k}", matrix=matrix))
+    sphere = sc.uv_sphere(0.6, 10, 6)
+    corners = np.asarray(sphere.positions, dtype=np.float64)[np.asarray(sphere.triangles)]
+    sphere = dataclasses.replace(sphere, uvs=(corners[..., :2] * 0.8 + 0.5).astype(np.float32))
+    for k, own in enumerate([Pass(), Pass(cull=Cull.Front), Pass(alpha_test=True)]):
+        mat = Material(name=f"Ball{k}", color=(0.6, 0.9, 0.8, 1.0), main_tex=texture, cutoff=0.45,
+                       main_tex_filter=TextureFilter.Bilinear, lighting=Lighting.Lambert, passes=(own,))
+        renderers.append(sc.renderer(sphere, mat, name=f"Ball{k}", matrix=sc.translate(-0.9 + 0.8 * k, 0.6, -1.0)))
+    # Unlit passes without ZWrite before and after the quads: the rows' depth floors they test
+    # against (DrawState.zfloor) must be taken again after the quads write depth.
+    behind = Pass(zwrite=False, blend=True, src_blend=BlendFactor.SrcAlpha, dst_blend=BlendFactor.OneMinusSrcAlpha)
+    renderers.append(sc.renderer(sc.quad(-0.2, -1.5, 0.4, 1.5, z=-3.0), sc.unlit(
+        (0.2, 0.9, 0.1, 0.5), queue=Queue.AlphaTest, passes=(behind,), name="Marker"), name="Marker"))
+    renderers.append(sc.renderer(sc.quad(-3, -3, 3, 3, z=-2.5), sc.unlit(
+        (0.9, 0.1, 0.8, 0.6), queue=Queue.Overlay, passes=(behind,), name="Veil"), name="Veil"))
+    scene = DrawScene(camera=sc.camera(120, 96, eye=(0.3, 0.4, 4.0), near=0.5), renderers=tuple(renderers),
+                      color_space=color_space, hdr=hdr, light=Light(direction=(0.36, 0.48, 0.8)),
+                      ambient=(0.3, 0.2, 0.1))
+    groups = []
+    original = pipeline._fuse_shared_shading
+
+    def recording(prepared):
+        out = original(prepared)
+        groups.append((len(prepared), len(out)))
+        return out
+
+    monkeypatch.setattr(pipeline, "_fuse_shared_shading", recording)
+    merger.RECENT_TABLES.clear()
+    frames = [render_scene(scene, workers=1), render_scene(scene, workers=2),
+              render_scene(scene, workers=1, chunk_candidates=97)]
+    assert groups[0] == (11, 4)  # the spheres (3 calls), the marker, the quads (6 calls), the veil
+    monkeypatch.setattr(pipeline, "FUSE_TRIANGLES", 0)
+    frames.append(render_scene(scene, workers=1))
+    assert groups[-1] == (11, 11)
+    color, depth, stencil = render_reference(scene)
+    assert len(np.unique(stencil)) >= 3 and len(np.unique(color.reshape(-1, 4), axis=0)) > 200
+    for frame in frames:
+        np.testing.assert_array_equal(frame.color, color)
+        np.testing.assert_array_equal(frame.depth, depth)
+        np.testing.assert_array_equal(frame.stencil, stencil)
+
+
 def test_matrices_of_many_renderers_equal_written_out_sums():
     """The batched 4x4 products and cofactors of the vertex stage equal the written-out
     Python-float sums of docs/pipeline.md §1 (mirroring matrices included)."""
