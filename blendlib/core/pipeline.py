@@ -639,21 +639,25 @@ def _prepare_together(frame: _FrameContext, runs: list[list[DrawCall]], texels) 
 FUSE_TRIANGLES = 1 << 15
 
 
-def _constant_color(prepared: _Prepared) -> np.ndarray | None:
+def _constant_color(prepared: _Prepared, memo: SceneMemo | None = None) -> np.ndarray | None:
     """(4,) float64: the colour the shader gives every fragment of the call, when that does not
-    depend on the fragment (Unlit, no texture, no alpha test); else None."""
+    depend on the fragment (Unlit, no texture, no alpha test); else None. Kept in ``memo`` per
+    material and colour space (Unlit reads no light)."""
     state = prepared.state
     material = state.material
     if prepared.shade is not _shade_chunk:  # already specialised (a colourless pass)
         return None
     if material.lighting is not Lighting.Unlit or state.texels is not None or state.pass_state.alpha_test:
         return None
-    # What _shade_chunk's flat path computes for each of the call's triangles.
-    return shade.shade(material, None, state.lights, state.color_space, np.zeros((1, 2), dtype=np.float64),
-                       np.zeros((1, 3), dtype=np.float64))[0]
+
+    def compute() -> np.ndarray:  # what _shade_chunk's flat path computes for each of the call's triangles
+        return shade.shade(material, None, state.lights, state.color_space, np.zeros((1, 2), dtype=np.float64),
+                           np.zeros((1, 3), dtype=np.float64))[0]
+
+    return compute() if memo is None else memo.lookup(("constant colour", state.color_space), material, compute)
 
 
-def _fuse_constant_calls(prepared: list[_Prepared]) -> list[_Prepared]:
+def _fuse_constant_calls(prepared: list[_Prepared], memo: SceneMemo | None = None) -> list[_Prepared]:
     """Consecutive draw calls with one pass state whose fragments each take their call's
     constant colour (:func:`_constant_color`: text labels, unlit props) drawn as one call.
 
@@ -661,6 +665,7 @@ def _fuse_constant_calls(prepared: list[_Prepared]) -> list[_Prepared]:
     colour from a palette, so the merger applies exactly the fragments the calls would apply
     one after another, in the same order (a pixel's fragments of several calls are layers of
     one chunk, as overlapping triangles of one call are). Saves the per-call fixed cost.
+    ``memo``: where the calls' colours are kept across renders.
     """
     out: list[_Prepared] = []
     group: list[tuple[_Prepared, np.ndarray]] = []
@@ -674,7 +679,7 @@ def _fuse_constant_calls(prepared: list[_Prepared]) -> list[_Prepared]:
         group.clear()
 
     for pr in prepared:
-        color = _constant_color(pr) if pr.setup.count <= FUSE_TRIANGLES else None
+        color = _constant_color(pr, memo) if pr.setup.count <= FUSE_TRIANGLES else None
         if color is None:
             flush()
             out.append(pr)
@@ -725,25 +730,30 @@ def _fused(group: list[tuple[_Prepared, np.ndarray]]) -> _Prepared:
     return _Prepared(first.call, setup, selected, rows, state, shade=shade_chunk)
 
 
-def _shading_key(prepared: _Prepared) -> tuple | None:
+def _shading_key(prepared: _Prepared, memo: SceneMemo | None = None) -> tuple | None:
     """Calls with equal keys shade every fragment alike and interpolate depth alike: the same
     texels and :func:`shade.shading_key`, the same Offset, setups with the same corner arrays.
-    None: the call is not fused (specialised shading, or a big mesh that would be copied)."""
+    None: the call is not fused (specialised shading, or a big mesh that would be copied).
+    ``memo``: where materials' keys are kept across renders."""
     if prepared.shade is not _shade_chunk or prepared.setup.count > FUSE_TRIANGLES:
         return None
     state, setup = prepared.state, prepared.setup
     p = state.pass_state
-    return (id(state.texels), shade.shading_key(state.material), float(p.offset_factor), float(p.offset_units),
+    material = state.material
+    key = shade.shading_key(material) if memo is None else memo.lookup("shading key", material,
+                                                                         lambda: shade.shading_key(material))
+    return (id(state.texels), key, float(p.offset_factor), float(p.offset_units),
             setup.object_normals is None, setup.object_uvs is None)
 
 
-def _fuse_shared_shading(prepared: list[_Prepared]) -> list[_Prepared]:
+def _fuse_shared_shading(prepared: list[_Prepared], memo: SceneMemo | None = None) -> list[_Prepared]:
     """Consecutive draw calls with one :func:`_shading_key` (the same material but for its
     pass and cutoff: blend-mode swatches, alpha-test cutoffs, a small mesh's passes) drawn
     as one: raster, interpolation and shading of their concatenated triangles once per chunk,
     then each call's fragments (a contiguous run of the chunk; calls in draw order) pass its
     own alpha test and merge with its own pass (:func:`_draw_shared_band`). Saves the per-call
-    fixed cost of those stages (about 1 ms a call on the 2-core machine)."""
+    fixed cost of those stages (about 1 ms a call on the 2-core machine). ``memo``: as
+    :func:`_shading_key`'s."""
     out: list[_Prepared] = []
     group: list[_Prepared] = []
     key = None
@@ -754,7 +764,7 @@ def _fuse_shared_shading(prepared: list[_Prepared]) -> list[_Prepared]:
         group.clear()
 
     for pr in prepared:
-        k = _shading_key(pr)
+        k = _shading_key(pr, memo)
         if group and (k is None or k != key or triangles + pr.setup.count > FUSE_TRIANGLES):
             flush()
         if k is None:
@@ -986,7 +996,7 @@ def _render_batched(frame: _FrameContext, todo, cancelled, should_cancel, progre
         prepared = _prepare_batch(frame, runs)
         prepared = _skip_unused_shading(prepared)
         if observer is None:  # an observer is told of each call's own fragments
-            prepared = _fuse_shared_shading(_fuse_constant_calls(prepared))
+            prepared = _fuse_shared_shading(_fuse_constant_calls(prepared, frame.memo), frame.memo)
         calls = [call for run in runs for call in run]
         if observer is not None:
             for call in calls:

@@ -632,8 +632,8 @@ def test_constant_colour_draw_calls_fused_equal_reference(hdr, color_space, monk
     groups = []
     original = pipeline._fuse_constant_calls
 
-    def recording(prepared):
-        out = original(prepared)
+    def recording(prepared, memo=None):
+        out = original(prepared, memo)
         groups.append((len(prepared), len(out)))
         return out
 
@@ -723,8 +723,8 @@ def test_draw_calls_sharing_shading_fused_equal_reference(hdr, color_space, monk
     groups = []
     original = pipeline._fuse_shared_shading
 
-    def recording(prepared):
-        out = original(prepared)
+    def recording(prepared, memo=None):
+        out = original(prepared, memo)
         groups.append((len(prepared), len(out)))
         return out
 
