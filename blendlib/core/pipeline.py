@@ -452,16 +452,17 @@ def _draw_band(buf, setup, rows, chunk_candidates: int, state: DrawState, stop_f
         observer.fragments(state.call, shaded, outcome)
 
 
-def _draw_shared_band(buf, prepared: _Prepared, rows, chunk_candidates: int, stop_flag) -> None:
+def _draw_shared_band(buf, prepared: _Prepared, rows, chunk_candidates: int, state: DrawState, stop_flag) -> None:
     """:func:`_draw_band` of calls with shared shading (:func:`_fuse_shared_shading`): each
-    chunk is shaded once; then each call's fragments, a contiguous run of the chunk (rows come
-    in call order), pass its own alpha test and merge with its own pass, call after call."""
+    chunk is shaded once (``state``: how, with the band's depth floors); then each call's
+    fragments, a contiguous run of the chunk (rows come in call order), pass its own alpha test
+    and merge with its own pass, call after call."""
     members = prepared.members
     firsts = np.array([m.first for m in members], dtype=np.int64)
     for a, b in raster.row_chunks(rows, chunk_candidates):
         if stop_flag.is_set():
             return
-        shaded = prepared.shade(prepared.setup, rows, a, b, prepared.state)
+        shaded = prepared.shade(prepared.setup, rows, a, b, state)
         if shaded is None:
             continue
         member = np.searchsorted(firsts, rows.tri[a:b], side="right") - 1  # (R,) nondecreasing
@@ -470,7 +471,10 @@ def _draw_shared_band(buf, prepared: _Prepared, rows, chunk_candidates: int, sto
         for lo, hi in zip(bounds[:-1], bounds[1:], strict=False):
             f0, f1 = (ends[lo - 1] if lo else 0), ends[hi - 1]
             if f1 > f0:
-                _merge_member(buf, members[int(member[lo])], shaded.span(f0, f1))
+                part = shaded.span(f0, f1)
+                if not part.disjoint and len(bounds) > 2:  # the chunk's rows overlap; the call's may not
+                    part.disjoint = raster.rows_disjoint(rows, a + lo, a + hi, buf.width)
+                _merge_member(buf, members[int(member[lo])], part)
 
 
 def _merge_member(buf, member: _Member, frags: ShadedFragments) -> None:
@@ -637,6 +641,10 @@ def _prepare_together(frame: _FrameContext, runs: list[list[DrawCall]], texels) 
 #: most this many triangles: a few hundred triangles cost about 1 ms a call in fixed array-call
 #: overhead; big meshes gain nothing and would be copied.
 FUSE_TRIANGLES = 1 << 15
+#: Draw calls with shared shading are fused in groups of at most this many fragments (about a
+#: chunk): beyond that the fixed cost saved is small beside the work, and a chunk holding rows of
+#: several large calls loses their proof of distinct pixels (S2's planes ran 1.9x slower fused).
+FUSE_FRAGMENTS = 1 << 17
 
 
 def _constant_color(prepared: _Prepared, memo: SceneMemo | None = None) -> np.ndarray | None:
@@ -733,9 +741,11 @@ def _fused(group: list[tuple[_Prepared, np.ndarray]]) -> _Prepared:
 def _shading_key(prepared: _Prepared, memo: SceneMemo | None = None) -> tuple | None:
     """Calls with equal keys shade every fragment alike and interpolate depth alike: the same
     texels and :func:`shade.shading_key`, the same Offset, setups with the same corner arrays.
-    None: the call is not fused (specialised shading, or a big mesh that would be copied).
-    ``memo``: where materials' keys are kept across renders."""
+    None: the call is not fused (specialised shading, a big mesh that would be copied, or more
+    than :data:`FUSE_FRAGMENTS` fragments). ``memo``: where materials' keys are kept across renders."""
     if prepared.shade is not _shade_chunk or prepared.setup.count > FUSE_TRIANGLES:
+        return None
+    if int(prepared.rows.length.sum()) > FUSE_FRAGMENTS:
         return None
     state, setup = prepared.state, prepared.setup
     p = state.pass_state
@@ -757,7 +767,7 @@ def _fuse_shared_shading(prepared: list[_Prepared], memo: SceneMemo | None = Non
     out: list[_Prepared] = []
     group: list[_Prepared] = []
     key = None
-    triangles = 0
+    triangles = fragments = 0
 
     def flush() -> None:
         out.append(_shared(group) if len(group) > 1 else group[0])
@@ -765,15 +775,18 @@ def _fuse_shared_shading(prepared: list[_Prepared], memo: SceneMemo | None = Non
 
     for pr in prepared:
         k = _shading_key(pr, memo)
-        if group and (k is None or k != key or triangles + pr.setup.count > FUSE_TRIANGLES):
+        count = int(pr.rows.length.sum())
+        if group and (k is None or k != key or triangles + pr.setup.count > FUSE_TRIANGLES
+                      or fragments + count > FUSE_FRAGMENTS):
             flush()
         if k is None:
             out.append(pr)
             continue
         if not group:
-            key, triangles = k, 0
+            key, triangles, fragments = k, 0, 0
         group.append(pr)
         triangles += pr.setup.count
+        fragments += count
     if group:
         flush()
     return out
@@ -784,13 +797,17 @@ def _shared(group: list[_Prepared]) -> _Prepared:
     setup, rows, selected, firsts = _concatenated(group)
     passes = [pr.state.pass_state for pr in group]
     depth = any(p.zwrite or p.ztest is not CompareFunction.Always for p in passes)
-    # The pass _shade_chunk sees: depth when any call reads or writes it (never proven
-    # unneeded: no zbound), no alpha test (each call tests its own cutoff), the first call's
-    # blend state for the palette decision (calls whose pass cannot use tables resolve it).
-    shading_pass = replace(passes[0], alpha_test=False, zwrite=any(p.zwrite for p in passes),
-                           ztest=CompareFunction.LEqual if depth else CompareFunction.Always)
+    # The pass _shade_chunk sees: depth when any call reads or writes it, no alpha test (each
+    # call tests its own cutoff), the first call's blend state for the palette decision (calls
+    # whose pass cannot use tables resolve it). When every call has a depth bound (no ZWrite,
+    # ZTest Less or LEqual), rows proven to pass under the stricter of their tests need none.
+    zbound, ztest = None, CompareFunction.LEqual if depth else CompareFunction.Always
+    if all(pr.state.zbound is not None for pr in group):
+        zbound = np.concatenate([pr.state.zbound for pr in group])
+        ztest = CompareFunction.Less if any(p.ztest is CompareFunction.Less for p in passes) else ztest
+    shading_pass = replace(passes[0], alpha_test=False, zwrite=any(p.zwrite for p in passes), ztest=ztest)
     first = group[0]
-    state = replace(first.state, call=replace(first.call, state=shading_pass), zbound=None)
+    state = replace(first.state, call=replace(first.call, state=shading_pass), zbound=zbound)
     members = [_Member(pr.state, pr.tables, int(f)) for pr, f in zip(group, firsts, strict=True)]
     return _Prepared(first.call, setup, selected, rows, state, members=members)
 
@@ -977,7 +994,7 @@ def _draw_batch_band(frame: _FrameContext, items, y0: int, y1: int, between: Cal
                 zfloor = _band_floor(frame.buf, y0, y1)
             state = replace(state, zfloor=zfloor)
         if rows.count and prepared.members is not None:
-            _draw_shared_band(frame.buf, prepared, rows, frame.chunk_candidates, frame.stop_flag)
+            _draw_shared_band(frame.buf, prepared, rows, frame.chunk_candidates, state, frame.stop_flag)
         elif rows.count:
             _draw_band(frame.buf, prepared.setup, rows, frame.chunk_candidates, state, frame.stop_flag, observer,
                        prepared.tables, prepared.shade)

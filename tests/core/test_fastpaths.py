@@ -671,7 +671,8 @@ def test_draw_calls_sharing_shading_fused_equal_reference(hdr, color_space, monk
     near plane: clipped), overlapping, with blend modes the tables serve and one they cannot
     (DstAlpha), alpha tests with different cutoffs, stencil, ColorMask, and two passes of one
     renderer; before them smooth-lit spheres with a Bilinear texture (shaded per fragment), Cull
-    and cutoff per call. The frame equals the reference with one thread and two and with chunks
+    and cutoff per call; after them two calls without ZWrite, whose rows' depth floors apply.
+    The frame equals the reference with one thread and two and with chunks
     that cut a call's rows, and equals the frame drawn call by call."""
     import dataclasses
 
@@ -717,6 +718,14 @@ def test_draw_calls_sharing_shading_fused_equal_reference(hdr, color_space, monk
         (0.2, 0.9, 0.1, 0.5), queue=Queue.AlphaTest, passes=(behind,), name="Marker"), name="Marker"))
     renderers.append(sc.renderer(sc.quad(-3, -3, 3, 3, z=-2.5), sc.unlit(
         (0.9, 0.1, 0.8, 0.6), queue=Queue.Overlay, passes=(behind,), name="Veil"), name="Veil"))
+    # Then two textured calls without ZWrite (ZTest Less, LEqual): depth floors prove some rows.
+    for k, ztest in enumerate([CompareFunction.Less, CompareFunction.LEqual]):
+        glaze = Pass(zwrite=False, ztest=ztest, blend=True, src_blend=BlendFactor.One,
+                     dst_blend=BlendFactor.OneMinusSrcColor)
+        mat = Material(name=f"Glaze{k}", queue=Queue.Overlay, main_tex=texture, main_tex_filter=TextureFilter.Point,
+                       lighting=Lighting.Unlit, passes=(glaze,))
+        renderers.append(sc.renderer(sc.quad(-2.2 + 1.6 * k, -2.0, -0.2 + 1.6 * k, 0.3, z=-0.4 + 0.5 * k), mat,
+                                     name=f"Glaze{k}"))
     scene = DrawScene(camera=sc.camera(120, 96, eye=(0.3, 0.4, 4.0), near=0.5), renderers=tuple(renderers),
                       color_space=color_space, hdr=hdr, light=Light(direction=(0.36, 0.48, 0.8)),
                       ambient=(0.3, 0.2, 0.1))
@@ -732,10 +741,14 @@ def test_draw_calls_sharing_shading_fused_equal_reference(hdr, color_space, monk
     merger.RECENT_TABLES.clear()
     frames = [render_scene(scene, workers=1), render_scene(scene, workers=2),
               render_scene(scene, workers=1, chunk_candidates=97)]
-    assert groups[0] == (11, 4)  # the spheres (3 calls), the marker, the quads (6 calls), the veil
+    # The spheres (3 calls), the marker, the quads (6 calls), the veil, the glazes (2 calls).
+    assert groups[0] == (13, 5)
+    monkeypatch.setattr(pipeline, "FUSE_FRAGMENTS", 1500)  # smaller groups
+    frames.append(render_scene(scene, workers=1))
+    assert 5 < groups[-1][1] < 13
     monkeypatch.setattr(pipeline, "FUSE_TRIANGLES", 0)
     frames.append(render_scene(scene, workers=1))
-    assert groups[-1] == (11, 11)
+    assert groups[-1] == (13, 13)
     color, depth, stencil = render_reference(scene)
     assert len(np.unique(stencil)) >= 3 and len(np.unique(color.reshape(-1, 4), axis=0)) > 200
     for frame in frames:
