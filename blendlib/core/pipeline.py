@@ -643,7 +643,7 @@ def _prepare_together(frame: _FrameContext, runs: list[list[DrawCall]], texels) 
 FUSE_TRIANGLES = 1 << 15
 #: Draw calls with shared shading are fused in groups of at most this many fragments (about a
 #: chunk): beyond that the fixed cost saved is small beside the work, and a chunk holding rows of
-#: several large calls loses their proof of distinct pixels (S2's planes ran 1.9x slower fused).
+#: several large calls loses their proof of distinct pixels (S2's planes ran 3x slower fused).
 FUSE_FRAGMENTS = 1 << 17
 
 
@@ -741,11 +741,9 @@ def _fused(group: list[tuple[_Prepared, np.ndarray]]) -> _Prepared:
 def _shading_key(prepared: _Prepared, memo: SceneMemo | None = None) -> tuple | None:
     """Calls with equal keys shade every fragment alike and interpolate depth alike: the same
     texels and :func:`shade.shading_key`, the same Offset, setups with the same corner arrays.
-    None: the call is not fused (specialised shading, a big mesh that would be copied, or more
-    than :data:`FUSE_FRAGMENTS` fragments). ``memo``: where materials' keys are kept across renders."""
+    None: the call is not fused (specialised shading, or a big mesh that would be copied).
+    ``memo``: where materials' keys are kept across renders."""
     if prepared.shade is not _shade_chunk or prepared.setup.count > FUSE_TRIANGLES:
-        return None
-    if int(prepared.rows.length.sum()) > FUSE_FRAGMENTS:
         return None
     state, setup = prepared.state, prepared.setup
     p = state.pass_state
@@ -774,8 +772,8 @@ def _fuse_shared_shading(prepared: list[_Prepared], memo: SceneMemo | None = Non
         group.clear()
 
     for pr in prepared:
-        k = _shading_key(pr, memo)
         count = int(pr.rows.length.sum())
+        k = _shading_key(pr, memo) if count <= FUSE_FRAGMENTS else None
         if group and (k is None or k != key or triangles + pr.setup.count > FUSE_TRIANGLES
                       or fragments + count > FUSE_FRAGMENTS):
             flush()
