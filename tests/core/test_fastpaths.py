@@ -595,6 +595,25 @@ def test_span_ends_by_float_division_equal_integer_division(reach, monkeypatch):
         np.testing.assert_array_equal(getattr(fast, name), getattr(exact, name), err_msg=name)
 
 
+def _fused_frames(scene: DrawScene, fuser: str, monkeypatch) -> tuple[list, list]:
+    """Frames of ``scene`` by one thread, two, and chunks of 97 candidates, with the groups
+    ``pipeline.<fuser>`` made recorded as (calls in, calls out) per batch."""
+    from blendlib.core import pipeline
+
+    groups = []
+    original = getattr(pipeline, fuser)
+
+    def recording(prepared, memo=None):
+        out = original(prepared, memo)
+        groups.append((len(prepared), len(out)))
+        return out
+
+    monkeypatch.setattr(pipeline, fuser, recording)
+    merger.RECENT_TABLES.clear()
+    return groups, [render_scene(scene, workers=1), render_scene(scene, workers=2),
+                    render_scene(scene, workers=1, chunk_candidates=97)]
+
+
 @pytest.mark.parametrize("hdr,color_space", [(False, ColorSpace.Gamma), (False, ColorSpace.Linear),
                                              (True, ColorSpace.Linear)])
 def test_constant_colour_draw_calls_fused_equal_reference(hdr, color_space, monkeypatch):
@@ -629,18 +648,7 @@ def test_constant_colour_draw_calls_fused_equal_reference(hdr, color_space, monk
                                              z=-0.2 * k), mat, name=f"Quad{k}"))
     scene = DrawScene(camera=sc.camera(120, 96, eye=(0.3, 0.4, 4.0)), renderers=tuple(renderers),
                       color_space=color_space, hdr=hdr)
-    groups = []
-    original = pipeline._fuse_constant_calls
-
-    def recording(prepared, memo=None):
-        out = original(prepared, memo)
-        groups.append((len(prepared), len(out)))
-        return out
-
-    monkeypatch.setattr(pipeline, "_fuse_constant_calls", recording)
-    merger.RECENT_TABLES.clear()
-    frames = [render_scene(scene, workers=1), render_scene(scene, workers=2),
-              render_scene(scene, workers=1, chunk_candidates=97)]
+    groups, frames = _fused_frames(scene, "_fuse_constant_calls", monkeypatch)
     # 5 blended calls -> 1; the opaque ones: 3 fused, then the textured, the alpha-tested, 1 alone.
     assert groups[0] == (11, 5)
     monkeypatch.setattr(pipeline, "FUSE_TRIANGLES", 0)
@@ -729,18 +737,7 @@ def test_draw_calls_sharing_shading_fused_equal_reference(hdr, color_space, monk
     scene = DrawScene(camera=sc.camera(120, 96, eye=(0.3, 0.4, 4.0), near=0.5), renderers=tuple(renderers),
                       color_space=color_space, hdr=hdr, light=Light(direction=(0.36, 0.48, 0.8)),
                       ambient=(0.3, 0.2, 0.1))
-    groups = []
-    original = pipeline._fuse_shared_shading
-
-    def recording(prepared, memo=None):
-        out = original(prepared, memo)
-        groups.append((len(prepared), len(out)))
-        return out
-
-    monkeypatch.setattr(pipeline, "_fuse_shared_shading", recording)
-    merger.RECENT_TABLES.clear()
-    frames = [render_scene(scene, workers=1), render_scene(scene, workers=2),
-              render_scene(scene, workers=1, chunk_candidates=97)]
+    groups, frames = _fused_frames(scene, "_fuse_shared_shading", monkeypatch)
     # The spheres (3 calls), the marker, the quads (6 calls), the veil, the glazes (2 calls).
     assert groups[0] == (13, 5)
     monkeypatch.setattr(pipeline, "FUSE_FRAGMENTS", 1500)  # smaller groups
