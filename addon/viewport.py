@@ -62,6 +62,7 @@ class ViewportSession:
         kwargs = {} if render is None else {"render": render}
         self.scheduler = viewport.ViewportScheduler(on_ready=redraw, **kwargs)
         self.template = None
+        self._extracted = None  # the last template extracted: its unchanged parts are reused
         self.scene_version = 0
         self.submitted = None
         self.error: str | None = None
@@ -71,7 +72,8 @@ class ViewportSession:
         """``view_update``: re-extract the scene (main thread); the next draw submits it."""
         self.scene_version += 1
         try:
-            self.template = viewport.extract_template(depsgraph.scene, depsgraph)
+            self.template = viewport.extract_template(depsgraph.scene, depsgraph, previous=self._extracted)
+            self._extracted = self.template
             self.error = None
         except SceneError as exc:
             self.template = None

@@ -530,7 +530,8 @@ class ProjectWorker:
         first frame (extraction + reduced frame); :func:`render_view` end to end; and the same
         through a :class:`ViewportScheduler` (extraction on this thread, frames on its worker
         thread: from the start of the extraction to each frame's ``on_ready``). A change is a
-        1e-4 nudge of one mesh object, evaluated (untimed, Blender's work) before each run."""
+        1e-4 nudge of one mesh object, evaluated (untimed, Blender's work) before each run; each
+        extraction reuses the unchanged parts of the one before, as the add-on's viewport does."""
         import dataclasses
         import threading
 
@@ -570,11 +571,12 @@ class ProjectWorker:
         bands = BandRenderer()
         bands.wait_ready()
         runs: dict[str, list[float]] = {k: [] for k in VIEWPORT_TIMES}
+        template = None
         try:
             for i in range(repeats):
                 change()
-                with Timer() as te:
-                    template = vp.extract_template(scene, depsgraph)
+                with Timer() as te:  # as the add-on's viewport: unchanged parts of the last template reused
+                    template = vp.extract_template(scene, depsgraph, previous=template)
                 draw = dataclasses.replace(template, camera=camera)
                 with Timer() as tr:  # as the scheduler does: after a heavy split frame the helper
                     if small and vp.begins_early(bands):
@@ -596,7 +598,7 @@ class ProjectWorker:
                 change()
                 stamps.clear()
                 t0 = time.perf_counter()
-                template = vp.extract_template(scene, depsgraph)
+                template = vp.extract_template(scene, depsgraph, previous=template)
                 sched.submit(dataclasses.replace(template, camera=camera), key=i)
                 if not sched.wait_idle(timeout=120) or len(stamps) < (2 if small else 1):
                     raise RuntimeError(f"viewport scheduler gave {len(stamps)} frames: {sched.error}")

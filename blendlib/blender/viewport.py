@@ -24,7 +24,7 @@ import numpy as np
 
 from ..core import bandprocs, pipeline
 from ..core.pipeline import Frame, RenderCancelled
-from ..core.scene import Camera, DrawScene, SceneError, affine_inverse
+from ..core.scene import Camera, DrawScene, SceneError, affine_inverse, reuse_unchanged
 
 #: The reduced frame is 1/REDUCED_FACTOR of the full one per side (1/16 of the pixels).
 REDUCED_FACTOR = 4
@@ -78,15 +78,19 @@ def camera_from_matrices(view_matrix: Any, projection_matrix: Any, width: int, h
                   orthographic=is_orthographic(proj))
 
 
-def extract_template(scene: Any = None, depsgraph: Any = None) -> DrawScene:
+def extract_template(scene: Any = None, depsgraph: Any = None, previous: DrawScene | None = None) -> DrawScene:
     """The scene as the viewport shows it (viewport visibility and modifiers), camera left open.
 
     The returned DrawScene carries :data:`PLACEHOLDER_CAMERA`; put a view's camera in with
-    ``dataclasses.replace(template, camera=...)``. Runs on the main thread (bpy).
+    ``dataclasses.replace(template, camera=...)``. ``previous``: the template extracted before;
+    its unchanged textures, materials, meshes and renderers are reused (:func:`reuse_unchanged`),
+    so what frames derived from them (memos, the band helper's copy) carries over. Runs on the
+    main thread (bpy).
     """
     from .extract import build_draw_scene
 
-    return build_draw_scene(scene, depsgraph, camera=PLACEHOLDER_CAMERA, visibility="viewport")
+    template = build_draw_scene(scene, depsgraph, camera=PLACEHOLDER_CAMERA, visibility="viewport")
+    return reuse_unchanged(template, previous)
 
 
 def render_view(scene: Any, view_matrix: Any, projection_matrix: Any, width: int, height: int, *,

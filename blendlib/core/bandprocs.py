@@ -12,7 +12,9 @@ draws only its rows); the helper's rows come back through a shared memory file. 
 depend on one another, so the joined frame equals ``render_scene``'s bit for bit. The cut between
 the bands follows the measured times of the previous frame, so both halves end together.
 :meth:`BandRenderer.begin` starts the helper's band of a frame early (during the viewport's
-reduced frame); the helper keeps the last scene, so a view change sends only the camera.
+reduced frame); the helper keeps the last scene, so a view change sends only the camera, and
+the parts of it a changed scene shares (:func:`~blendlib.core.scene.reuse_unchanged`) are sent
+by number, not again (:class:`_PartsWriter`).
 
 Frames below :data:`MIN_PIXELS`, renders with other options, and machines where the helper
 cannot run (one core, Windows, a helper that failed) go to ``render_scene`` unchanged.
@@ -21,6 +23,7 @@ cannot run (one core, Windows, a helper that failed) go to ``render_scene`` unch
 from __future__ import annotations
 
 import dataclasses
+import io
 import mmap
 import os
 import pickle
@@ -38,7 +41,7 @@ import numpy as np
 
 from blendlib.core import allocator, pipeline
 from blendlib.core.pipeline import Frame, RenderCancelled
-from blendlib.core.scene import DrawScene, SceneError, SceneMemo
+from blendlib.core.scene import DrawScene, SceneError, SceneMemo, scene_parts
 
 #: Frames of fewer pixels render in one process: the hand-over (pickling the scene, copying the
 #: helper's rows back: about 3 ms at 960x540) outweighs the half frame it saves.
@@ -71,15 +74,18 @@ def _band_views(buffer: mmap.mmap, rows: int, width: int) -> tuple[np.ndarray, n
     return color, depth, stencil
 
 
-def _send(stream, message) -> None:
-    data = pickle.dumps(message, protocol=pickle.HIGHEST_PROTOCOL)
+def _write(stream, data: bytes) -> None:
     stream.write(_LENGTH.pack(len(data)))
     stream.write(data)
     stream.flush()
 
 
-def _receive(stream, arrived: list[float] | None = None):
-    """The next message, or None at the end of the stream; appends to ``arrived`` the
+def _send(stream, message) -> None:
+    _write(stream, pickle.dumps(message, protocol=pickle.HIGHEST_PROTOCOL))
+
+
+def _read(stream, arrived: list[float] | None = None) -> bytes | None:
+    """The next message's bytes, or None at the end of the stream; appends to ``arrived`` the
     ``perf_counter`` time its first bytes came (the wait for them excluded)."""
     head = stream.read(_LENGTH.size)
     if len(head) < _LENGTH.size:
@@ -90,7 +96,81 @@ def _receive(stream, arrived: list[float] | None = None):
     data = stream.read(n)
     if len(data) < n:
         return None
-    return pickle.loads(data)
+    return data
+
+
+def _receive(stream, arrived: list[float] | None = None):
+    """The next message, or None at the end of the stream (see :func:`_read`)."""
+    data = _read(stream, arrived)
+    return None if data is None else pickle.loads(data)
+
+
+class _PartsWriter:
+    """Pickles requests for the helper so that each scene part (texture, material, mesh,
+    renderer: :func:`~blendlib.core.scene.scene_parts`) travels once: a part the helper holds
+    from an earlier request is sent as its number.
+
+    After :func:`~blendlib.core.scene.reuse_unchanged` a changed scene shares most parts with
+    the last one: such a request carries the changed parts only (pickling a 960x540 template's
+    meshes cost the viewport's reduced frame 1-2.5 ms), and the helper's memo keeps what it
+    derived from the rest. A message is: the numbers the helper may forget, then each new part
+    as (number, part) with the parts it holds as numbers, then the request. The numbers kept are
+    those of the parts of the last scene sent, on both sides.
+    """
+
+    def __init__(self) -> None:
+        self._numbers: dict[int, tuple[object, int]] = {}  # id(part) -> (part, number)
+        self._next = 0
+
+    def dumps(self, request, scene: DrawScene | None) -> bytes:
+        """The message for ``request``; ``scene``: the scene it sends (None: a request without one)."""
+        out = io.BytesIO()
+        numbers = self._numbers
+
+        class Pickler(pickle.Pickler):
+            def persistent_id(self, obj):
+                hit = numbers.get(id(obj))
+                return hit[1] if hit is not None and hit[0] is obj else None
+
+        parts = scene_parts(scene) if scene is not None else []
+        alive = {id(p) for p in parts}
+        forget = [] if scene is None else [n for key, (_, n) in numbers.items() if key not in alive]
+        new = [p for p in parts if id(p) not in numbers]
+        pickle.Pickler(out, protocol=pickle.HIGHEST_PROTOCOL).dump((forget, len(new)))
+        for part in new:
+            Pickler(out, protocol=pickle.HIGHEST_PROTOCOL).dump((self._next, part))
+            numbers[id(part)] = (part, self._next)
+            self._next += 1
+        Pickler(out, protocol=pickle.HIGHEST_PROTOCOL).dump(request)
+        if scene is not None:
+            self._numbers = {key: hit for key, hit in numbers.items() if key in alive}
+        return out.getvalue()
+
+
+class _PartsReader:
+    """The helper's side of :class:`_PartsWriter`: the parts it holds, by number."""
+
+    def __init__(self) -> None:
+        self.parts: dict[int, object] = {}
+
+    def loads(self, data: bytes):
+        stream = io.BytesIO(data)
+        parts = self.parts
+
+        class Unpickler(pickle.Unpickler):
+            def persistent_load(self, number):
+                try:
+                    return parts[number]
+                except KeyError:
+                    raise pickle.UnpicklingError(f"scene part {number} was never sent") from None
+
+        forget, count = pickle.Unpickler(stream).load()
+        for number in forget:
+            parts.pop(number, None)
+        for _ in range(count):
+            number, part = Unpickler(stream).load()
+            parts[number] = part
+        return Unpickler(stream).load()
 
 
 def _same_but_camera(scene: DrawScene, other: DrawScene | None) -> bool:
@@ -130,6 +210,8 @@ class _Helper:
         #: The last scene sent: the helper keeps it, so a frame that differs only in its camera
         #: sends just the camera (pickling a scene takes 1-2 ms of a 60 ms frame).
         self.scene: DrawScene | None = None
+        #: The scene parts the helper holds (a changed scene sends only its new parts).
+        self.parts = _PartsWriter()
 
     def poll_ready(self, timeout: float = 0.0) -> bool:
         """Whether the helper has started (read its hello if it has arrived)."""
@@ -331,9 +413,12 @@ class BandRenderer:
             self._lock.release()
 
     def _memo_for(self, scene: DrawScene) -> SceneMemo:
-        """The memo of renders of ``scene``'s template: kept while frames differ in their camera only."""
-        if self._memo is None or not _same_but_camera(scene, self._memo_scene):
+        """The memo of renders of ``scene``'s template: whole while frames differ in their camera
+        only, else keeping the entries of the parts ``scene`` shares with the last one."""
+        if self._memo is None:
             self._memo = SceneMemo()
+        elif not _same_but_camera(scene, self._memo_scene):
+            self._memo.retain(scene)
         self._memo_scene = scene
         return self._memo
 
@@ -349,7 +434,7 @@ class BandRenderer:
         else:
             request = ("scene", scene, cut, height, BAND_CHUNK_CANDIDATES)
         try:
-            _send(helper.proc.stdin, request)
+            _write(helper.proc.stdin, helper.parts.dumps(request, scene if request[0] == "scene" else None))
         except (OSError, ValueError) as exc:
             self._fail(f"helper process stopped: {exc}")
             return None
@@ -462,15 +547,17 @@ def serve(fd: int) -> int:
     buffer: mmap.mmap | None = None
     scene: DrawScene | None = None
     memo = SceneMemo()
+    parts = _PartsReader()
     while True:
         arrived: list[float] = []
-        request = _receive(requests, arrived)
-        if request is None:
+        data = _read(requests, arrived)
+        if data is None:
             return 0
-        kind, content, y0, y1, chunk = request
+        kind, content, y0, y1, chunk = parts.loads(data)
         try:
             if kind == "scene":
-                scene, memo = content, SceneMemo()
+                scene = content
+                memo.retain(scene)  # what it derived from parts the new scene shares stays
             elif scene is None:
                 raise RuntimeError("a view request before any scene")
             else:

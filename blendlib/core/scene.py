@@ -7,6 +7,7 @@ stated per field and checked by :func:`validate_scene`.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 from collections.abc import Callable
@@ -14,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .vocabulary import ColorSpace, Material, SortMode
+from .vocabulary import ColorSpace, Material, SortMode, Texture
 
 
 class SceneError(ValueError):
@@ -189,11 +190,18 @@ class SceneMemo:
 
     Entries are keyed by the objects themselves, which the memo keeps alive (an id is never
     reused while its entry exists); they stay valid while nobody writes into those objects'
-    arrays, so build a new scene (and a new memo) for a changed one. One render at a time.
+    arrays, so build a new scene for a changed one. A changed scene that shares parts with the
+    last (:func:`reuse_unchanged`) keeps their entries through :meth:`retain`. One render at a time.
     """
 
     def __init__(self) -> None:
         self._entries: dict[tuple, tuple[object, object]] = {}
+
+    def retain(self, scene: DrawScene) -> None:
+        """Forget the entries of objects that are not parts of ``scene`` (:func:`scene_parts`):
+        a new scene keeps what was derived from the parts it shares with the last one."""
+        alive = {id(part) for part in scene_parts(scene)}
+        self._entries = {key: hit for key, hit in self._entries.items() if id(hit[0]) in alive}
 
     def lookup(self, kind, obj, compute: Callable[[], object]):
         """``compute()`` for (``kind``, ``obj``), computed once."""
@@ -267,3 +275,119 @@ def _validate_renderer(r: Renderer) -> list[str]:
     if t == 0:
         warnings.append(f"{label}: empty mesh, nothing drawn")
     return warnings
+
+
+# ---------------------------------------------------------------------------------------------
+# Unchanged parts of successive scenes (the viewport re-extracts the scene after every change)
+# ---------------------------------------------------------------------------------------------
+
+
+def scene_parts(scene: DrawScene) -> list[object]:
+    """The objects of ``scene`` that memos and the band helper key by, each once, parts before
+    what holds them: per renderer its texture (if any), material, mesh, then the renderer."""
+    parts: dict[int, object] = {}
+    for r in scene.renderers:
+        for part in (r.material.main_tex, r.material, r.mesh, r):
+            if part is not None:
+                parts.setdefault(id(part), part)
+    return list(parts.values())
+
+
+def _same_array(a, b) -> bool:
+    """Both None, or arrays of one dtype and shape with the same bytes (so -0.0 is not 0.0,
+    which could flip an infinity's sign downstream, and a NaN equals only the same NaN)."""
+    if a is None or b is None:
+        return a is b
+    a, b = np.ascontiguousarray(a), np.ascontiguousarray(b)
+    if a.dtype != b.dtype or a.shape != b.shape:
+        return False
+    if a.nbytes <= 1 << 16:  # small: bytes objects compare in a fifth of array_equal's call
+        return a.tobytes() == b.tobytes()
+    bits = f"u{a.itemsize}" if a.itemsize in (1, 2, 4, 8) else "u1"
+    return bool(np.array_equal(a.view(bits), b.view(bits)))
+
+
+def _same_texture(a: Texture, b: Texture) -> bool:
+    return (a.name == b.name and a.encoding == b.encoding and a.missing == b.missing
+            and _same_array(a.pixels, b.pixels))
+
+
+def _same_mesh(a: Mesh, b: Mesh) -> bool:
+    return all(_same_array(getattr(a, name), getattr(b, name))
+               for name in ("positions", "triangles", "normals", "uvs", "polygons", "loop_triangles"))
+
+
+def _same_value(x, y) -> bool:
+    """Equal and of one type, in tuples too (an int 1 is not 1.0, nor -0.0 0.0; NaN never equals)."""
+    if type(x) is not type(y):
+        return False
+    if isinstance(x, tuple):
+        return len(x) == len(y) and all(_same_value(p, q) for p, q in zip(x, y, strict=True))
+    if isinstance(x, float):
+        return x == y and math.copysign(1.0, x) == math.copysign(1.0, y)
+    return x == y
+
+
+def _same_material(a: Material, b: Material) -> bool:
+    """Equal fields of equal types (textures: the very same object)."""
+    for f in dataclasses.fields(Material):
+        x, y = getattr(a, f.name), getattr(b, f.name)
+        if not (x is y if f.name == "main_tex" else _same_value(x, y)):
+            return False
+    return True
+
+
+def reuse_unchanged(scene: DrawScene, previous: DrawScene | None) -> DrawScene:
+    """``scene`` with every texture, material, mesh and renderer that equals its counterpart in
+    ``previous`` replaced by that very object.
+
+    The viewport extracts the whole scene again after any change, as new objects; most of it
+    is usually unchanged (an object moved: one new matrix). Sharing the unchanged objects lets
+    what is keyed by them carry over: a :class:`SceneMemo`'s entries (:meth:`SceneMemo.retain`)
+    and the band helper's copy of them (sent once). Counterparts are found by name (textures,
+    materials) and by object name and slot (meshes, renderers); equal means equal arrays
+    (dtype, shape, elements) and equal fields of equal types, so the frame is the same whichever
+    object is used. ``previous`` None: ``scene`` as is.
+    """
+    if previous is None:
+        return scene
+    textures: dict[str, list[Texture]] = {}
+    materials: dict[str, list[Material]] = {}
+    for r in previous.renderers:
+        tex = r.material.main_tex
+        if tex is not None and all(t is not tex for t in textures.get(tex.name, [])):
+            textures.setdefault(tex.name, []).append(tex)
+        if all(m is not r.material for m in materials.get(r.material.name, [])):
+            materials.setdefault(r.material.name, []).append(r.material)
+    old_renderers = {(r.name, r.slot): r for r in previous.renderers}
+    chosen: dict[int, object] = {}  # id of a new part -> the part to use
+
+    def texture_for(tex: Texture | None) -> Texture | None:
+        if tex is None:
+            return None
+        if id(tex) not in chosen:
+            chosen[id(tex)] = next((t for t in textures.get(tex.name, []) if _same_texture(t, tex)), tex)
+        return chosen[id(tex)]
+
+    def material_for(mat: Material) -> Material:
+        if id(mat) not in chosen:
+            tex = texture_for(mat.main_tex)
+            mine = mat if tex is mat.main_tex else dataclasses.replace(mat, main_tex=tex)
+            chosen[id(mat)] = next((m for m in materials.get(mat.name, []) if _same_material(m, mine)), mine)
+        return chosen[id(mat)]
+
+    renderers = []
+    for r in scene.renderers:
+        material = material_for(r.material)
+        old = old_renderers.get((r.name, r.slot))
+        mesh = r.mesh
+        if old is not None and (old.mesh is mesh or _same_mesh(old.mesh, mesh)):
+            mesh = old.mesh
+        if (old is not None and old.mesh is mesh and old.material is material
+                and _same_array(old.matrix_world, r.matrix_world) and _same_array(old.bounds_center, r.bounds_center)):
+            renderers.append(old)
+        elif mesh is r.mesh and material is r.material:
+            renderers.append(r)
+        else:
+            renderers.append(dataclasses.replace(r, mesh=mesh, material=material))
+    return dataclasses.replace(scene, renderers=tuple(renderers))

@@ -96,9 +96,15 @@ def test_free_view_reduced_then_full_and_equal_to_render_view():
         session.draw(fake, ctx2, depsgraph, draw=drawn)
         assert session.scheduler.wait_idle(WAIT) and len(redraws) == 4
         # the scene changes (view_update): new work, and the frame shows the change
+        before = {r.name: r for r in session.template.renderers}
         bpy.data.objects["Front"].location.x += 1.0
         depsgraph = bpy.context.evaluated_depsgraph_get()
         session.update(depsgraph)
+        # what did not change is the previous template's very objects (memos carry over)
+        after = {r.name: r for r in session.template.renderers}
+        assert after["Back"] is before["Back"]
+        assert after["Front"] is not before["Front"]
+        assert after["Front"].mesh is before["Front"].mesh and after["Front"].material is before["Front"].material
         session.draw(fake, ctx2, depsgraph, draw=drawn)
         assert session.scheduler.wait_idle(WAIT) and len(redraws) == 6
         session.draw(fake, ctx2, depsgraph, draw=drawn)

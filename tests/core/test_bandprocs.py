@@ -7,7 +7,9 @@ must stop on cancel, survive errors and, when it dies, leave frames to this proc
 from __future__ import annotations
 
 import dataclasses
+import io
 import os
+import pickle
 
 import numpy as np
 import pytest
@@ -16,7 +18,7 @@ from blendlib import render_scene
 from blendlib.core import bandprocs, raster
 from blendlib.core.bandprocs import BandRenderer, balanced_fraction
 from blendlib.core.pipeline import RenderCancelled
-from blendlib.core.scene import SceneError
+from blendlib.core.scene import SceneError, reuse_unchanged, scene_parts
 from tests.reference.random_scenes import seeded_scene
 
 WAIT = 30.0
@@ -117,13 +119,25 @@ def moved(camera, dx: float):
     return dataclasses.replace(camera, view_matrix=view)
 
 
+def recorded_requests(monkeypatch) -> tuple[list[str], list[int]]:
+    """The kinds ("scene", "view") of the requests sent to helpers from now on, and their sizes in bytes."""
+    kinds, sizes = [], []
+    real = bandprocs._PartsWriter.dumps
+
+    def dumps(self, request, scene):
+        data = real(self, request, scene)
+        kinds.append(request[0])
+        sizes.append(len(data))
+        return data
+
+    monkeypatch.setattr(bandprocs._PartsWriter, "dumps", dumps)
+    return kinds, sizes
+
+
 def test_view_changes_send_only_the_camera(bands, monkeypatch):
     """A frame that differs from the last only in its camera sends the camera alone, and its
     pixels are those of the new view; any other change sends the whole scene."""
-    sent = []
-    real_send = bandprocs._send
-    monkeypatch.setattr(bandprocs, "_send", lambda stream, message: (sent.append(message[0]),
-                                                                     real_send(stream, message)))
+    sent, _ = recorded_requests(monkeypatch)
     template = scene_at(12)
     views = [template, dataclasses.replace(template, camera=moved(template.camera, 0.3)),
              dataclasses.replace(template, camera=moved(template.camera, -0.2))]
@@ -136,11 +150,64 @@ def test_view_changes_send_only_the_camera(bands, monkeypatch):
     assert sent[-1] == "scene"
 
 
+def test_changed_scenes_send_only_their_new_parts(bands, monkeypatch):
+    """After reuse_unchanged, a changed scene sends the helper its new parts only (the rest by
+    number), the helper forgets parts no longer used, and every frame equals render_scene."""
+    messages = []
+    real = bandprocs._PartsWriter.dumps
+    monkeypatch.setattr(bandprocs._PartsWriter, "dumps",
+                        lambda self, request, scene: messages.append(real(self, request, scene)) or messages[-1])
+
+    def new_parts() -> tuple[list[int], int]:
+        return pickle.Unpickler(io.BytesIO(messages[-1])).load()  # (numbers forgotten, parts sent)
+
+    first = scene_at(8)  # four renderers, three textured
+    assert len(first.renderers) == 4
+    assert_same_frame(bands(first), render_scene(first))
+    parts = len(scene_parts(first))
+    assert new_parts()[1] == parts  # every part, the earlier tests' parts forgotten
+    # Extracted again (all new objects, equal content), one object moved: one new renderer.
+    again = pickle.loads(pickle.dumps(first))
+    r0 = again.renderers[0]
+    matrix = np.array(r0.matrix_world, dtype=np.float64)
+    matrix[0, 3] += 0.05
+    moved_scene = reuse_unchanged(dataclasses.replace(again, renderers=(
+        dataclasses.replace(r0, matrix_world=matrix), *again.renderers[1:])), first)
+    assert moved_scene.renderers[1:] == first.renderers[1:]
+    assert_same_frame(bands(moved_scene), render_scene(moved_scene))
+    forgotten, sent = new_parts()
+    assert sent == 1 and len(forgotten) == 1  # the moved renderer for the old one
+    # Read as the helper reads them: the unchanged parts are the very objects it already holds.
+    reader = bandprocs._PartsReader()
+    held, now = (reader.loads(m)[1] for m in messages[-2:])
+    assert all(a is b for a, b in zip(now.renderers[1:], held.renderers[1:], strict=True))
+    assert now.renderers[0] is not held.renderers[0] and now.renderers[0].mesh is held.renderers[0].mesh
+    assert len(messages[-1]) < len(messages[-2]) // 4
+    # One mesh changed: the mesh and its renderer are new, the old ones forgotten.
+    r1 = moved_scene.renderers[1]
+    mesh = dataclasses.replace(r1.mesh, positions=np.asarray(r1.mesh.positions) * np.float32(1.1))
+    reshaped = reuse_unchanged(dataclasses.replace(moved_scene, renderers=(
+        moved_scene.renderers[0], dataclasses.replace(r1, mesh=mesh), *moved_scene.renderers[2:])), moved_scene)
+    assert_same_frame(bands(reshaped), render_scene(reshaped))
+    forgotten, sent = new_parts()
+    shared_mesh = any(r.mesh is r1.mesh for r in reshaped.renderers)
+    assert sent == 2 and len(forgotten) == (1 if shared_mesh else 2)
+    # A renderer dropped and brought back: forgotten, then sent again whole.
+    fewer = dataclasses.replace(reshaped, renderers=reshaped.renderers[:-1])
+    assert_same_frame(bands(fewer), render_scene(fewer))
+    assert new_parts()[1] == 0 and len(new_parts()[0]) >= 1
+    assert_same_frame(bands(reshaped), render_scene(reshaped))
+    assert new_parts() == ([], len(new_parts_of(reshaped.renderers[-1], fewer)))
+
+
+def new_parts_of(renderer, scene) -> list[object]:
+    """The parts of ``renderer`` that ``scene`` does not hold."""
+    held = {id(p) for p in scene_parts(scene)}
+    return [p for p in scene_parts(dataclasses.replace(scene, renderers=(renderer,))) if id(p) not in held]
+
+
 def test_after_a_refused_scene_the_next_view_sends_the_scene_again(bands, monkeypatch):
-    sent = []
-    real_send = bandprocs._send
-    monkeypatch.setattr(bandprocs, "_send", lambda stream, message: (sent.append(message[0]),
-                                                                     real_send(stream, message)))
+    sent, _ = recorded_requests(monkeypatch)
     template = scene_at(3)
     bad = dataclasses.replace(template, camera=dataclasses.replace(template.camera,
                                                                    view_matrix=np.full((4, 4), np.nan)))
@@ -220,6 +287,30 @@ def test_small_frames_and_other_options_stay_in_this_process():
         renderer.min_pixels = 0
         assert_same_frame(renderer(draw, until_draw=1), render_scene(draw, until_draw=1))
         assert renderer.split_frames == 0
+    finally:
+        renderer.close()
+
+
+def test_a_changed_scene_keeps_the_memo_of_its_unchanged_parts(monkeypatch):
+    """Frames of a changed template (reuse_unchanged) check only the renderers that changed."""
+    from blendlib.core import scene as scene_module
+
+    renderer = BandRenderer(min_pixels=10**9, start=False)  # every frame in this process
+    checked = []
+    real = scene_module._validate_renderer
+    monkeypatch.setattr(scene_module, "_validate_renderer", lambda r: checked.append(r) or real(r))
+    try:
+        draw = scene_at(8)
+        renderer(draw)
+        assert len(checked) == len(draw.renderers)
+        matrix = np.array(draw.renderers[2].matrix_world, dtype=np.float64)
+        matrix[2, 3] += 0.1
+        again = pickle.loads(pickle.dumps(draw))
+        moved_scene = reuse_unchanged(dataclasses.replace(again, renderers=(
+            *again.renderers[:2], dataclasses.replace(again.renderers[2], matrix_world=matrix), *again.renderers[3:])),
+            draw)
+        assert_same_frame(renderer(moved_scene), render_scene(moved_scene))
+        assert checked[len(draw.renderers):-len(moved_scene.renderers)] == [moved_scene.renderers[2]]
     finally:
         renderer.close()
 

@@ -4,6 +4,7 @@ once, and give the same frames and warnings as renders without it."""
 from __future__ import annotations
 
 import dataclasses
+import pickle
 
 import numpy as np
 import pytest
@@ -11,7 +12,7 @@ import pytest
 from blendlib import render_scene
 from blendlib.core import scene as scene_module
 from blendlib.core import shade
-from blendlib.core.scene import SceneError, SceneMemo
+from blendlib.core.scene import SceneError, SceneMemo, reuse_unchanged, scene_parts
 from tests.reference.random_scenes import seeded_scene
 
 
@@ -90,3 +91,101 @@ def test_lookup_computes_once_per_object_and_keeps_it():
     assert memo.lookup("other", first, lambda: made.append(1) or "c") == "c"
     assert len(made) == 2
     assert memo._entries[("k", id(first))][0] is first  # held: its id cannot be reused meanwhile
+
+
+def extracted_again(draw):
+    """``draw`` as the viewport's next extraction gives it: equal content, every object new."""
+    return pickle.loads(pickle.dumps(draw))
+
+
+def with_renderer(draw, k: int, **changes):
+    r = draw.renderers[k]
+    return dataclasses.replace(draw, renderers=(*draw.renderers[:k], dataclasses.replace(r, **changes),
+                                                *draw.renderers[k + 1:]))
+
+
+def test_reuse_unchanged_shares_equal_parts_and_keeps_changed_ones():
+    draw = seeded_scene(8)  # four renderers, three textured
+    assert len(draw.renderers) == 4
+    same = reuse_unchanged(extracted_again(draw), draw)
+    assert all(a is b for a, b in zip(same.renderers, draw.renderers, strict=True))
+    assert reuse_unchanged(draw, None) is draw
+
+    # One object moved: a new renderer over the old mesh and material.
+    matrix = np.array(draw.renderers[0].matrix_world, dtype=np.float64)
+    matrix[1, 3] += 0.25
+    moved = reuse_unchanged(with_renderer(extracted_again(draw), 0, matrix_world=matrix), draw)
+    r0 = moved.renderers[0]
+    assert r0 is not draw.renderers[0] and r0.mesh is draw.renderers[0].mesh
+    assert r0.material is draw.renderers[0].material
+    np.testing.assert_array_equal(r0.matrix_world, matrix)
+    assert all(a is b for a, b in zip(moved.renderers[1:], draw.renderers[1:], strict=True))
+
+    # A texel changed: a new texture and material for its renderers, their meshes shared.
+    k = next(i for i, r in enumerate(draw.renderers) if r.material.main_tex is not None)
+    again = extracted_again(draw)
+    material = again.renderers[k].material
+    pixels = np.array(material.main_tex.pixels)
+    pixels[0, 0, 0] = 1.0 - pixels[0, 0, 0]
+    repainted = reuse_unchanged(with_renderer(again, k, material=dataclasses.replace(
+        material, main_tex=dataclasses.replace(material.main_tex, pixels=pixels))), draw)
+    rk = repainted.renderers[k]
+    assert rk.material is not draw.renderers[k].material and rk.mesh is draw.renderers[k].mesh
+    np.testing.assert_array_equal(rk.material.main_tex.pixels, pixels)
+
+    # A cutoff changed: a new material holding the old texture.
+    recut = reuse_unchanged(with_renderer(again, k, material=dataclasses.replace(material, cutoff=0.123)), draw)
+    assert recut.renderers[k].material.cutoff == 0.123
+    assert recut.renderers[k].material.main_tex is draw.renderers[k].material.main_tex
+
+    # Equal values with other bytes or types are not the same: -0.0 for 0.0, other dtypes, ints.
+    mesh = draw.renderers[1].mesh
+    zero = np.array(mesh.positions)
+    zero[0, 0] = 0.0
+    base = with_renderer(draw, 1, mesh=dataclasses.replace(mesh, positions=zero),
+                         material=dataclasses.replace(draw.renderers[1].material, color=(1.0, 0.5, 0.25, 1.0)))
+    negative = zero.copy()
+    negative[0, 0] = -0.0
+    signed = reuse_unchanged(with_renderer(extracted_again(base), 1, mesh=dataclasses.replace(
+        mesh, positions=negative)), base)
+    assert signed.renderers[1].mesh is not base.renderers[1].mesh
+    other_dtype = np.float32 if zero.dtype == np.float64 else np.float64
+    wider = reuse_unchanged(with_renderer(extracted_again(base), 1, mesh=dataclasses.replace(
+        mesh, positions=zero.astype(other_dtype))), base)
+    assert wider.renderers[1].mesh is not base.renderers[1].mesh
+    assert reuse_unchanged(extracted_again(base), base).renderers[1].mesh is base.renderers[1].mesh
+    whole = reuse_unchanged(with_renderer(extracted_again(base), 1, material=dataclasses.replace(
+        base.renderers[1].material, color=(1, 0.5, 0.25, 1))), base)
+    assert whole.renderers[1].material is not base.renderers[1].material
+    assert whole.renderers[1].mesh is base.renderers[1].mesh
+
+    for changed in (moved, repainted, recut, wider):
+        assert_same(render_scene(changed), render_scene(extracted_again(changed)))
+
+
+def assert_same(a, b) -> None:
+    np.testing.assert_array_equal(a.color, b.color)
+    np.testing.assert_array_equal(a.depth, b.depth)
+    assert a.warnings == b.warnings
+
+
+def test_retain_keeps_what_the_shared_parts_derived(monkeypatch):
+    """A memo retained for a changed scene checks only its new renderers and converts only its
+    new textures, and renders it as a fresh memo would."""
+    draw = seeded_scene(8)
+    memo = SceneMemo()
+    render_scene(draw, memo=memo)
+    checks = counting(monkeypatch, scene_module, "_validate_renderer")
+    conversions = counting(monkeypatch, shade, "texture_texels")
+    matrix = np.array(draw.renderers[0].matrix_world, dtype=np.float64)
+    matrix[0, 3] -= 0.2
+    moved = reuse_unchanged(with_renderer(extracted_again(draw), 0, matrix_world=matrix), draw)
+    memo.retain(moved)
+    assert_same(render_scene(moved, memo=memo), render_scene(moved))
+    assert len(checks) == 1 + len(moved.renderers)  # the moved renderer here, all in the plain render
+    textures = {id(r.material.main_tex) for r in moved.renderers if r.material.main_tex is not None}
+    assert len(conversions) == len(textures)  # none here: the plain render's only
+    # Entries of parts no scene holds any more are dropped.
+    held = {id(p) for p in scene_parts(moved)}
+    assert all(id(hit[0]) in held for hit in memo._entries.values())
+    assert id(draw.renderers[0]) not in {id(hit[0]) for hit in memo._entries.values()}
