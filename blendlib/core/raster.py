@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .vertex import DEPTH_MAX, HALF, SUBPIXEL, TriangleSetup, run_parts
+from .vertex import DEPTH_MAX, HALF, PIECE, SUBPIXEL, TriangleSetup, run_parts
 
 _SHIFT = SUBPIXEL.bit_length() - 1
 assert SUBPIXEL == 1 << _SHIFT  # divisions by S are shifts
@@ -99,15 +99,16 @@ def coverage_rows(
 ) -> Rows:
     """Per-row spans of exactly the covered pixels of the selected triangles (docs/pipeline.md §4).
 
-    With a thread ``pool``, contiguous parts of ``selected`` are done in parallel and joined
-    in order (rows stay in draw order). ``band`` (y0, y1): only pixel rows ``y0 <= y < y1``.
+    ``selected`` is covered in contiguous pieces of at most ``PIECE`` triangles (their arrays
+    stay in cache), on a thread ``pool`` when given, joined in order (rows stay in draw order).
+    ``band`` (y0, y1): only pixel rows ``y0 <= y < y1``.
     """
     results: dict[int, Rows] = {}
 
     def part(lo: int, hi: int) -> None:
         results[lo] = _coverage_rows(setup, selected[lo:hi], width, height, band)
 
-    run_parts(pool, parts, selected.size, part)
+    run_parts(pool, parts, selected.size, part, piece=PIECE)
     if len(results) == 1:
         return next(iter(results.values()))
     pieces = [results[k] for k in sorted(results)]
@@ -181,6 +182,24 @@ def _spans(X: np.ndarray, Y: np.ndarray, area2: np.ndarray, selected: np.ndarray
     (S*|dy_k|)``, that is ``x <= q`` when ``dy_k > 0`` and ``x >= -q`` when ``dy_k < 0``
     (one exact floor division per edge); a horizontal edge keeps or empties the row.
     """
+    # Bounding boxes first: they do not depend on the vertex order, and most small triangles hold
+    # no pixel centre at all, so they are dropped before any per-edge work.
+    x_min = np.minimum(np.minimum(X[:, 0], X[:, 1]), X[:, 2])
+    x_max = np.maximum(np.maximum(X[:, 0], X[:, 1]), X[:, 2])
+    y_min = np.minimum(np.minimum(Y[:, 0], Y[:, 1]), Y[:, 2])
+    y_max = np.maximum(np.maximum(Y[:, 0], Y[:, 1]), Y[:, 2])
+    # Floor and ceiling divisions by S = 2**SHIFT as arithmetic shifts (exact for negatives too).
+    x_lo = np.maximum(-((HALF - x_min) >> _SHIFT), 0)
+    x_hi = np.minimum((x_max - HALF) >> _SHIFT, width - 1)
+    row_lo, row_hi = (0, height) if band is None else band
+    y_lo = np.maximum(-((HALF - y_min) >> _SHIFT), row_lo)
+    y_hi = np.minimum((y_max - HALF) >> _SHIFT, row_hi - 1)
+    has = (x_lo <= x_hi) & (y_lo <= y_hi)
+    if not np.all(has):
+        index = np.flatnonzero(has)
+        X, Y = np.take(X, index, axis=0), np.take(Y, index, axis=0)
+        selected, area2, x_lo, x_hi, y_lo, y_hi, x_min, x_max, y_min, y_max = (
+            np.take(v, index) for v in (selected, area2, x_lo, x_hi, y_lo, y_hi, x_min, x_max, y_min, y_max))
     swap = area2 < 0
     # Counter-clockwise vertex order (a, b, c) = (v0, v1, v2), or (v0, v2, v1) when clockwise.
     ax, ay = X[:, 0], Y[:, 0]
@@ -188,17 +207,6 @@ def _spans(X: np.ndarray, Y: np.ndarray, area2: np.ndarray, selected: np.ndarray
     by = np.where(swap, Y[:, 2], Y[:, 1])
     cx = np.where(swap, X[:, 1], X[:, 2])
     cy = np.where(swap, Y[:, 1], Y[:, 2])
-    # Floor and ceiling divisions by S = 2**SHIFT as arithmetic shifts (exact for negatives too).
-    x_lo = np.maximum(-((HALF - np.minimum(np.minimum(ax, bx), cx)) >> _SHIFT), 0)
-    x_hi = np.minimum((np.maximum(np.maximum(ax, bx), cx) - HALF) >> _SHIFT, width - 1)
-    row_lo, row_hi = (0, height) if band is None else band
-    y_lo = np.maximum(-((HALF - np.minimum(np.minimum(ay, by), cy)) >> _SHIFT), row_lo)
-    y_hi = np.minimum((np.maximum(np.maximum(ay, by), cy) - HALF) >> _SHIFT, row_hi - 1)
-    has = (x_lo <= x_hi) & (y_lo <= y_hi)  # most tiny triangles hold no pixel centre at all
-    if not np.all(has):
-        index = np.flatnonzero(has)
-        selected, area2, swap, ax, ay, bx, by, cx, cy, x_lo, x_hi, y_lo, y_hi = (
-            np.take(v, index) for v in (selected, area2, swap, ax, ay, bx, by, cx, cy, x_lo, x_hi, y_lo, y_hi))
     nrows = y_hi - y_lo + 1
     total = int(nrows.sum())
     starts = np.cumsum(nrows) - nrows
@@ -217,39 +225,53 @@ def _spans(X: np.ndarray, Y: np.ndarray, area2: np.ndarray, selected: np.ndarray
     # The floor divisions below run in float64 when that is exact: a quotient of integers below
     # 2**53 in magnitude is correctly rounded, so it lands on the integer below it only when it
     # is that integer (its distance to any other is at least 1/|divisor|, the rounding error
-    # less than that). |numerator| <= 6*L**2 + S*L + 1 for corners within L of the origin.
-    reach = max(int(np.abs(X).max(initial=0)), int(np.abs(Y).max(initial=0)))
+    # less than that). |numerator| <= 6*L**2 + S*L + 1 for corners within L of the origin (the
+    # corners of the triangles kept: the only ones whose rows are computed).
+    reach = max(0, -int(x_min.min(initial=0)), int(x_max.max(initial=0)),
+                -int(y_min.min(initial=0)), int(y_max.max(initial=0)))
     in_float = 6 * reach * reach + SUBPIXEL * reach + 1 < FLOAT_DIVISION_LIMIT
-    # Edges p -> q: b->c (opposite a), c->a (opposite b), a->b (opposite c).
-    c_rows, dy_t_all = [], []
-    for xp, yp, xq, yq in ((bx, by, cx, cy), (cx, cy, ax, ay), (ax, ay, bx, by)):
+    # Edges p -> q: b->c (opposite a), c->a (opposite b), a->b (opposite c). Per row of edge k,
+    # E = c - dy*Px with c = dx*Py + k; the test E >= bias is dy*Px <= c - bias, i.e. with
+    # num = c - bias - (S/2)*dy: x <= num // (S*dy) for dy > 0, x >= -(num // (S*|dy|)) for
+    # dy < 0, and for dy = 0 the row is kept when num >= 0. Per-triangle terms are summed once
+    # per triangle (integer sums: the same values in any order) before they reach the rows.
+    c_rows, dy_rows, dy_t_all = [], [], []
+    for edge, (xp, yp, xq, yq) in enumerate(((bx, by, cx, cy), (cx, cy, ax, ay), (ax, ay, bx, by))):
         dx_t, dy_t = xq - xp, yq - yp
         bias_t = ((dy_t > 0) | ((dy_t == 0) & (dx_t >= 0))).astype(np.int64)  # 0 on top-left edges
         k_t = dy_t * xp - dx_t * yp  # E = dx*(Py - yp) - dy*(Px - xp) = (dx*Py + k) - dy*Px
         dy = each(dy_t)
-        c = each(dx_t) * py
-        c += each(k_t)
-        rhs = c - each(bias_t)
-        num = rhs - HALF * dy
+        num = each(dx_t) * py
+        if edge < 2:  # the rows keep c for the barycentrics
+            num += each(k_t)
+            c_rows.append(num.copy())
+            num += each(-(bias_t + HALF * dy_t))
+        else:
+            num += each(k_t - (bias_t + HALF * dy_t))
         den_t = SUBPIXEL * np.maximum(np.abs(dy_t), 1)
         if in_float:
-            q = np.floor(np.divide(num, each(den_t.astype(np.float64)))).astype(np.int64)
+            q = np.divide(num, each(den_t.astype(np.float64)))
+            np.floor(q, out=q)
+            q = q.astype(np.int64)
         else:
             q = num // each(den_t)
-        x1 = np.where(dy > 0, np.minimum(x1, q), x1)
-        x0 = np.where(dy < 0, np.maximum(x0, -q), x0)
-        x1 = np.where((dy == 0) & (rhs < 0), x0 - 1, x1)
-        c_rows.append(c)
+        np.minimum(x1, q, out=x1, where=dy > 0)
+        np.negative(q, out=q)
+        np.maximum(x0, q, out=x0, where=dy < 0)
+        if not np.all(dy_t):  # horizontal edges: the row is empty when the pixel centre row fails them
+            empty = np.flatnonzero((dy == 0) & (num < 0))
+            x1[empty] = x0[empty] - 1
+        dy_rows.append(dy)
         dy_t_all.append(dy_t)
     length = x1 - x0 + 1
     keep = np.flatnonzero(length > 0)
     if keep.size != length.size:  # rows without a covered pixel centre are dropped
-        y, x0, length, c0, c1 = (np.take(v, keep) for v in (y, x0, length, *c_rows[:2]))
+        y, x0, length, c0, c1, dy0, dy1 = (np.take(v, keep) for v in (y, x0, length, *c_rows, *dy_rows[:2]))
         of_row = np.take(of_row, keep)
     else:
-        c0, c1 = c_rows[:2]
-    return Rows(tri=each(selected), y=y, x0=x0, length=length, c0=c0, c1=c1, dy0=each(dy_t_all[0]),
-                dy1=each(dy_t_all[1]), swap=each(swap), area=each(np.abs(area2)))
+        (c0, c1), (dy0, dy1) = c_rows, dy_rows[:2]
+    return Rows(tri=each(selected), y=y, x0=x0, length=length, c0=c0, c1=c1, dy0=dy0,
+                dy1=dy1, swap=each(swap), area=each(np.abs(area2)))
 
 
 def row_chunks(rows: Rows, max_candidates: int) -> list[tuple[int, int]]:

@@ -10,6 +10,7 @@ reference of tests/reference/scalar.py.
 from __future__ import annotations
 
 import os
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import pytest
@@ -426,7 +427,7 @@ def test_large_textures_are_not_examined_for_repeated_texels(monkeypatch):
     np.testing.assert_array_equal(frame.color, render_reference(scene)[0])
 
 
-def test_renderers_set_up_together_equal_each_alone():
+def test_renderers_set_up_together_equal_each_alone(monkeypatch):
     """Many small renderers get one vertex setup and one coverage pass for all of them; each
     renderer's triangles and each pass's spans equal those of its own setup: near-plane clipping,
     a mirroring matrix, non-finite and zero-area triangles, a mesh without triangles, float32 and
@@ -447,6 +448,9 @@ def test_renderers_set_up_together_equal_each_alone():
         vertex.SetupInput(empty, np.eye(4)),
         vertex.SetupInput(line, np.eye(4)),
         vertex.SetupInput(small32, sc.translate(0.6, -0.3, 0.5)),
+        # Upright walls (normals across x and y): a zero z in their cross products, yet an area.
+        vertex.SetupInput(sc.make_mesh([(0, 0, 0), (1, 0, 0), (0, 0, 1), (0, 1, 0)], [(0, 1, 2), (0, 2, 3)]),
+                          sc.translate(-0.3, -0.2, 0.0)),
     ]
     camera = sc.camera(80, 60, eye=(0.0, 0.0, 2.5))
     together = vertex.setup_renderers(items, camera)
@@ -466,6 +470,7 @@ def test_renderers_set_up_together_equal_each_alone():
     mirrored = together[1]
     assert mirrored.front.all() and (mirrored.area2 < 0).all()
     assert together[2].skipped_nonfinite == 1 and together[4].degenerate == 2 and together[3].count == 0
+    assert together[6].degenerate == 0 and together[6].count == 2
 
     passes = [(setup, vertex.cull_select(setup, cull)) for setup in together for cull in (Cull.Back, Cull.Off)]
     many = raster.coverage_rows_many(passes, camera.width, camera.height)
@@ -474,6 +479,52 @@ def test_renderers_set_up_together_equal_each_alone():
         own = raster.coverage_rows(setup, selected, camera.width, camera.height)
         for name in raster.Rows.__dataclass_fields__:
             np.testing.assert_array_equal(getattr(rows, name), getattr(own, name), err_msg=name)
+
+    # In pieces of a few vertices and triangles (vertex.PIECE: cache-sized pieces of big meshes),
+    # run here one after another or on two threads: the same setups and spans.
+    pool = ThreadPoolExecutor(max_workers=2)
+    try:
+        for piece, threads in ((7, None), (7, pool), (50, pool)):
+            monkeypatch.setattr(vertex, "PIECE", piece)
+            monkeypatch.setattr(raster, "PIECE", piece)
+            pieced = vertex.setup_renderers(items, camera, pool=threads, parts=2 if threads else 1)
+            for a, b in zip(pieced, together, strict=True):
+                for name in ("X", "Y", "zw", "iw", "area2", "src", "clipped", "front"):
+                    np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+                assert (a.skipped_nonfinite, a.degenerate) == (b.skipped_nonfinite, b.degenerate)
+                assert (a.weights is None) == (b.weights is None)
+                if a.weights is not None:
+                    np.testing.assert_array_equal(a.weights, b.weights)
+            for setup, selected in passes:
+                whole = raster.coverage_rows(setup, selected, camera.width, camera.height)
+                split = raster.coverage_rows(setup, selected, camera.width, camera.height, pool=threads,
+                                             parts=2 if threads else 1)
+                for name in raster.Rows.__dataclass_fields__:
+                    np.testing.assert_array_equal(getattr(split, name), getattr(whole, name), err_msg=name)
+    finally:
+        pool.shutdown()
+
+
+def test_run_parts_covers_the_range_in_pieces_in_order():
+    from blendlib.core.vertex import run_parts
+
+    pool = ThreadPoolExecutor(max_workers=2)
+    try:
+        for n, piece, threads, parts in ((100, 7, None, 1), (100, 7, pool, 2), (100, None, pool, 2),
+                                         (5, 7, pool, 2), (0, 7, None, 1), (1 << 17, None, pool, 2)):
+            seen = []
+            run_parts(threads, parts, n, lambda lo, hi, seen=seen: seen.append((lo, hi)), piece=piece)
+            seen.sort()
+            assert seen[0][0] == 0 and seen[-1][1] == n
+            assert all(a[1] == b[0] for a, b in zip(seen, seen[1:], strict=False))
+            if piece is not None:
+                assert all(hi - lo <= piece for lo, hi in seen) and len(seen) == max(1, -(-n // piece))
+            elif n >= 1 << 16:
+                assert len(seen) == parts  # no piece: the parts alone
+            else:
+                assert seen == [(0, n)]
+    finally:
+        pool.shutdown()
 
 
 @pytest.mark.parametrize("rows", [
