@@ -382,8 +382,16 @@ def traced_peak_mb(call, *args) -> float:
 #: Timed series of ProjectWorker.explain (medians), in their alternation order.
 EXPLAIN_TIMES = ("plain_s", "drawlist_s", "pixel_s", "capture_s", "step_s", "analyze_s")
 #: Timed series of ProjectWorker.viewport (medians).
-VIEWPORT_TIMES = ("extract_s", "reduced_s", "full_s", "full_one_process_s", "first_frame_s", "render_view_s",
-                  "scheduler_first_s", "scheduler_full_s")
+VIEWPORT_TIMES = ("extract_s", "reduced_s", "full_s", "reduced_view_s", "full_view_s", "full_one_process_s",
+                  "first_frame_s", "render_view_s", "scheduler_first_s", "scheduler_full_s")
+
+
+def _turn_about_z(angle: float):
+    """(4, 4) float64 rotation by ``angle`` radians about the world z axis."""
+    import numpy as np
+
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]], dtype=np.float64)
 
 
 class Timer:
@@ -519,15 +527,16 @@ class ProjectWorker:
         return {"explain": out}
 
     def viewport(self, width: int, height: int, repeats: int) -> dict:
-        """The viewport through the scene camera's view and projection matrices at
-        ``width`` x ``height``: extraction of the viewport template, the reduced first frame
-        (1/4 per side) and the full frame, each timed directly as the viewport renders them
-        (a :class:`~blendlib.core.bandprocs.BandRenderer` with its helper process started; as in
-        the scheduler, after a heavy split frame (:func:`viewport.begins_early`) the helper begins
-        the next full frame's band before the reduced frame renders, and the reduced time
-        includes that request), the full frame also by ``render_scene`` in this process alone;
-        the time from a change to the
-        first frame (extraction + reduced frame); :func:`render_view` end to end; and the same
+        """The viewport through the scene camera's view and projection matrices (turned a little
+        each run) at ``width`` x ``height``: after a view change, the reduced first frame (1/4 per
+        side) and the full frame; then after a scene change seen through that view, extraction
+        of the viewport template, the reduced and the full frame; each timed directly as the
+        viewport renders them (a :class:`~blendlib.core.bandprocs.BandRenderer` with its helper
+        process started; as in the scheduler, after a heavy split frame
+        (:func:`viewport.begins_early`) the helper begins the next full frame's band before the
+        reduced frame renders, and the reduced time includes that request), the full frame also
+        by ``render_scene`` in this process alone; the time from a change to the first frame
+        (extraction + reduced frame); :func:`render_view` end to end; and the same
         through a :class:`ViewportScheduler` (extraction on this thread, frames on its worker
         thread: from the start of the extraction to each frame's ``on_ready``). A change is a
         1e-4 nudge of one mesh object, evaluated (untimed, Blender's work) before each run; each
@@ -574,18 +583,34 @@ class ProjectWorker:
         template = None
         try:
             for i in range(repeats):
+                # The user turns the view (0.6 degrees about the world z axis, alternately either
+                # way): the same template through a new camera, nothing kept from frames before.
+                turned = vp.camera_from_matrices(view @ _turn_about_z(0.01 if i % 2 else -0.01), proj, width, height)
+                turned_small = dataclasses.replace(turned, width=reduced.width, height=reduced.height)
+                if template is None:
+                    template = vp.extract_template(scene, depsgraph)
+                seen = dataclasses.replace(template, camera=turned)
+                with Timer() as tr2:  # as the scheduler does: after a heavy split frame the helper
+                    if small and vp.begins_early(bands):
+                        bands.begin(seen)  # begins the next one before the reduced frame renders
+                    bands(dataclasses.replace(template, camera=turned_small))
+                with Timer() as tf2:
+                    bands(seen)
+                # ... then edits the scene, seen through that view.
                 change()
                 with Timer() as te:  # as the add-on's viewport: unchanged parts of the last template reused
                     template = vp.extract_template(scene, depsgraph, previous=template)
-                draw = dataclasses.replace(template, camera=camera)
-                with Timer() as tr:  # as the scheduler does: after a heavy split frame the helper
+                draw = dataclasses.replace(template, camera=turned)
+                with Timer() as tr:
                     if small and vp.begins_early(bands):
-                        bands.begin(draw)  # begins the next one before the reduced frame renders
-                    bands(dataclasses.replace(template, camera=reduced))
+                        bands.begin(draw)
+                    bands(dataclasses.replace(template, camera=turned_small))
                 with Timer() as tf:
                     bands(draw)
                 with Timer() as t1:
                     render_scene(draw)
+                runs["reduced_view_s"].append(tr2.wall)
+                runs["full_view_s"].append(tf2.wall)
                 runs["extract_s"].append(te.wall)
                 runs["reduced_s"].append(tr.wall)
                 runs["full_s"].append(tf.wall)
@@ -954,8 +979,8 @@ def format_table(results: list[dict], markdown: bool = False, columns=COLUMNS, r
 
 EXPLAIN_COLUMNS = ("scene", "size", "draws", "fragments", "plain s", "draw list", "pixel", "capture",
                    "step (to<-from)", "analyze", "plain MB", "capture MB", "analyze MB")
-VIEWPORT_COLUMNS = ("scene", "size", "extract ms", "reduced ms", "full ms", "full 1 proc. ms", "change->first ms",
-                    "render_view ms", "sched. first ms", "sched. full ms")
+VIEWPORT_COLUMNS = ("scene", "size", "extract ms", "reduced ms", "full ms", "reduced (view) ms", "full (view) ms",
+                    "full 1 proc. ms", "change->first ms", "render_view ms", "sched. first ms", "sched. full ms")
 
 
 def explain_rows(results: list[dict]) -> list[list[str]]:
@@ -1112,10 +1137,15 @@ def targets(results: list[dict], quick: bool) -> list[tuple[str, str, str, bool 
         def ms(v):
             return f"{v * 1000:.0f} ms" if v >= 0.01 else f"{v * 1000:.1f} ms"
 
-        for key, limit, label in (("full_s", 0.060, f"viewport full frame {w}x{h} <= 60 ms median"),
-                                  ("reduced_s", 0.020, "viewport reduced frame (1/4 per side) <= 20 ms median")):
+        # Each frame after a scene change or a view change, whichever is slower (older JSON: the former).
+        for keys, limit, label in ((("full_s", "full_view_s"), 0.060,
+                                    f"viewport full frame {w}x{h} <= 60 ms median (after an edit or a view change)"),
+                                   (("reduced_s", "reduced_view_s"), 0.020,
+                                    "viewport reduced frame (1/4 per side) <= 20 ms median (after an edit or a view "
+                                    "change)")):
             out.append(("13", f"every S3 scene: {label}",
-                        *_worst([(r["case"]["id"], r["viewport"][key]) for r in vps], limit, ms)))
+                        *_worst([(r["case"]["id"], max(r["viewport"].get(k, 0.0) for k in keys)) for r in vps],
+                                limit, ms)))
         # First frame after a change (extraction + reduced frame through the scheduler's thread)
         # within one full-frame time plus extraction: the margin is scheduler_first - (full + extract).
         rows = [(r["case"]["id"], r["viewport"]["scheduler_first_s"]

@@ -8,6 +8,7 @@ and each band is processed in draw order, so the result is exact.
 
 from __future__ import annotations
 
+import functools
 import os
 import threading
 from collections.abc import Callable
@@ -518,7 +519,8 @@ class _FrameContext:
     #: Buffer rows ``[y0, y1)`` (y from the bottom) this render draws, or None for all
     #: (:func:`render_scene`'s ``band``: one process's share of a frame, :mod:`blendlib.core.bandprocs`).
     band: tuple[int, int] | None = None
-    #: Converted textures, kept across renders when render_scene is given a memo.
+    #: Converted textures and (small renderers') setups, kept across renders when render_scene
+    #: is given a memo.
     memo: SceneMemo = field(default_factory=SceneMemo)
     warnings: list[str] = field(default_factory=list)
     degenerate: list[tuple[str, int]] = field(default_factory=list)  # (object, zero-area triangles)
@@ -530,6 +532,11 @@ class _FrameContext:
     @property
     def height(self) -> int:
         return self.buf.height
+
+    @functools.cached_property
+    def camera_key(self) -> tuple:
+        """What a kept vertex setup is for: the camera's matrices and size (:func:`_setups`)."""
+        return _camera_key(self.camera)
 
     def record(self, notes: list[str], degenerate: tuple[str, int] | None) -> None:
         """What :func:`_setup` found about a renderer, for the frame's warnings (in draw order)."""
@@ -591,50 +598,113 @@ def _setup_notes(renderer, setup) -> tuple[list[str], tuple[str, int] | None]:
     return notes, ((renderer.name, setup.degenerate) if setup.degenerate else None)
 
 
-def _setup(frame: _FrameContext, renderer, pool, parts: int) -> tuple[object, list[str], tuple[str, int] | None]:
+#: A memo keeps the vertex setup of renderers of at most this many triangles per camera (and,
+#: for whole frames, their passes' coverage rows): the viewport's next frame through the same
+#: view redraws the renderers a change left alone without setting them up again (a moved
+#: object, an edited material). Bigger meshes are set up again: their setup is a small part of
+#: their frame, and keeping it would hold 100+ bytes a triangle.
+MEMO_SETUP_TRIANGLES = 1 << 17
+#: Cameras per renderer whose setups a memo keeps: the viewport's reduced and full frame sizes.
+MEMO_CAMERAS = 2
+
+
+@dataclass(eq=False)
+class _Geometry:
+    """A renderer's triangle setup through one camera and, in whole frames, its passes' rows
+    by Cull ((selected triangles, rows)), kept in a memo (:data:`MEMO_SETUP_TRIANGLES`)."""
+
+    setup: object
+    rows: dict = field(default_factory=dict)
+
+
+def _camera_key(camera) -> tuple:
+    return (np.asarray(camera.view_matrix, dtype=np.float64).tobytes(),
+            np.asarray(camera.projection, dtype=np.float64).tobytes(), int(camera.width), int(camera.height))
+
+
+def _kept_geometry(frame: _FrameContext, renderer) -> dict | None:
+    """The memo's geometry of ``renderer`` by camera key, or None when it is not kept (too big)."""
+    if renderer.mesh.triangle_count > MEMO_SETUP_TRIANGLES:
+        return None
+    return frame.memo.lookup("geometry", renderer, dict)
+
+
+def _setups(frame: _FrameContext, renderers: list, pool=None, parts: int = 1) -> list[_Geometry]:
+    """The geometry of each of ``renderers`` through the frame's camera: kept ones from the memo,
+    the others set up together (:func:`vertex.setup_renderers`: each equals its own setup) and
+    kept for the next frame."""
+    key = frame.camera_key
+    kept = [_kept_geometry(frame, r) for r in renderers]
+    out = [None if k is None else k.get(key) for k in kept]
+    todo = [i for i, g in enumerate(out) if g is None]
+    if todo:
+        made = vertex.setup_renderers([_setup_input(renderers[i]) for i in todo], frame.camera, pool=pool,
+                                      parts=parts)
+        for i, setup in zip(todo, made, strict=True):
+            out[i] = _Geometry(setup)
+            if kept[i] is not None:
+                kept[i][key] = out[i]
+                while len(kept[i]) > MEMO_CAMERAS:  # the oldest camera goes
+                    kept[i].pop(next(iter(kept[i])))
+    if frame.band is not None:  # a band's rows are its own (the cut moves frame to frame): not kept
+        out = [_Geometry(g.setup) for g in out]
+    return out
+
+
+def _setup(frame: _FrameContext, renderer, pool, parts: int) -> tuple[_Geometry, list[str], tuple[str, int] | None]:
     """Vertex setup of one renderer (shared by its passes) and what to tell the user about it."""
-    setup = vertex.setup_renderers([_setup_input(renderer)], frame.camera, pool=pool, parts=parts)[0]
-    return (setup, *_setup_notes(renderer, setup))
+    geometry = _setups(frame, [renderer], pool, parts)[0]
+    return (geometry, *_setup_notes(renderer, geometry.setup))
 
 
-def _draw_state(frame: _FrameContext, call: DrawCall, setup, texels) -> tuple[DrawState, np.ndarray]:
-    """A draw call's derived state and the triangles its Cull keeps."""
+def _draw_state(frame: _FrameContext, call: DrawCall, setup, texels,
+                selected: np.ndarray | None = None) -> tuple[DrawState, np.ndarray]:
+    """A draw call's derived state and the triangles its Cull keeps (``selected`` when known)."""
     p = call.state
     zbound = None
     if not p.zwrite and p.ztest in (CompareFunction.Less, CompareFunction.LEqual):
         zbound = raster.depth_upper_codes(setup, p.offset_factor, p.offset_units)
     state = DrawState(call, call.renderer.material, texels, frame.lights, frame.color_space, frame.hdr,
                       frame.width, observed=frame.observed, zbound=zbound)
-    return state, vertex.cull_select(setup, p.cull)
+    return state, vertex.cull_select(setup, p.cull) if selected is None else selected
 
 
-def _prepare(frame: _FrameContext, call: DrawCall, setup, texels, pool, parts: int,
-             rows_by_cull: dict | None = None) -> _Prepared:
-    """Cull, coverage and derived state of one draw call. ``rows_by_cull``: the rows of the
-    renderer's passes prepared so far, by Cull (passes with one Cull cover the same pixels)."""
-    state, selected = _draw_state(frame, call, setup, texels)
-    known = None if rows_by_cull is None else rows_by_cull.get(call.state.cull)
+def _prepare(frame: _FrameContext, call: DrawCall, geometry: _Geometry, texels, pool, parts: int) -> _Prepared:
+    """Cull, coverage and derived state of one draw call. Passes of a renderer with one Cull
+    cover the same pixels: their rows are computed once (``geometry.rows``; in a memo across
+    frames when the frame is whole)."""
+    setup, cull = geometry.setup, call.state.cull
+    known = geometry.rows.get(cull)
+    state, selected = _draw_state(frame, call, setup, texels, selected=None if known is None else known[0])
     if known is not None:
-        return _Prepared(call, setup, selected, raster.Rows(**vars(known)), state)
+        return _Prepared(call, setup, selected, raster.Rows(**vars(known[1])), state)
     rows = raster.coverage_rows(setup, selected, frame.width, frame.height, pool=pool, parts=parts, band=frame.band)
-    if rows_by_cull is not None:
-        rows_by_cull[call.state.cull] = rows
+    geometry.rows[cull] = (selected, rows)
     return _Prepared(call, setup, selected, rows, state)
 
 
 def _prepare_together(frame: _FrameContext, runs: list[list[DrawCall]], texels) -> list[_Prepared]:
     """Prepare many small renderers' draw calls with one vertex setup and one coverage pass for
     all of them (per-call array work on a few hundred triangles is mostly fixed cost)."""
-    setups = vertex.setup_renderers([_setup_input(run[0].renderer) for run in runs], frame.camera)
-    items = []
-    for run, setup, run_texels in zip(runs, setups, texels, strict=True):
-        frame.record(*_setup_notes(run[0].renderer, setup))
-        items.extend((call, setup, *_draw_state(frame, call, setup, tex)) for call, tex in zip(run, run_texels,
-                                                                                              strict=True))
-    rows = raster.coverage_rows_many([(setup, selected) for _, setup, _, selected in items], frame.width,
-                                     frame.height, frame.band)
-    return [_Prepared(call, setup, selected, r, state)
-            for (call, setup, state, selected), r in zip(items, rows, strict=True)]
+    geometries = _setups(frame, [run[0].renderer for run in runs])
+    items = []  # (call, geometry, state, selected, kept rows or None)
+    for run, geometry, run_texels in zip(runs, geometries, texels, strict=True):
+        frame.record(*_setup_notes(run[0].renderer, geometry.setup))
+        for call, tex in zip(run, run_texels, strict=True):
+            known = geometry.rows.get(call.state.cull)
+            state, selected = _draw_state(frame, call, geometry.setup, tex,
+                                          selected=None if known is None else known[0])
+            items.append((call, geometry, state, selected, None if known is None else known[1]))
+    todo = [k for k, item in enumerate(items) if item[4] is None]
+    made = raster.coverage_rows_many([(items[k][1].setup, items[k][3]) for k in todo], frame.width,
+                                     frame.height, frame.band) if todo else []
+    rows = [item[4] for item in items]
+    for k, r in zip(todo, made, strict=True):
+        rows[k] = r
+        call, geometry, _, selected, _ = items[k]
+        geometry.rows.setdefault(call.state.cull, (selected, r))
+    return [_Prepared(call, geometry.setup, selected, r if kept is None else raster.Rows(**vars(r)), state)
+            for (call, geometry, state, selected, kept), r in zip(items, rows, strict=True)]
 
 
 #: Consecutive draw calls of one constant colour each are fused (drawn as one) in groups of at
@@ -912,9 +982,8 @@ def _prepare_batch(frame: _FrameContext, runs: list[list[DrawCall]]) -> list[_Pr
     texels = [[frame.texels_of(call.renderer.material) for call in run] for run in runs]
 
     def prepare_run(k: int, pool, parts: int):
-        setup, notes, degenerate = _setup(frame, runs[k][0].renderer, pool, parts)
-        rows_by_cull: dict = {}
-        return notes, degenerate, [_prepare(frame, call, setup, tex, pool, parts, rows_by_cull)
+        geometry, notes, degenerate = _setup(frame, runs[k][0].renderer, pool, parts)
+        return notes, degenerate, [_prepare(frame, call, geometry, tex, pool, parts)
                                    for call, tex in zip(runs[k], texels[k], strict=True)]
 
     triangles = sum(int(run[0].renderer.mesh.triangle_count) for run in runs)
@@ -1050,8 +1119,7 @@ def _render_observed(frame: _FrameContext, todo, cancelled, should_cancel, progr
     """Draw calls one at a time, each split into screen bands, with the observer told of every
     draw call (buffers before and after) and fragment."""
     buf, pool, workers = frame.buf, frame.pool, frame.workers
-    setup = setup_of = None
-    rows_by_cull: dict = {}
+    geometry = setup_of = None
     zfloor_rows = None  # per buffer row, the smallest stored depth code (while no pass writes depth)
     for done, call in enumerate(todo, start=1):
         cancelled()
@@ -1062,10 +1130,10 @@ def _render_observed(frame: _FrameContext, todo, cancelled, should_cancel, progr
             continue
         if setup_of is not renderer:  # one vertex setup per renderer, shared by its passes
             setup_of = renderer
-            setup, notes, degenerate = _setup(frame, renderer, pool, workers)
+            geometry, notes, degenerate = _setup(frame, renderer, pool, workers)
             frame.record(notes, degenerate)
-            rows_by_cull = {}
-        prepared = _prepare(frame, call, setup, frame.texels_of(renderer.material), pool, workers, rows_by_cull)
+        prepared = _prepare(frame, call, geometry, frame.texels_of(renderer.material), pool, workers)
+        setup = prepared.setup
         state = prepared.state
         if state.zbound is not None:
             if zfloor_rows is None:  # recomputed only after a pass wrote depth

@@ -189,3 +189,41 @@ def test_retain_keeps_what_the_shared_parts_derived(monkeypatch):
     held = {id(p) for p in scene_parts(moved)}
     assert all(id(hit[0]) in held for hit in memo._entries.values())
     assert id(draw.renderers[0]) not in {id(hit[0]) for hit in memo._entries.values()}
+
+
+def test_setups_are_kept_per_renderer_and_camera(monkeypatch):
+    """A memo keeps each small renderer's vertex setup (and a whole frame's coverage rows) per
+    camera: frames through a camera seen before set up only the renderers that changed, a third
+    camera evicts the oldest, big meshes are never kept; every frame equals a plain render."""
+    from blendlib.core import pipeline, vertex
+
+    draw = seeded_scene(8)
+    set_up = []
+    real = vertex.setup_renderers
+    monkeypatch.setattr(vertex, "setup_renderers",
+                        lambda items, *a, **k: set_up.append(len(items)) or real(items, *a, **k))
+    near, far, side = views(draw, 3)  # three cameras, two sizes
+    memo = SceneMemo()
+
+    def frame(scene) -> int:
+        set_up.clear()
+        assert_same(render_scene(scene, memo=memo), render_scene(scene))
+        return sum(set_up[: len(set_up) // 2])  # the memo's render comes first
+
+    n = len(draw.renderers)
+    assert frame(near) == n
+    assert frame(far) == n
+    assert frame(near) == 0 and frame(far) == 0  # both cameras kept
+    matrix = np.array(draw.renderers[3].matrix_world, dtype=np.float64)
+    matrix[0, 3] += 0.1
+    moved = reuse_unchanged(with_renderer(extracted_again(near), 3, matrix_world=matrix), near)
+    memo.retain(moved)
+    assert frame(moved) == 1  # only the moved renderer
+    assert frame(dataclasses.replace(moved, camera=side.camera)) == n
+    # Two cameras kept per renderer: far and side for the others, near and side for the moved one.
+    assert frame(dataclasses.replace(moved, camera=far.camera)) == 1
+    assert frame(moved) == n  # near: evicted everywhere by now
+    # Over the size limit: set up every frame.
+    monkeypatch.setattr(pipeline, "MEMO_SETUP_TRIANGLES", 0)
+    assert frame(dataclasses.replace(moved, camera=far.camera)) == n
+    assert frame(dataclasses.replace(moved, camera=far.camera)) == n
