@@ -371,7 +371,8 @@ def rasterize_rows(rows: Rows, start: int, stop: int, width: int, bary: bool = T
 def depth_upper_codes(setup: TriangleSetup, offset_factor: float = 0.0, offset_units: float = 0.0) -> np.ndarray:
     """(T,) int64: a code no fragment of each setup triangle exceeds (its vertices' largest
     depth after Offset, plus one code for rounding: depth is a convex combination of them)."""
-    z = setup.zw.max(axis=1)
+    zw = setup.zw
+    z = np.maximum(np.maximum(zw[:, 0], zw[:, 1]), zw[:, 2])  # as max(axis=1), NaN included, at a third of its time
     if offset_factor != 0.0 or offset_units != 0.0:
         z = z + (float(offset_factor) * setup.slope() + float(offset_units) * 2.0**-24)
     z = np.minimum(np.maximum(z, 0.0), 1.0)
