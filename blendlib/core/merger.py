@@ -206,11 +206,25 @@ def blend(p: Pass, src: np.ndarray, dst: np.ndarray) -> np.ndarray:
     return out
 
 
+#: Colour factors that are one array for R, G and B alike (computed once per blend).
+_SHARED_BY_RGB = frozenset({BlendFactor.SrcAlpha, BlendFactor.OneMinusSrcAlpha, BlendFactor.DstAlpha,
+                            BlendFactor.OneMinusDstAlpha, BlendFactor.SrcAlphaSaturate})
+
+
 def _blend_channels(p: Pass, s: list, d: list) -> list:
     """The blend of each channel (R, G, B, A) from four source and four destination (N,) arrays."""
     sa, da, opa = p.alpha_factors
-    out = [_apply_op(p.blend_op, s[c], _channel_factor(p.src_blend, c, s, d), d[c],
-                     _channel_factor(p.dst_blend, c, s, d)) for c in range(3)]
+    shared: dict = {}  # a factor R, G and B share, computed for R and reused (the same values)
+
+    def colour_factor(f: BlendFactor, c: int):
+        if f not in _SHARED_BY_RGB:
+            return _channel_factor(f, c, s, d)
+        if f not in shared:
+            shared[f] = _channel_factor(f, c, s, d)
+        return shared[f]
+
+    out = [_apply_op(p.blend_op, s[c], colour_factor(p.src_blend, c), d[c], colour_factor(p.dst_blend, c))
+           for c in range(3)]
     out.append(_apply_op(opa, s[3], _channel_factor(sa, 3, s, d), d[3], _channel_factor(da, 3, s, d)))
     return out
 
@@ -421,25 +435,31 @@ def _blend_ldr(buf: FrameBuffers, p: Pass, stored: np.ndarray, rgba: np.ndarray)
     """:func:`_blend_fragments` of an 8-bit buffer, one channel at a time on contiguous (N,)
     arrays: the operations of :func:`blend` and :meth:`FrameBuffers.encode`, element by element."""
     codes = stored.view(np.uint8).reshape(-1, 4)
-    src = []
-    for c in range(4):
-        v = np.maximum(rgba[:, c], 0.0)
-        src.append(np.minimum(v, 1.0, out=v))
-    result = src
+    n = stored.shape[0]
+    # Channels first, clamped in place: one copy, and every later operation on contiguous rows.
+    src = np.ascontiguousarray(rgba.T, dtype=np.float64)
+    np.maximum(src, 0.0, out=src)
+    np.minimum(src, 1.0, out=src)
+    result = list(src)
     if p.blend:
-        dst = []
-        for c in range(4):
-            if buf.linear and c < 3:
-                dst.append(np.take(colorspace.DECODE_LUT, codes[:, c]))
-            else:
-                dst.append(np.divide(codes[:, c], 255.0))
-        result = _blend_channels(p, src, dst)
-    out = np.empty((stored.shape[0], 4), dtype=np.uint8)
+        dst = np.empty((4, n), dtype=np.float64)
+        if buf.linear:
+            np.take(colorspace.DECODE_LUT, codes.T[:3], out=dst[:3], mode="clip")  # codes < 256: in range
+            np.divide(codes[:, 3], 255.0, out=dst[3])
+        else:
+            np.divide(codes.T, 255.0, out=dst)
+        result = _blend_channels(p, result, list(dst))
+    out = np.empty((n, 4), dtype=np.uint8)
     for c in range(4):
         if buf.linear and c < 3:
             out[:, c] = colorspace.quantize_encoded(result[c])
-        else:
-            out[:, c] = colorspace.quantize_unorm(result[c])
+        else:  # colorspace.quantize_unorm, in place: each result row is this function's own array
+            v = result[c]
+            np.maximum(v, 0.0, out=v)
+            np.minimum(v, 1.0, out=v)
+            v *= 255.0
+            v += 0.5
+            out[:, c] = np.floor(v, out=v)
     return out.view(stored.dtype).reshape(-1)
 
 
