@@ -522,6 +522,8 @@ class _FrameContext:
     #: Converted textures and (small renderers') setups, kept across renders when render_scene
     #: is given a memo.
     memo: SceneMemo = field(default_factory=SceneMemo)
+    #: Whether setups go into the memo (it outlives this render: render_scene was given one).
+    keep_setups: bool = False
     warnings: list[str] = field(default_factory=list)
     degenerate: list[tuple[str, int]] = field(default_factory=list)  # (object, zero-area triangles)
 
@@ -606,6 +608,9 @@ def _setup_notes(renderer, setup) -> tuple[list[str], tuple[str, int] | None]:
 MEMO_SETUP_TRIANGLES = 1 << 17
 #: Cameras per renderer whose setups a memo keeps: the viewport's reduced and full frame sizes.
 MEMO_CAMERAS = 2
+#: At most this many triangles' setups (over all renderers and cameras) in one memo: about
+#: 120-200 bytes each, so some 300 MB; renderers beyond it are set up every frame.
+MEMO_SETUP_BUDGET = 1 << 21
 
 
 @dataclass(eq=False)
@@ -623,8 +628,9 @@ def _camera_key(camera) -> tuple:
 
 
 def _kept_geometry(frame: _FrameContext, renderer) -> dict | None:
-    """The memo's geometry of ``renderer`` by camera key, or None when it is not kept (too big)."""
-    if renderer.mesh.triangle_count > MEMO_SETUP_TRIANGLES:
+    """The memo's geometry of ``renderer`` by camera key, or None when it is not kept (too big,
+    or the memo is this render's own: keeping every setup to the end would raise its peak)."""
+    if not frame.keep_setups or renderer.mesh.triangle_count > MEMO_SETUP_TRIANGLES:
         return None
     return frame.memo.lookup("geometry", renderer, dict)
 
@@ -640,12 +646,20 @@ def _setups(frame: _FrameContext, renderers: list, pool=None, parts: int = 1) ->
     if todo:
         made = vertex.setup_renderers([_setup_input(renderers[i]) for i in todo], frame.camera, pool=pool,
                                       parts=parts)
+        held = None  # triangles whose setups the memo holds (counted once something is to be kept)
         for i, setup in zip(todo, made, strict=True):
             out[i] = _Geometry(setup)
-            if kept[i] is not None:
+            if kept[i] is None:
+                continue
+            if held is None:
+                held = sum(r.mesh.triangle_count * len(d) for r, d in frame.memo.entries("geometry"))
+            triangles = renderers[i].mesh.triangle_count
+            if len(kept[i]) >= MEMO_CAMERAS:  # the oldest camera goes
+                kept[i].pop(next(iter(kept[i])))
+                held -= triangles
+            if held + triangles <= MEMO_SETUP_BUDGET:
                 kept[i][key] = out[i]
-                while len(kept[i]) > MEMO_CAMERAS:  # the oldest camera goes
-                    kept[i].pop(next(iter(kept[i])))
+                held += triangles
     if frame.band is not None:  # a band's rows are its own (the cut moves frame to frame): not kept
         out = [_Geometry(g.setup) for g in out]
     return out
@@ -1190,6 +1204,7 @@ def render_scene(
     same renderers (the viewport's frames): renderers are checked and textures converted once.
     Raises :class:`blendlib.core.scene.SceneError` (one line) for input that cannot render.
     """
+    keep_setups = memo is not None  # a memo of this render alone would only hold setups to its end
     memo = SceneMemo() if memo is None else memo
     warnings = list(scene.warnings) + validate_scene(scene, memo)
     if until_draw is not None and int(until_draw) < 0:
@@ -1220,7 +1235,7 @@ def render_scene(
     stop_flag = threading.Event()
     pool = ThreadPoolExecutor(max_workers=workers) if workers > 1 else None
     frame = _FrameContext(buf, cam, lights, cs, scene.hdr, chunk_candidates, pool, workers, stop_flag,
-                          observed=observer is not None, band=band, memo=memo)
+                          observed=observer is not None, band=band, memo=memo, keep_setups=keep_setups)
 
     def cancelled() -> None:
         if should_cancel is not None and should_cancel():

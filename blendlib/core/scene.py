@@ -197,6 +197,10 @@ class SceneMemo:
     def __init__(self) -> None:
         self._entries: dict[tuple, tuple[object, object]] = {}
 
+    def entries(self, kind) -> list[tuple[object, object]]:
+        """The (object, value) entries of ``kind``."""
+        return [hit for (k, _), hit in self._entries.items() if k == kind]
+
     def retain(self, scene: DrawScene) -> None:
         """Forget the entries of objects that are not parts of ``scene`` (:func:`scene_parts`):
         a new scene keeps what was derived from the parts it shares with the last one."""

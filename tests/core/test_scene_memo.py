@@ -223,7 +223,15 @@ def test_setups_are_kept_per_renderer_and_camera(monkeypatch):
     # Two cameras kept per renderer: far and side for the others, near and side for the moved one.
     assert frame(dataclasses.replace(moved, camera=far.camera)) == 1
     assert frame(moved) == n  # near: evicted everywhere by now
-    # Over the size limit: set up every frame.
+    # Over the memo's budget, or each renderer over the size limit: set up every frame.
+    budget = sum(r.mesh.triangle_count for r in moved.renderers[:2])
+    monkeypatch.setattr(pipeline, "MEMO_SETUP_BUDGET", budget)
+    fresh = SceneMemo()
+    for _ in range(2):
+        set_up.clear()
+        render_scene(moved, memo=fresh)
+        assert sum(set_up) == (n if _ == 0 else n - 2)  # the first two fit the budget, the rest do not
+    monkeypatch.setattr(pipeline, "MEMO_SETUP_BUDGET", 1 << 30)
     monkeypatch.setattr(pipeline, "MEMO_SETUP_TRIANGLES", 0)
     assert frame(dataclasses.replace(moved, camera=far.camera)) == n
     assert frame(dataclasses.replace(moved, camera=far.camera)) == n
