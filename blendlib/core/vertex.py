@@ -169,28 +169,20 @@ def concatenate_setups(setups: list[TriangleSetup]) -> TriangleSetup:
                          normal_matrix=None, object_uvs=uvs)
 
 
-def _plane_distance(v: np.ndarray, plane: int) -> np.ndarray:
-    """Signed distance of clip-space vertices ``v[..., 0:4]`` to clip plane ``plane`` (§2 order)."""
+def _plane_distance(v: np.ndarray, plane: int, guard: np.ndarray | None = None) -> np.ndarray:
+    """Signed distance of clip-space vertices ``v[..., 0:4]`` to clip plane ``plane`` (§2 order);
+    ``guard``: ``GUARD_BAND * w`` when the caller has it (the four guard-band planes share it)."""
     x, y, z, w = v[..., 0], v[..., 1], v[..., 2], v[..., 3]
     if plane == 0:
         return z + w
     if plane == 1:
         return w - z
-    g = GUARD_BAND * w
-    return (g - x, g + x, g - y, g + y)[plane - 2]
-
-
-def _plane_distances(v: np.ndarray):
-    """:func:`_plane_distance` of ``v`` to the six planes in turn (a generator: one array alive
-    at a time), the guard band's ``GUARD_BAND * w`` computed once."""
-    x, y, z, w = v[..., 0], v[..., 1], v[..., 2], v[..., 3]
-    yield z + w
-    yield w - z
-    g = GUARD_BAND * w
-    yield g - x
-    yield g + x
-    yield g - y
-    yield g + y
+    g = GUARD_BAND * w if guard is None else guard
+    if plane == 2:
+        return g - x
+    if plane == 3:
+        return g + x
+    return g - y if plane == 4 else g + y
 
 
 def _clip_polygons(tri: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -384,9 +376,9 @@ def setup_renderers(items: list[SetupInput], camera: Camera, pool=None, parts: i
             finite &= np.isfinite(clip_v[k, lo:hi])
         finite_v[lo:hi] = finite
         code = np.zeros(hi - lo, dtype=np.uint8)
-        distances = _plane_distances(cv)
+        guard = GUARD_BAND * clip_v[3, lo:hi]
         for k in range(6):
-            code |= np.less(next(distances), 0).view(np.uint8) << np.uint8(k)
+            code |= np.less(_plane_distance(cv, k, guard), 0).view(np.uint8) << np.uint8(k)
         Xv[lo:hi], Yv[lo:hi], zwv[lo:hi], iwv[lo:hi], okv[lo:hi] = _to_window(cv, camera)
         # Bits 6 and 7 carry "not finite" and "no window position", so one gather per corner
         # answers every per-triangle question below.
