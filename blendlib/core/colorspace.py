@@ -95,9 +95,15 @@ def decode_fast(values: np.ndarray) -> np.ndarray:
 
 def quantize_unorm(values: np.ndarray) -> np.ndarray:
     """Clamp to [0, 1] and quantise to 8-bit codes: ``floor(v*255 + 0.5)`` (uint8)."""
-    v = np.array(values, dtype=np.float64)  # a copy, 0-d for a scalar: operated on in place
+    # A copy, 0-d for a scalar: operated on in place.
+    return unorm_codes_in_place(np.array(values, dtype=np.float64)).astype(np.uint8)
+
+
+def unorm_codes_in_place(v: np.ndarray) -> np.ndarray:
+    """:func:`quantize_unorm`'s codes as float64 values, computed in ``v`` (float64, overwritten),
+    for a caller that owns ``v`` and stores the codes itself."""
     np.maximum(v, 0.0, out=v)
     np.minimum(v, 1.0, out=v)
     v *= 255.0
     v += 0.5
-    return np.floor(v, out=v).astype(np.uint8)
+    return np.floor(v, out=v)

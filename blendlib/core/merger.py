@@ -453,13 +453,8 @@ def _blend_ldr(buf: FrameBuffers, p: Pass, stored: np.ndarray, rgba: np.ndarray)
     for c in range(4):
         if buf.linear and c < 3:
             out[:, c] = colorspace.quantize_encoded(result[c])
-        else:  # colorspace.quantize_unorm, in place: each result row is this function's own array
-            v = result[c]
-            np.maximum(v, 0.0, out=v)
-            np.minimum(v, 1.0, out=v)
-            v *= 255.0
-            v += 0.5
-            out[:, c] = np.floor(v, out=v)
+        else:  # in place: each result row is this function's own array
+            out[:, c] = colorspace.unorm_codes_in_place(result[c])
     return out.view(stored.dtype).reshape(-1)
 
 
