@@ -40,7 +40,7 @@ def build(out_dir: Path, blend_dir: Path) -> int:
     import bpy
 
     from blendlib.blender import build_draw_scene
-    from scripts import benchmark
+    from scripts.benchmark.scenes import build_case
 
     out_dir.mkdir(parents=True, exist_ok=True)
     n = 0
@@ -57,7 +57,7 @@ def build(out_dir: Path, blend_dir: Path) -> int:
                 (out_dir / f"{name}.pkl").write_bytes(pickle.dumps(draw, protocol=5))
                 n += 1
     for case in BIG_CASES:
-        scene = benchmark.build_case(case)
+        scene = build_case(case)
         (out_dir / f"{case['id']}.pkl").write_bytes(pickle.dumps(build_draw_scene(scene), protocol=5))
         n += 1
     print(f"{n} scenes pickled into {out_dir}")

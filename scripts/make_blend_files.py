@@ -22,37 +22,19 @@ from pathlib import Path
 
 import bpy
 import numpy as np
-from mathutils import Euler, Vector
+from mathutils import Vector
 
 from blendlib import blender
-from blendlib.core import colorspace
+from scripts import scenekit
+from scripts.scenekit import ALPHA_BLEND as BLEND
 
 ROOT = Path(__file__).resolve().parent.parent
 
 OUT = ROOT / "blend_files"
 RES = (640, 360)
 
-# ---------------------------------------------------------------------------
-# The add-on: register it so that the scenes render with the Unity Passes engine.
-# The settings are written through the schema's writers (blendlib.blender), which
-# store the same values whether or not the add-on is registered.
-# ---------------------------------------------------------------------------
-
+#: Whether the add-on is registered (main): the scenes then name the Unity Passes engine.
 ADDON = False
-
-
-def register_addon() -> bool:
-    global ADDON
-    try:
-        import addon
-
-        addon.register()
-    except (ImportError, AttributeError) as exc:
-        print(f"make_blend_files: add-on not available ({exc}); writing stored properties", file=sys.stderr)
-        ADDON = False
-    else:
-        ADDON = hasattr(bpy.types.Material, "unity") and hasattr(bpy.types.Scene, "unity")
-    return ADDON
 
 
 # ---------------------------------------------------------------------------
@@ -66,31 +48,19 @@ CLEAR = (49 / 255, 77 / 255, 121 / 255, 1.0)
 
 def new_file(name: str, *, distance: float = 10.0, clear=CLEAR, color_space="Gamma",
              sun_dir=(-0.35, -0.75, 0.55), sun_energy=0.8, world=0.04):
-    """Empty file with one scene ``name``: camera at (0, -distance, 0) looking +Y, a Sun, a World."""
-    bpy.ops.wm.read_factory_settings(use_empty=True)
+    """Empty file with one scene ``name``: camera at (0, -distance, 0) looking +Y, a Sun shining
+    from ``sun_dir``, a World of grey ``world``."""
+    scene = scenekit.empty_file()
     bpy.context.preferences.filepaths.save_version = 0  # no .blend1 backups
-    scene = bpy.context.scene
     scene.name = name
-    scene.render.resolution_x, scene.render.resolution_y = RES
-    scene.render.resolution_percentage = 100
+    scenekit.set_resolution(scene, *RES)
     if ADDON:
         scene.render.engine = "UNITY_PASSES"
     scene.view_settings.view_transform = "Standard"
-    cam_data = bpy.data.cameras.new("Camera")
-    cam_data.lens = 50.0
-    cam_data.clip_start = 0.5
-    cam_data.clip_end = 50.0
-    cam = bpy.data.objects.new("Camera", cam_data)
-    cam.location = (0.0, -distance, 0.0)
-    cam.rotation_euler = (math.pi / 2, 0.0, 0.0)
-    scene.collection.objects.link(cam)
-    scene.camera = cam
-    sun_data = bpy.data.lights.new("Sun", "SUN")
-    sun_data.energy = sun_energy
-    sun = bpy.data.objects.new("Sun", sun_data)
-    sun.rotation_euler = Vector(sun_dir).normalized().to_track_quat("Z", "Y").to_euler()
-    sun.location = (0.0, -6.0, 5.0)
-    scene.collection.objects.link(sun)
+    scenekit.add_camera(scene, (0.0, -distance, 0.0), rotation=(math.pi / 2, 0.0, 0.0), clip=(0.5, 50.0), lens=50.0)
+    # the unit direction, from which the saved scenes were built (to_track_quat differs in the last bit otherwise)
+    scenekit.add_sun(scene, energy=sun_energy, rotation=scenekit.pointing(Vector(sun_dir).normalized(), "Z"),
+                     location=(0.0, -6.0, 5.0))
     w = bpy.data.worlds.new("World")
     w.use_nodes = True
     bg = w.node_tree.nodes["Background"]
@@ -166,27 +136,13 @@ def stripe_texture():
 # ---------------------------------------------------------------------------
 
 
-def mesh(name: str, verts, faces, uvs=None, smooth=False):
-    me = bpy.data.meshes.new(name)
-    me.from_pydata([tuple(map(float, v)) for v in verts], [], [tuple(f) for f in faces])
-    if uvs is not None:
-        layer = me.uv_layers.new(name="UVMap")
-        flat = [c for face_uv in uvs for uv in face_uv for c in uv]
-        layer.uv.foreach_set("vector", [float(c) for c in flat])
-    if smooth:
-        me.shade_smooth()
-    me.validate()
-    me.update()
-    return me
-
-
 QUAD_UV = ((0, 0), (1, 0), (1, 1), (0, 1))
 
 
 def quad_mesh(name: str, w: float = 1.0, h: float = 1.0):
     """A w x h quad in the XZ plane facing -Y (towards the camera), UV 0..1."""
     x, z = w / 2, h / 2
-    return mesh(name, [(-x, 0, -z), (x, 0, -z), (x, 0, z), (-x, 0, z)], [(0, 1, 2, 3)], [QUAD_UV])
+    return scenekit.mesh(name, [(-x, 0, -z), (x, 0, -z), (x, 0, z), (-x, 0, z)], [(0, 1, 2, 3)], [QUAD_UV])
 
 
 #: Cube faces (outward winding), each mapped to the whole texture.
@@ -203,7 +159,7 @@ CUBE_FACES = (
 def cube_mesh(name: str, size: float = 1.0):
     s = size / 2
     verts = [(x, y, z) for z in (-s, s) for y in (-s, s) for x in (-s, s)]
-    return mesh(name, verts, CUBE_FACES, [QUAD_UV] * 6)
+    return scenekit.mesh(name, verts, CUBE_FACES, [QUAD_UV] * 6)
 
 
 def torus_mesh(name: str, major=1.0, minor=0.38, n_major=40, n_minor=16):
@@ -221,7 +177,7 @@ def torus_mesh(name: str, major=1.0, minor=0.38, n_major=40, n_minor=16):
             u0, u1 = i / n_major, (i + 1) / n_major
             v0, v1 = j / n_minor, (j + 1) / n_minor
             uvs.append(((u0, v0), (u1, v0), (u1, v1), (u0, v1)))
-    return mesh(name, verts, faces, uvs, smooth=True)
+    return scenekit.mesh(name, verts, faces, uvs, smooth=True)
 
 
 def knot_mesh(name: str, n_path=160, n_ring=12, radius=0.3, scale=0.42):
@@ -252,7 +208,7 @@ def knot_mesh(name: str, n_path=160, n_ring=12, radius=0.3, scale=0.42):
             u0, u1 = 3 * i / n_path, 3 * (i + 1) / n_path
             v0, v1 = j / n_ring, (j + 1) / n_ring
             uvs.append(((u0, v0), (u0, v1), (u1, v1), (u1, v0)))
-    return mesh(name, verts, faces, uvs, smooth=True)
+    return scenekit.mesh(name, verts, faces, uvs, smooth=True)
 
 
 def plank_mesh(name: str, a, b, width: float, rise: float):
@@ -267,7 +223,7 @@ def plank_mesh(name: str, a, b, width: float, rise: float):
     v = np.array(verts)
     normal = np.cross(v[1] - v[0], v[2] - v[0])
     face = (0, 1, 2, 3) if normal[1] < 0 else (0, 3, 2, 1)
-    return mesh(name, verts, [face], [QUAD_UV])
+    return scenekit.mesh(name, verts, [face], [QUAD_UV])
 
 
 # ---------------------------------------------------------------------------
@@ -275,35 +231,29 @@ def plank_mesh(name: str, a, b, width: float, rise: float):
 # ---------------------------------------------------------------------------
 
 
-def obj(name: str, data, location=(0, 0, 0), rotation=(0, 0, 0), scale=(1, 1, 1), material=None, scene=None):
-    if material is not None and data.users > 0:  # a shared mesh: give this object its own copy
+def obj(name: str, data, location=(0, 0, 0), rotation=(0, 0, 0), scale=(1, 1, 1), material=None, scene=None,
+        collection=None):
+    """An object linked into ``collection`` (default: the scene's), rotation in degrees; with a
+    ``material``, a mesh other objects already use is copied so that each keeps its own."""
+    if material is not None and data.users > 0:
         data = data.copy()
         data.name = name
-    ob = bpy.data.objects.new(name, data)
-    ob.location = location
-    ob.rotation_euler = Euler(tuple(math.radians(r) for r in rotation))
-    ob.scale = scale
+    if collection is None:
+        collection = (scene or bpy.context.scene).collection
+    ob = scenekit.add_object(collection, name, data, location, rotation, scale)
     if material is not None:
         ob.data.materials.clear()
         ob.data.materials.append(material)
-    (scene or bpy.context.scene).collection.objects.link(ob)
     return ob
-
-
-BLEND = dict(blend=True, zwrite=False, src_blend="SrcAlpha", dst_blend="OneMinusSrcAlpha")
 
 
 def material(name: str, *, queue="Geometry", offset=0, color=(1, 1, 1, 1), tex=None, lighting="Lambert",
              alpha_scale=1.0, cutoff=0.5, passes=(dict(),), filter="Point", wrap="Repeat"):
     """A material with ``material.unity`` enabled; ``passes``: dicts of pass properties (``PASS_FIELDS``)."""
-    m = bpy.data.materials.new(name)
-    m.diffuse_color = tuple(colorspace.decode_fast(np.array(color[:3])).tolist()) + (color[3],)
-    blender.write_material(
-        m, enabled=True, queue=queue, queue_offset=offset, color=tuple(color), lighting=lighting,
-        alpha_scale=alpha_scale, cutoff=cutoff, main_tex_filter=filter, main_tex_wrap=wrap,
-        passes=[dict(p) for p in passes], main_tex=tex,
+    return scenekit.unity_material(
+        name, queue=queue, queue_offset=offset, color=color, lighting=lighting, alpha_scale=alpha_scale,
+        cutoff=cutoff, main_tex_filter=filter, main_tex_wrap=wrap, passes=[dict(p) for p in passes], main_tex=tex,
     )
-    return m
 
 
 def preset_passes(name: str) -> list[dict]:
@@ -542,15 +492,7 @@ def build_gamma_linear():
     gray = material("Gray 50%", color=(0.5, 0.5, 0.5, 1), lighting="Unlit")
 
     def put(name, data, loc, mat):
-        if data.users > 0:
-            data = data.copy()
-            data.name = name
-        ob = bpy.data.objects.new(name, data)
-        ob.location = loc
-        ob.data.materials.clear()
-        ob.data.materials.append(mat)
-        stack.objects.link(ob)
-        return ob
+        return obj(name, data, loc, material=mat, collection=stack)
 
     put("Backdrop White", quad_mesh("Half", 3.4, 3.6), (-1.7, 1.0, 0.0), white)
     put("Backdrop Black", quad_mesh("Half B", 3.4, 3.6), (1.7, 1.0, 0.0), black)
@@ -569,8 +511,7 @@ def build_gamma_linear():
     put("Ramp", quad_mesh("Ramp", 6.8, 0.35), (0, -0.1, -1.6), rm)
     label("Gamma", (0, -0.5, 1.65), size=0.22, name="Label Gamma", scene=gamma)
     linear = bpy.data.scenes.new("Linear")
-    linear.render.resolution_x, linear.render.resolution_y = RES
-    linear.render.resolution_percentage = 100
+    scenekit.set_resolution(linear, *RES)
     linear.render.engine = gamma.render.engine
     linear.view_settings.view_transform = "Standard"
     linear.world = gamma.world
@@ -595,7 +536,8 @@ SCENES = {
 
 
 def main(argv: list[str]) -> int:
-    register_addon()
+    global ADDON
+    ADDON = scenekit.register_addon("make_blend_files")
     names = argv or list(SCENES)
     for name in names:
         if name not in SCENES:

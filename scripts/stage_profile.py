@@ -2,7 +2,7 @@
 
     .venv/bin/python -m scripts.stage_profile --scenes S1,S2,S4 [--quick] [--markdown]
 
-Builds the benchmark's scenes (``scripts.benchmark``), extracts each DrawScene once, renders it
+Builds the benchmark's scenes (``scripts.benchmark.scenes``), extracts each DrawScene once, renders it
 once untimed and once under cProfile with ``workers=1`` (cProfile sees one thread only), and
 maps the cumulative time of the pipeline's stage functions to stages:
 
@@ -89,14 +89,14 @@ def main(argv=None) -> int:
     ap.add_argument("--markdown", action="store_true", help="print a markdown table")
     args = ap.parse_args(argv)
     from blendlib import blender
-    from scripts import benchmark
+    from scripts.benchmark.cases import plan_cases
+    from scripts.benchmark.scenes import build_case
 
-    bench_args = benchmark.parse_args(["--scenes", args.scenes] + (["--quick"] if args.quick else []))
     rows = []
-    for case in benchmark.plan_cases(bench_args):
-        if case["group"] == "scaling":
+    for case in plan_cases(args.scenes, quick=args.quick, explain=False):
+        if case["group"].startswith("scale-"):  # the scaling series is S1's sphere again
             continue
-        draw = blender.build_draw_scene(benchmark.build_case(case))
+        draw = blender.build_draw_scene(build_case(case))
         total, seconds = profile_draw(draw)
         rows.append((case["id"], total, seconds))
         print(f"{case['id']:>16} {total:7.3f} s  " + "  ".join(f"{k} {v / total:4.0%}" for k, v in seconds.items()),
