@@ -4,8 +4,9 @@
   ``UnitySortError`` and ``UnityOverdraw`` passes to F12's render result) and the last
   analysis' rows on the window manager (not saved, not scene data).
 - :mod:`.passes`: those passes' arrays, which the render engine hands to Blender.
-- :mod:`.ops`: "Analyze Sorting" (fills the rows) and "Apply Advice" (sets the suggested
-  queue offset or sort setting).
+- :mod:`.ops`: "Analyze Sorting" (a job of :mod:`addon.jobs` when invoked: progress, Esc cancels;
+  synchronous through ``execute``; fills the rows) and "Apply Advice" (sets the suggested queue
+  offset or sort setting).
 - :mod:`.panel`: Render Properties › Unity Sort Analysis.
 """
 
