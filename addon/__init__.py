@@ -1,11 +1,20 @@
-"""Unity Passes for Blender: the add-on.
+"""Unity Passes for Blender: the add-on, one folder per feature.
 
-Registers ``Material.unity`` / ``Scene.unity``, the "Unity Material" and "Unity
-Camera" panels, the pass operators and presets, the "Unity Passes" render
-engine (``UNITY_PASSES``) and the "Unity Frame Debugger" (:mod:`.frame_debugger`).
-The renderer is the bpy-free :mod:`blendlib` package:
-on ``sys.path`` when run from the repository, installed from the wheel bundled
-in the extension zip otherwise (``scripts/build_extension.py``).
+- :mod:`.material_settings`: ``Material.unity`` / ``Scene.unity``, the "Unity Material" and
+  "Unity Camera" panels, the pass operators and presets, migration of older files.
+- :mod:`.shaderlab`: Import / Export ShaderLab.
+- :mod:`.sort_analysis`: Render Properties › Unity Sort Analysis and its F12 passes.
+- :mod:`.engine`: the "Unity Passes" render engine (``UNITY_PASSES``), F12 and the viewport.
+- :mod:`.frame_debugger`: the "Unity Frame Debugger" in the Image Editor.
+- :mod:`.jobs`: the one job base of long operators (worker thread, progress, Esc cancels);
+  :mod:`.registration`: how each feature registers.
+
+Each feature's ``register``/``unregister`` is symmetric; bl_idnames and property names are a
+file format and a public API (SPEC §3) and do not change. The renderer is the bpy-free
+:mod:`blendlib` package (the add-on imports only its public faces: ``blendlib``,
+``blendlib.blender*``, ``blendlib.formats*``, ``blendlib.explain*``, ``blendlib.core.vocabulary``):
+on ``sys.path`` when run from the repository, installed from the wheel bundled in the extension
+zip otherwise (``scripts/build_extension.py``).
 
 ``import addon; addon.register()`` works with the repository root on ``sys.path``;
 ``register()`` and ``unregister()`` may each be called twice in a row.
@@ -23,24 +32,27 @@ bl_info = {
     "category": "Render",
 }
 
+#: The render engine's bl_idname (stored in ``scene.render.engine``).
+ENGINE_ID = "UNITY_PASSES"
+
 _registered = False
+
+
+def _features():
+    """The feature packages in registration order (unregistered in reverse): the Unity settings
+    first (everything else reads them), the sort analysis' ``ViewLayer.unity_analysis`` before the
+    engine whose render passes depend on it."""
+    from . import engine, frame_debugger, material_settings, shaderlab, sort_analysis
+
+    return (material_settings, sort_analysis, engine, shaderlab, frame_debugger)
 
 
 def register() -> None:
     global _registered
     if _registered:
         unregister()
-    import bpy
-
-    from . import engine, frame_debugger, operators, properties, shaderlab_ops, sort_analysis, ui
-
-    properties.register()  # first: panels and operators use the properties
-    for cls in operators.CLASSES + ui.CLASSES:
-        bpy.utils.register_class(cls)
-    sort_analysis.register()
-    engine.register()
-    shaderlab_ops.register()
-    frame_debugger.register()
+    for feature in _features():
+        feature.register()
     _registered = True
 
 
@@ -48,16 +60,6 @@ def unregister() -> None:
     global _registered
     if not _registered:
         return
-    import bpy
-
-    from . import engine, frame_debugger, operators, properties, shaderlab_ops, sort_analysis, ui
-
-    frame_debugger.unregister()
-    shaderlab_ops.unregister()
-    engine.unregister()
-    sort_analysis.unregister()
-    for cls in reversed(operators.CLASSES + ui.CLASSES):
-        if getattr(cls, "is_registered", False):
-            bpy.utils.unregister_class(cls)
-    properties.unregister()
+    for feature in reversed(_features()):
+        feature.unregister()
     _registered = False

@@ -9,12 +9,12 @@ Blender layer lazily so that ``import blendlib`` works without bpy.
 
 from __future__ import annotations
 
-from .core.pipeline import Frame, render_scene
+from .core.pipeline import Frame, RenderCancelled, render_scene
 from .core.scene import Camera, DrawScene, Light, Mesh, Renderer, SceneError
 from .core.vocabulary import Material, Pass, Texture
 
 __all__ = [
-    "Camera", "DrawScene", "Frame", "Light", "Material", "Mesh", "Pass", "Renderer",
+    "Camera", "DrawScene", "Frame", "Light", "Material", "Mesh", "Pass", "RenderCancelled", "Renderer",
     "SceneError", "Texture", "analyze", "draw_list", "pixel_history", "render", "render_scene", "render_view",
     "write_image",
 ]

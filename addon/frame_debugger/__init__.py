@@ -3,40 +3,22 @@ pixel's history, in the Image Editor's sidebar (tab "Unity").
 
 - :mod:`.properties`: ``Scene.unity_frame_debugger`` (the captured draw list, the selected draw,
   the buffer shown, the pixel and its fragments).
-- :mod:`.ops`: Capture and Pixel History operators (a background job with progress and Esc to
-  cancel when invoked; synchronous through ``execute``), the capture cache.
+- :mod:`.ops`: Capture and Pixel History operators (jobs of :mod:`addon.jobs` when invoked:
+  progress and Esc to cancel; synchronous through ``execute``), the capture cache.
 - :mod:`.panel`: the panel, its sub-panels and lists.
-
-``register()``/``unregister()`` are symmetric and may each run twice.
 """
 
 from __future__ import annotations
 
+from ..registration import feature
+from . import ops, panel, properties
 
-def _classes():
-    from . import ops, panel, properties
-
-    return properties.CLASSES + ops.CLASSES + panel.CLASSES
-
-
-def register() -> None:
-    import bpy
-
-    from . import properties
-
-    unregister()
-    for cls in _classes():
-        bpy.utils.register_class(cls)
-    properties.attach()
+CLASSES = properties.CLASSES + ops.CLASSES + panel.CLASSES
 
 
-def unregister() -> None:
-    import bpy
-
-    from . import ops, properties
-
+def _detach() -> None:
     ops.forget_capture()
     properties.detach()
-    for cls in reversed(_classes()):
-        if getattr(cls, "is_registered", False):
-            bpy.utils.unregister_class(cls)
+
+
+register, unregister = feature(CLASSES, properties.attach, _detach)

@@ -1,8 +1,8 @@
 """Frame Debugger operators: Capture, Pixel History; the capture cache and the image update.
 
-Invoked from the UI, both run their render in a worker thread (bpy-free numpy work) while a
-modal timer shows progress; Esc cancels. ``execute`` (scripts, background tests) runs
-synchronously. The capture (draw statistics, final frame, snapshots within
+Invoked from the UI, both run their render as a job (:mod:`addon.jobs`: a worker thread, progress
+in the status bar, Esc cancels); ``execute`` (scripts, background tests) runs synchronously. The
+capture (draw statistics, final frame, snapshots within
 :data:`blendlib.explain.framedebug.SNAPSHOT_MEMORY`) is kept for one scene at a time, so moving
 the draw slider replays from the nearest snapshot instead of rendering from scratch.
 """
@@ -10,16 +10,16 @@ the draw slider replays from the nearest snapshot instead of rendering from scra
 from __future__ import annotations
 
 import math
-import threading
+from functools import partial
 
 import bpy
 from bpy.props import IntProperty
 
 from blendlib.blender import build_draw_scene
 from blendlib.blender import framedebug as bfd
-from blendlib.core.pipeline import RenderCancelled
-from blendlib.core.scene import SceneError
 from blendlib.explain import framedebug as fd
+
+from ..jobs import JobOperator
 
 #: The one kept capture: scene pointer, capture id, FrameCapture.
 _CAPTURE: dict = {}
@@ -99,81 +99,7 @@ def pixel_from_view(u: float, v: float, width: int, height: int) -> tuple[int, i
     return col, height - 1 - row_up
 
 
-class _Job:
-    """A bpy-free function run in a worker thread with progress and a cancel flag."""
-
-    def __init__(self, fn):
-        self.fn = fn
-        self.progress = 0.0
-        self.cancel = threading.Event()
-        self.done = threading.Event()
-        self.result = self.error = None
-        self.thread = threading.Thread(target=self._run, daemon=True)
-        self.thread.start()
-
-    def _run(self) -> None:
-        try:
-            self.result = self.fn(progress=self._progress, should_cancel=self.cancel.is_set)
-        except BaseException as exc:  # noqa: BLE001 - reported by the operator on the main thread
-            self.error = exc
-        finally:
-            self.done.set()
-
-    def _progress(self, fraction: float) -> None:
-        self.progress = fraction
-
-
-class _JobOperator:
-    """Runs :meth:`work` (bpy-free) in a :class:`_Job` while modal, then :meth:`done` on the main thread."""
-
-    _job = None
-    _timer = None
-
-    def start_job(self, context, fn, text: str):
-        self._job = _Job(fn)
-        wm = context.window_manager
-        self._timer = wm.event_timer_add(0.1, window=context.window)
-        wm.progress_begin(0, 100)
-        if context.workspace is not None:
-            context.workspace.status_text_set(f"{text} (Esc to cancel)")
-        wm.modal_handler_add(self)
-        return {"RUNNING_MODAL"}
-
-    def modal(self, context, event):
-        if self._job is None:
-            return self.modal_pick(context, event)
-        if event.type == "ESC":
-            self._job.cancel.set()
-        if event.type != "TIMER" or not self._job.done.is_set():
-            if event.type == "TIMER":
-                context.window_manager.progress_update(int(100 * self._job.progress))
-            return {"RUNNING_MODAL"}
-        wm = context.window_manager
-        wm.event_timer_remove(self._timer)
-        wm.progress_end()
-        if context.workspace is not None:
-            context.workspace.status_text_set(None)
-        job, self._job = self._job, None
-        return self.finish(context, job.result, job.error)
-
-    def modal_pick(self, context, event):
-        return {"CANCELLED"}
-
-    def finish(self, context, result, error):
-        if isinstance(error, RenderCancelled):
-            self.report({"WARNING"}, "Cancelled")
-            return {"CANCELLED"}
-        if isinstance(error, SceneError):
-            self.report({"ERROR"}, str(error))
-            return {"CANCELLED"}
-        if error is not None:
-            self.report({"ERROR"}, f"{type(error).__name__}: {error}")
-            return {"CANCELLED"}
-        self.done(context, result)
-        return {"FINISHED"}
-
-
-class UNITY_OT_frame_debugger_capture(_JobOperator, bpy.types.Operator):
+class UNITY_OT_frame_debugger_capture(JobOperator, bpy.types.Operator):
     """Render the scene once with the Unity pipeline and list its draw calls (Esc cancels)"""
 
     bl_idname = "unity.frame_debugger_capture"
@@ -185,34 +111,26 @@ class UNITY_OT_frame_debugger_capture(_JobOperator, bpy.types.Operator):
         return context.scene is not None and hasattr(context.scene, "unity_frame_debugger")
 
     def _draw_scene(self, context):
-        try:
-            return build_draw_scene(context.scene)
-        except SceneError as exc:
-            self.report({"ERROR"}, str(exc))
-            return None
+        return self.read_scene(partial(build_draw_scene, context.scene))
 
     def execute(self, context):
         draw = self._draw_scene(context)
         if draw is None:
             return {"CANCELLED"}
-        try:
-            cap = fd.FrameCapture.capture(draw)
-        except Exception as exc:  # noqa: BLE001 - one message for the user
-            return self.finish(context, None, exc)
-        return self.finish(context, cap, None)
+        return self.run_now(context, partial(fd.FrameCapture.capture, draw))
 
     def invoke(self, context, event):
         draw = self._draw_scene(context)
         if draw is None:
             return {"CANCELLED"}
-        return self.start_job(context, lambda **kw: fd.FrameCapture.capture(draw, **kw), "Capturing the frame")
+        return self.start_job(context, partial(fd.FrameCapture.capture, draw), "Capturing the frame")
 
-    def done(self, context, cap) -> None:
+    def job_done(self, context, cap) -> None:
         store_capture(context.scene, cap)
         self.report({"INFO"}, context.scene.unity_frame_debugger.status)
 
 
-class UNITY_OT_frame_debugger_pixel(_JobOperator, bpy.types.Operator):
+class UNITY_OT_frame_debugger_pixel(JobOperator, bpy.types.Operator):
     """List every fragment of a pixel: click a pixel in the image (or give X and Y), Esc cancels"""
 
     bl_idname = "unity.frame_debugger_pixel"
@@ -230,11 +148,7 @@ class UNITY_OT_frame_debugger_pixel(_JobOperator, bpy.types.Operator):
         cap = current_capture(context.scene)
         if cap is not None:
             return cap.scene  # the captured frame, so the history matches what is shown
-        try:
-            return build_draw_scene(context.scene)
-        except SceneError as exc:
-            self.report({"ERROR"}, str(exc))
-            return None
+        return self.read_scene(partial(build_draw_scene, context.scene))
 
     def _coordinates(self, context) -> tuple[int, int]:
         settings = context.scene.unity_frame_debugger
@@ -247,11 +161,7 @@ class UNITY_OT_frame_debugger_pixel(_JobOperator, bpy.types.Operator):
         if draw is None:
             return {"CANCELLED"}
         x, y = self._coordinates(context)
-        try:
-            history = fd.pixel_history(draw, x, y)
-        except Exception as exc:  # noqa: BLE001 - one message for the user
-            return self.finish(context, None, exc)
-        return self.finish(context, history, None)
+        return self.run_now(context, partial(fd.pixel_history, draw, x, y))
 
     def invoke(self, context, event):
         if self.x >= 0 and self.y >= 0:
@@ -261,13 +171,12 @@ class UNITY_OT_frame_debugger_pixel(_JobOperator, bpy.types.Operator):
             return self.pick(context, region, event.mouse_region_x, event.mouse_region_y)
         if context.area is None or context.area.type != "IMAGE_EDITOR":
             return self.execute(context)  # typed X/Y from the panel
-        self._job = None
         if context.workspace is not None:
             context.workspace.status_text_set("Click a pixel of the image (Esc or right-click to cancel)")
         context.window_manager.modal_handler_add(self)
         return {"RUNNING_MODAL"}
 
-    def modal_pick(self, context, event):
+    def modal_without_job(self, context, event):
         if event.type in {"ESC", "RIGHTMOUSE"}:
             if context.workspace is not None:
                 context.workspace.status_text_set(None)
@@ -302,10 +211,9 @@ class UNITY_OT_frame_debugger_pixel(_JobOperator, bpy.types.Operator):
         if not (0 <= x < w and 0 <= y < h):  # checked before the worker starts
             self.report({"ERROR"}, f"pixel ({x}, {y}) is outside the {w}x{h} image")
             return {"CANCELLED"}
-        return self.start_job(context, lambda **kw: fd.pixel_history(draw, x, y, **kw),
-                              f"Pixel history of ({x}, {y})")
+        return self.start_job(context, partial(fd.pixel_history, draw, x, y), f"Pixel history of ({x}, {y})")
 
-    def done(self, context, history) -> None:
+    def job_done(self, context, history) -> None:
         store_history(context.scene, history)
         self.report({"INFO"}, context.scene.unity_frame_debugger.pixel_text)
 

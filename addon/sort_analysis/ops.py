@@ -1,35 +1,47 @@
-"""Operators: analyse the scene's sorting; apply a suggested queue offset or sort setting."""
+"""Operators: analyse the scene's sorting (a job: progress, Esc cancels); apply a suggested queue
+offset or sort setting."""
 
 from __future__ import annotations
 
 import json
+from functools import partial
 
 import bpy
 
+import blendlib
+from blendlib import blender
+
+from ..jobs import JobOperator
 from .properties import store
 
 
-class UNITY_OT_sort_analyze(bpy.types.Operator):
-    """Render the frame and its per-fragment sorted reference; list the objects drawn out of order"""
+class UNITY_OT_sort_analyze(JobOperator, bpy.types.Operator):
+    """Render the frame and its per-fragment sorted reference; list the objects drawn out of order (Esc cancels)"""
 
     bl_idname = "unity.sort_analyze"
     bl_label = "Analyze Sorting"
     bl_options = {"REGISTER"}
 
-    def execute(self, context):
-        import blendlib
-        from blendlib.core.pipeline import RenderCancelled
-        from blendlib.core.scene import SceneError
+    report_prefix = "Unity Passes: "
 
-        try:
-            analysis = blendlib.analyze(context.scene)
-        except (SceneError, RenderCancelled) as exc:
-            self.report({"ERROR"}, f"Unity Passes: {exc}")
-            return {"CANCELLED"}
+    def _work(self, context):
+        """The analysis of the scene as F12 renders it, its DrawScene read here on the main thread
+        (None: reported why not)."""
+        draw = self.read_scene(partial(blender.draw_scene_final, context.scene))
+        return None if draw is None else partial(blendlib.analyze, draw)
+
+    def execute(self, context):
+        work = self._work(context)
+        return {"CANCELLED"} if work is None else self.run_now(context, work)
+
+    def invoke(self, context, event):
+        work = self._work(context)
+        return {"CANCELLED"} if work is None else self.start_job(context, work, "Analysing the sorting")
+
+    def job_done(self, context, analysis) -> None:
         results = context.window_manager.unity_sort_results
         store(results, analysis)
         self.report({"INFO"}, f"Unity Passes: {results.summary}; {len(results.items)} inverted pairs")
-        return {"FINISHED"}
 
 
 class UNITY_OT_sort_apply_advice(bpy.types.Operator):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import bpy
 
+from .. import ENGINE_ID
 from .ops import UNITY_OT_sort_analyze, UNITY_OT_sort_apply_advice
 
 
@@ -31,7 +32,7 @@ class UNITY_PT_sort_analysis(bpy.types.Panel):
 
     @classmethod
     def poll(cls, context):
-        return context.scene.render.engine == "UNITY_PASSES"
+        return context.scene.render.engine == ENGINE_ID
 
     def draw(self, context):
         layout = self.layout

@@ -14,6 +14,7 @@ import numpy as np
 from ..core import colorspace, pipeline
 from ..core.scene import SceneError
 from .extract import build_draw_scene
+from .pixels import bottom_first
 
 
 def render(scene: Any = None, depsgraph: Any = None, progress: Callable[[float], None] | None = None,
@@ -220,7 +221,7 @@ def write_image(frame: pipeline.Frame, name: str, *, encoded: bool | None = None
     elif tuple(image.size) != (w, h):
         image.scale(w, h)
     rgba = linear_rgba(frame, encoded=encoded, opaque=opaque)
-    image.pixels.foreach_set(np.ascontiguousarray(rgba[::-1]).ravel())
+    image.pixels.foreach_set(bottom_first(rgba).ravel())
     image.update()
     return image
 

@@ -9,9 +9,8 @@ import numpy as np
 import pytest
 
 import addon
-from addon import engine
-from blendlib import blender
-from blendlib.core.scene import SceneError
+from addon.engine import render as engine
+from blendlib import SceneError, blender
 from blendlib.formats import images
 from tests.support.blender_fixtures import add_cube, empty_scene, unlit_material
 

@@ -4,7 +4,6 @@ the recording layout of test_ui.py, and the Python API (render until_draw, draw_
 
 from __future__ import annotations
 
-import threading
 from types import SimpleNamespace
 
 import bpy
@@ -13,11 +12,11 @@ import pytest
 
 import addon
 import blendlib
+from blendlib import Frame, render_scene
 from blendlib.blender import build_draw_scene, linear_rgba
 from blendlib.blender import framedebug as bfd
-from blendlib.core.pipeline import Frame, render_scene
 from blendlib.explain import framedebug as fd
-from tests.addon.test_ui import RecordingLayout, _draw
+from tests.addon.recording import RecordingLayout, draw_panel
 from tests.support.blender_fixtures import add_cube, add_plane, empty_scene, unlit_material
 
 
@@ -64,7 +63,7 @@ def test_register_twice_and_unregister_removes_everything():
 
 def test_capture_lists_draws_and_the_slider_shows_frames_after_each_draw(scene):
     settings = scene.unity_frame_debugger
-    assert _draw(addon.frame_debugger.panel.UNITY_PT_frame_debugger, scene=scene)["operators"] == [
+    assert draw_panel(addon.frame_debugger.panel.UNITY_PT_frame_debugger, scene=scene)["operators"] == [
         "unity.frame_debugger_capture"]
     with bpy.context.temp_override(scene=scene):
         assert bpy.ops.unity.frame_debugger_capture() == {"FINISHED"}
@@ -90,7 +89,7 @@ def test_capture_lists_draws_and_the_slider_shows_frames_after_each_draw(scene):
     _, mask = fd.FrameCapture.capture(draw).frame_after(2, highlight=True)
     assert mask.any() and not mask.all()
     assert np.array_equal(_image_rgba(), _shown(full, "DEPTH", mask))
-    log = _draw(addon.frame_debugger.panel.UNITY_PT_frame_debugger, scene=scene)
+    log = draw_panel(addon.frame_debugger.panel.UNITY_PT_frame_debugger, scene=scene)
     assert {"draws", "draw", "buffer", "highlight"} <= set(log["props"])
     assert any("Cull Off ZWrite Off" in text for text in log["labels"]), log["labels"]
     row = {"labels": [], "props": [], "operators": [], "menus": []}
@@ -111,7 +110,7 @@ def test_pixel_history_operator_with_coordinates(scene):
     assert [f.draw for f in settings.fragments] == [1, 2, 2]
     assert tuple(settings.fragments[-1].after) == pytest.approx(expect.final, abs=0)
     assert (settings.pixel_x, settings.pixel_y) == (12, 8) and "3 fragments" in settings.pixel_text
-    log = _draw(addon.frame_debugger.panel.UNITY_PT_frame_debugger_pixel, scene=scene)
+    log = draw_panel(addon.frame_debugger.panel.UNITY_PT_frame_debugger_pixel, scene=scene)
     assert {"pixel_x", "pixel_y", "fragments"} <= set(log["props"])
     assert log["operators"] == ["unity.frame_debugger_pixel"] * 2
     with bpy.context.temp_override(scene=scene), pytest.raises(RuntimeError, match="outside"):
@@ -140,19 +139,3 @@ def test_pixel_from_view_maps_image_coordinates():
     assert pixel_from_view(0.5, 0.5, 24, 16) == (12, 7)
     assert pixel_from_view(1.0, 0.5, 24, 16) is None and pixel_from_view(-0.01, 0.5, 24, 16) is None
     assert pixel_from_view(float("nan"), 0.5, 24, 16) is None
-
-
-def test_job_runs_in_a_thread_with_progress_and_cancel():
-    from addon.frame_debugger.ops import _Job
-
-    seen = threading.Event()
-
-    def work(progress, should_cancel):
-        progress(0.5)
-        seen.wait(5)
-        return should_cancel()
-
-    job = _Job(work)
-    job.cancel.set()
-    seen.set()
-    assert job.done.wait(5) and job.result is True and job.progress == 0.5 and job.error is None

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import struct
+import threading
 import zlib
 
 import bpy
@@ -10,8 +11,11 @@ import numpy as np
 import pytest
 
 import addon
-from blendlib import blender
+import blendlib
+from addon.sort_analysis.ops import UNITY_OT_sort_analyze
+from blendlib import RenderCancelled, blender
 from blendlib.explain.sorted_reference import analyze
+from tests.addon.recording import event, job_context, operator_probe, run_modal
 from tests.support.blender_fixtures import add_plane, empty_scene, unlit_material
 
 
@@ -159,3 +163,99 @@ def test_panel_and_properties_are_registered_and_removed():
     addon.register()
     addon.register()
     assert bpy.context.view_layer.unity_analysis.use_passes is False
+
+
+def _rows(results) -> tuple:
+    return results.summary, [(r.front, r.behind, r.pixels, r.text, r.change) for r in results.items]
+
+
+class GatedAnalysis:
+    """``blendlib.analyze`` that waits for ``gate`` before (or, ``after=True``, after) the real
+    analysis, recording the progress fractions it reports."""
+
+    def __init__(self, after: bool = False):
+        self.real = blendlib.analyze
+        self.after = after
+        self.gate, self.reached = threading.Event(), threading.Event()
+        self.fractions: list[float] = []
+
+    def __call__(self, draw, progress=None, should_cancel=None, **kwargs):
+        def record(fraction):
+            self.fractions.append(fraction)
+            progress(fraction)
+
+        if not self.after:
+            self.reached.set()
+            assert self.gate.wait(30)
+        result = self.real(draw, progress=record, should_cancel=should_cancel, **kwargs)
+        if self.after:
+            self.reached.set()
+            assert self.gate.wait(30)
+        return result
+
+
+def _invoke(scene):
+    op = operator_probe(UNITY_OT_sort_analyze)
+    ctx = job_context(scene=scene)
+    assert op.invoke(ctx, event("LEFTMOUSE")) == {"RUNNING_MODAL"}
+    return op, ctx
+
+
+def test_analyze_as_a_job_reports_progress_and_stores_what_execute_stores(monkeypatch):
+    scene = inverted_scene()
+    with bpy.context.temp_override(scene=scene):
+        assert bpy.ops.unity.sort_analyze() == {"FINISHED"}  # execute: synchronous
+    results = bpy.context.window_manager.unity_sort_results
+    synchronous = _rows(results)
+    assert synchronous[1] and synchronous[1][0][:2] == ("Near", "Far")
+    results.items.clear()
+    results.summary = ""
+    gated = GatedAnalysis(after=True)
+    monkeypatch.setattr(blendlib, "analyze", gated)
+    op, ctx = _invoke(scene)
+    assert ctx.workspace.status == ["Analysing the sorting: 0% (Esc to cancel)"]
+    assert gated.reached.wait(30)  # the render is done, the job is not
+    assert op.modal(ctx, event("TIMER")) == {"RUNNING_MODAL"}
+    percent = int(100 * gated.fractions[-1])
+    assert gated.fractions and percent > 0
+    assert ctx.window_manager.calls[-1] == ("progress_update", percent)
+    assert ctx.workspace.status[-1] == f"Analysing the sorting: {percent}% (Esc to cancel)"
+    assert _rows(results) == ("", [])  # stored only when done, on the main thread
+    gated.gate.set()
+    assert run_modal(op, ctx) == {"FINISHED"}
+    assert _rows(results) == synchronous
+    assert op.reports == [("INFO", f"Unity Passes: {synchronous[0]}; 1 inverted pairs")]
+
+
+def test_esc_cancels_the_analysis_and_keeps_the_previous_results(monkeypatch):
+    scene = inverted_scene()
+    with bpy.context.temp_override(scene=scene):
+        assert bpy.ops.unity.sort_analyze() == {"FINISHED"}
+        assert bpy.ops.unity.sort_apply_advice() == {"FINISHED"}  # a new analysis would find no inversion
+    results = bpy.context.window_manager.unity_sort_results
+    previous = _rows(results)
+    assert len(previous[1]) == 1
+    gated = GatedAnalysis()
+    monkeypatch.setattr(blendlib, "analyze", gated)
+    op, ctx = _invoke(scene)
+    job = op._job
+    assert gated.reached.wait(30)
+    assert op.modal(ctx, event("ESC")) == {"RUNNING_MODAL"}
+    gated.gate.set()  # the analysis starts after Esc: its render stops at the first check
+    assert run_modal(op, ctx) == {"CANCELLED"}
+    assert isinstance(job.error, RenderCancelled)
+    assert op.reports == [("WARNING", "Unity Passes: Cancelled")]
+    assert _rows(results) == previous
+    assert ("progress_end",) in ctx.window_manager.calls and ctx.workspace.status[-1] is None
+
+
+def test_analyze_without_camera_reports_one_error_and_starts_nothing():
+    scene = inverted_scene()
+    scene.camera = None
+    op = operator_probe(UNITY_OT_sort_analyze)
+    ctx = job_context(scene=scene)
+    assert op.invoke(ctx, event("LEFTMOUSE")) == {"CANCELLED"}
+    assert len(op.reports) == 1 and op.reports[0][0] == "ERROR" and "no camera" in op.reports[0][1]
+    assert ctx.window_manager.calls == [] and op._job is None
+    with bpy.context.temp_override(scene=scene), pytest.raises(RuntimeError, match="no camera"):
+        bpy.ops.unity.sort_analyze()

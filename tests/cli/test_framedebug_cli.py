@@ -17,7 +17,7 @@ sys.path.insert(0, ".")
 import addon
 addon.register()
 from tests.support.blender_fixtures import empty_scene, add_cube, add_plane, unlit_material
-from addon.operators import apply_preset
+from addon.material_settings.ops import apply_preset
 kind, path = sys.argv[1], sys.argv[2]
 scene = empty_scene(40, 30)
 wall = unlit_material("Wall", (0.9, 0.2, 0.1, 1.0))

@@ -795,12 +795,15 @@ import addon  # noqa: E402
 @pytest.fixture(scope="module")
 def blender():
     """The add-on registered (it registers this module's operators), restored afterwards."""
-    from addon import shaderlab_ops
+    from types import SimpleNamespace
+
+    from addon import shaderlab
 
     registered = hasattr(bpy.types.Material, "unity")
     if not registered:
         addon.register()
-    yield shaderlab_ops
+    yield SimpleNamespace(register=shaderlab.register, apply_result=shaderlab.ops.apply_result,
+                          draw_import_export=shaderlab.panel.draw_import_export)
     if not registered:
         addon.unregister()
 

@@ -10,7 +10,7 @@ Passes of the render result:
   (RGBA, like Combined but with its alpha), ``UnitySortError`` and ``UnityOverdraw`` (X rasterised,
   Y written, Z 0) of docs/sorting.md.
 
-The viewport's Rendered shading (``view_update`` / ``view_draw``) lives in :mod:`addon.viewport`.
+The viewport's Rendered shading (``view_update`` / ``view_draw``) lives in :mod:`.viewport`.
 """
 
 from __future__ import annotations
@@ -18,13 +18,15 @@ from __future__ import annotations
 import bpy
 import numpy as np
 
-from blendlib import blender
+import blendlib
+from blendlib import RenderCancelled, SceneError, blender
+from blendlib.blender.pixels import bottom_first
 from blendlib.blender.render import one_warning_per_cause
-from blendlib.core import pipeline
-from blendlib.core.pipeline import RenderCancelled
-from blendlib.core.scene import SceneError
 
-from . import sort_analysis, viewport
+from .. import ENGINE_ID
+from ..sort_analysis import passes as sort_passes
+from ..sort_analysis.properties import passes_enabled
+from . import viewport
 
 ALPHA_PASS = "UnityAlpha"
 DEPTH_PASS = "Depth"
@@ -32,12 +34,10 @@ DEPTH_PASS = "Depth"
 
 def result_arrays(frame) -> dict[str, np.ndarray]:
     """Pass name → (H*W, channels) float32, bottom row first (Blender's order)."""
-    combined = blender.linear_rgba(frame, opaque=True)
-    h, w = combined.shape[:2]
     return {
-        "Combined": np.ascontiguousarray(combined[::-1]).reshape(h * w, 4),
-        ALPHA_PASS: np.ascontiguousarray(frame.color[::-1, :, 3], dtype=np.float32).reshape(h * w, 1),
-        DEPTH_PASS: np.ascontiguousarray(frame.depth[::-1], dtype=np.float32).reshape(h * w, 1),
+        "Combined": bottom_first(blender.linear_rgba(frame, opaque=True)),
+        ALPHA_PASS: bottom_first(frame.color[..., 3]),
+        DEPTH_PASS: bottom_first(frame.depth),
     }
 
 
@@ -53,7 +53,7 @@ def _region_rows(array: np.ndarray, height: int, width: int, region) -> np.ndarr
 class UnityPassesRenderEngine(bpy.types.RenderEngine):
     """Renders what Unity's built-in pipeline draws (render queues, ZWrite/ZTest, Blend, ColorMask, ...)."""
 
-    bl_idname = "UNITY_PASSES"
+    bl_idname = ENGINE_ID
     bl_label = "Unity Passes"
     bl_use_preview = False
     bl_use_postprocess = True
@@ -63,8 +63,8 @@ class UnityPassesRenderEngine(bpy.types.RenderEngine):
         self.register_pass(scene, renderlayer, "Combined", 4, "RGBA", "COLOR")
         self.register_pass(scene, renderlayer, ALPHA_PASS, 1, "A", "VALUE")
         self.register_pass(scene, renderlayer, DEPTH_PASS, 1, "Z", "VALUE")
-        if sort_analysis.properties.passes_enabled(renderlayer):
-            for name, channels, ids, kind in sort_analysis.render_passes():
+        if passes_enabled(renderlayer):
+            for name, channels, ids, kind in sort_passes.render_passes():
                 self.register_pass(scene, renderlayer, name, channels, ids, kind)
 
     def render(self, depsgraph):
@@ -81,14 +81,13 @@ class UnityPassesRenderEngine(bpy.types.RenderEngine):
             # crops it or places it in the full-size image itself).
             region = blender.border_region(scene, width, height)
             self.update_stats("", f"Unity Passes: {len(draw.renderers)} renderers")
-            analysed = sort_analysis.properties.passes_enabled(depsgraph.view_layer)
+            analysed = passes_enabled(depsgraph.view_layer)
             if analysed:
-                from blendlib.explain.sorted_reference import analyze
-
-                analysis = analyze(draw, advice=False, progress=self._progress, should_cancel=self.test_break)
+                analysis = blendlib.analyze(draw, advice=False, progress=self._progress,
+                                            should_cancel=self.test_break)
                 frame = analysis.frame
             else:
-                frame = pipeline.render_scene(draw, progress=self._progress, should_cancel=self.test_break)
+                frame = blendlib.render_scene(draw, progress=self._progress, should_cancel=self.test_break)
         except RenderCancelled:
             # An error report (not a bare return) also stops write_still / animation from saving
             # an empty frame when the break did not come from Blender's own Esc handling.
@@ -109,7 +108,7 @@ class UnityPassesRenderEngine(bpy.types.RenderEngine):
         try:  # everything after the render reports its failure: an error report stops Blender saving
             for warning in one_warning_per_cause(frame.warnings):
                 self.report({"WARNING"}, f"Unity Passes: {warning}")
-            extra = sort_analysis.result_arrays(analysis) if analysed else None
+            extra = sort_passes.result_arrays(analysis) if analysed else None
             self._write_result(depsgraph, frame, region, extra, width, height)
         except Exception as exc:  # noqa: BLE001 - an error report stops Blender from saving the image
             self.report({"ERROR"}, f"Unity Passes: internal error: {type(exc).__name__}: {exc}")
@@ -127,7 +126,7 @@ class UnityPassesRenderEngine(bpy.types.RenderEngine):
         if extra is not None:
             for name, array in extra.items():
                 arrays[name] = _region_rows(array, frame_h, width, region)
-            for name, channels, ids, _ in sort_analysis.render_passes():
+            for name, channels, ids, _ in sort_passes.render_passes():
                 self.add_pass(name, channels, ids)
         if not view_layer.use_pass_z:
             self.add_pass(DEPTH_PASS, 1, "Z")
@@ -171,25 +170,3 @@ class UnityPassesRenderEngine(bpy.types.RenderEngine):
             return
         if session is not None:
             session.close()
-
-
-def _compat_panels():
-    """Built-in property panels (dimensions, light, world, material slots) shown for this engine too."""
-    wanted = {"EEVEE_MATERIAL_PT_context_material", "EEVEE_WORLD_PT_surface", "DATA_PT_EEVEE_light"}
-    for panel in bpy.types.Panel.__subclasses__():
-        engines = getattr(panel, "COMPAT_ENGINES", None)
-        if isinstance(engines, set) and ("BLENDER_RENDER" in engines or panel.__name__ in wanted):
-            yield panel
-
-
-def register() -> None:
-    bpy.utils.register_class(UnityPassesRenderEngine)
-    for panel in _compat_panels():
-        panel.COMPAT_ENGINES.add(UnityPassesRenderEngine.bl_idname)
-
-
-def unregister() -> None:
-    for panel in _compat_panels():
-        panel.COMPAT_ENGINES.discard(UnityPassesRenderEngine.bl_idname)
-    if getattr(UnityPassesRenderEngine, "is_registered", False):
-        bpy.utils.unregister_class(UnityPassesRenderEngine)

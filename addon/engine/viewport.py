@@ -19,16 +19,15 @@ from typing import Any
 
 import numpy as np
 
-from blendlib import blender
+from blendlib import SceneError, blender
 from blendlib.blender import viewport
-from blendlib.core.scene import SceneError
+from blendlib.blender.pixels import bottom_first
 
 
 def display_pixels(frame) -> np.ndarray:
     """(H*W*4,) float32 linear RGBA, bottom row first: exactly the F12 Combined pass (alpha 1), so
     Blender's display-space shader shows the colours F12 shows under the same view transform."""
-    rgba = blender.linear_rgba(frame, opaque=True)
-    return np.ascontiguousarray(rgba[::-1], dtype=np.float32).ravel()
+    return bottom_first(blender.linear_rgba(frame, opaque=True)).ravel()
 
 
 def draw_pixels(engine: Any, scene: Any, pixels: np.ndarray, size: tuple[int, int],

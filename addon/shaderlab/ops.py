@@ -1,4 +1,4 @@
-"""Material-panel operators: Import ShaderLab (file / clipboard) and Export ShaderLab.
+"""Import ShaderLab (file browser / clipboard) and Export ShaderLab (file browser) operators.
 
 Import parses the whole ``.shader`` text first (:mod:`blendlib.formats.shaderlab`); on a
 parse error it reports one line (``FILE:LINE:COL: message``) and changes nothing.
@@ -168,26 +168,4 @@ class UNITY_OT_shaderlab_export(Operator, ExportHelper):
         return {"FINISHED"}
 
 
-def draw_import_export(layout) -> None:
-    """The Import/Export row for the Unity Material panel."""
-    row = layout.row(align=True)
-    row.operator(UNITY_OT_shaderlab_import.bl_idname, text="Import ShaderLab…", icon="IMPORT")
-    row.operator(UNITY_OT_shaderlab_import_clipboard.bl_idname, text="", icon="PASTEDOWN")
-    row.operator(UNITY_OT_shaderlab_export.bl_idname, text="Export ShaderLab…", icon="EXPORT")
-
-
-classes = (UNITY_OT_shaderlab_import, UNITY_OT_shaderlab_import_clipboard, UNITY_OT_shaderlab_export)
-
-
-def register() -> None:
-    """Register the operators; calling it again is harmless."""
-    for cls in classes:
-        if not getattr(cls, "is_registered", False):
-            bpy.utils.register_class(cls)
-
-
-def unregister() -> None:
-    """Unregister the operators (in reverse order); calling it again is harmless."""
-    for cls in reversed(classes):
-        if getattr(cls, "is_registered", False):
-            bpy.utils.unregister_class(cls)
+CLASSES = (UNITY_OT_shaderlab_import, UNITY_OT_shaderlab_import_clipboard, UNITY_OT_shaderlab_export)

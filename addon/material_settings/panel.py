@@ -1,29 +1,30 @@
-"""Panels: "Unity Material" (Material Properties) and "Unity Camera" (Render Properties)."""
+"""Panels: "Unity Material" (Material Properties, with its pass list and Presets menu) and
+"Unity Camera" (Render Properties)."""
 
 from __future__ import annotations
 
 import bpy
 
-from blendlib.core.vocabulary import Queue, pass_state_text, queue_text
+from blendlib.blender import read_pass
+from blendlib.core.vocabulary import PASS_PRESETS, Queue, pass_state_text, queue_text
 
-from . import shaderlab_ops
-from .operators import (
-    UNITY_MT_presets,
+from .. import ENGINE_ID
+from ..shaderlab.panel import draw_import_export
+from .ops import (
+    UNITY_OT_apply_preset,
     UNITY_OT_fill_from_principled,
     UNITY_OT_pass_add,
     UNITY_OT_pass_duplicate,
     UNITY_OT_pass_move,
     UNITY_OT_pass_remove,
     UNITY_OT_use_standard_view,
-    pass_from_item,
 )
-
-ENGINE = "UNITY_PASSES"
 
 
 def shaderlab_preview(item) -> str:
+    """The pass's state as one line of ShaderLab (the list row and the pass box show it)."""
     try:
-        return pass_state_text(pass_from_item(item))
+        return pass_state_text(read_pass(item))
     except ValueError as exc:  # e.g. an out-of-range stored value
         return f"invalid pass: {exc}"
 
@@ -51,6 +52,18 @@ class UNITY_UL_passes(bpy.types.UIList):
             layout.label(text=str(index + 1))
 
 
+class UNITY_MT_presets(bpy.types.Menu):
+    """Pass-state presets of the tutorials"""
+
+    bl_idname = "UNITY_MT_presets"
+    bl_label = "Unity Presets"
+
+    def draw(self, context):
+        layout = self.layout
+        for name in PASS_PRESETS:
+            layout.operator(UNITY_OT_apply_preset.bl_idname, text=name).preset = name
+
+
 class _MaterialPanel:
     bl_space_type = "PROPERTIES"
     bl_region_type = "WINDOW"
@@ -76,7 +89,7 @@ class UNITY_PT_material(_MaterialPanel, bpy.types.Panel):
         row = layout.row(align=True)
         row.menu(UNITY_MT_presets.bl_idname, icon="PRESET")
         row.operator(UNITY_OT_fill_from_principled.bl_idname, icon="NODE_MATERIAL")
-        shaderlab_ops.draw_import_export(layout)
+        draw_import_export(layout)
         if not unity.enabled:
             box = layout.box()
             box.label(text="Off: renders opaque (queue Geometry, one default pass, Lambert)", icon="INFO")
@@ -187,7 +200,7 @@ class UNITY_PT_camera(bpy.types.Panel):
         layout.use_property_decorate = False
         scene = context.scene
         unity = scene.unity
-        if scene.render.engine != ENGINE:
+        if scene.render.engine != ENGINE_ID:
             layout.label(text="Select the Unity Passes render engine to render with these settings", icon="INFO")
         layout.prop(unity, "color_space")
         layout.prop(unity, "hdr")
@@ -209,4 +222,4 @@ class UNITY_PT_camera(bpy.types.Panel):
             box.operator(UNITY_OT_use_standard_view.bl_idname, icon="CHECKMARK")
 
 
-CLASSES = (UNITY_UL_passes, UNITY_PT_material, UNITY_PT_material_passes, UNITY_PT_camera)
+CLASSES = (UNITY_MT_presets, UNITY_UL_passes, UNITY_PT_material, UNITY_PT_material_passes, UNITY_PT_camera)

@@ -1,4 +1,5 @@
-"""Operators of the Unity Material panel: pass list editing, presets, Fill from Principled BSDF."""
+"""Operators of the Unity Material and Unity Camera panels: pass list editing, presets, Fill from
+Principled BSDF, Use Standard View Transform."""
 
 from __future__ import annotations
 
@@ -8,17 +9,8 @@ from blendlib.blender import principled_inputs, read_pass, write_material, write
 from blendlib.core.vocabulary import PASS_PRESETS, Pass, preset
 
 
-def pass_from_item(item) -> Pass:
-    """The :class:`blendlib.core.vocabulary.Pass` of a pass property group."""
-    return read_pass(item)
-
-
-def store_pass(item, p: Pass) -> None:
-    """Write every field of ``p`` into a pass property group."""
-    write_pass(item, p)
-
-
 def copy_pass(src, dst) -> None:
+    """Copy every field of the pass property group ``src`` into ``dst``."""
     write_pass(dst, read_pass(src))
 
 
@@ -184,18 +176,6 @@ class UNITY_OT_use_standard_view(bpy.types.Operator):
         return {"FINISHED"}
 
 
-class UNITY_MT_presets(bpy.types.Menu):
-    """Pass-state presets of the tutorials"""
-
-    bl_idname = "UNITY_MT_presets"
-    bl_label = "Unity Presets"
-
-    def draw(self, context):
-        layout = self.layout
-        for name in PASS_PRESETS:
-            layout.operator(UNITY_OT_apply_preset.bl_idname, text=name).preset = name
-
-
 CLASSES = (
     UNITY_OT_pass_add,
     UNITY_OT_pass_remove,
@@ -204,5 +184,4 @@ CLASSES = (
     UNITY_OT_apply_preset,
     UNITY_OT_fill_from_principled,
     UNITY_OT_use_standard_view,
-    UNITY_MT_presets,
 )

@@ -4,15 +4,13 @@ The schema (names, defaults, enum item numbers) lives next to the code that read
 stored values back without the add-on, so the two can never disagree.
 
 Each group also stores ``schema_version``. Editing any property records the current
-version (:func:`blendlib.blender.stamp_version`), and a ``load_post`` handler migrates
-the settings of files saved by older versions (:mod:`blendlib.blender.migration`) as
-they are loaded; ``register()`` migrates what is already loaded.
+version (:func:`blendlib.blender.stamp_version`); :mod:`.migration` brings the settings of
+files saved by older versions to the current one as they load.
 """
 
 from __future__ import annotations
 
 import bpy
-from bpy.app.handlers import persistent
 
 from blendlib.blender import (
     MATERIAL_FIELDS,
@@ -20,7 +18,6 @@ from blendlib.blender import (
     SCENE_FIELDS,
     SCHEMA_VERSION,
     Field,
-    migrate_data,
     stamp_version,
 )
 from blendlib.blender.migration import FIRST_VERSION, VERSION_KEY
@@ -106,41 +103,15 @@ for _group in (UnityMaterialSettings, UnitySceneSettings):
 CLASSES = (UnityPassSettings, UnityMaterialSettings, UnitySceneSettings)
 
 
-def register() -> None:
-    for cls in CLASSES:
-        bpy.utils.register_class(cls)
+def attach() -> None:
+    """Add ``Material.unity`` and ``Scene.unity`` (the groups of :data:`CLASSES` must be registered)."""
     bpy.types.Material.unity = bpy.props.PointerProperty(
         type=UnityMaterialSettings, name="Unity Material", description="Unity built-in pipeline material settings")
     bpy.types.Scene.unity = bpy.props.PointerProperty(
         type=UnitySceneSettings, name="Unity Camera", description="Unity built-in pipeline frame settings")
-    if migrate_on_load not in bpy.app.handlers.load_post:
-        bpy.app.handlers.load_post.append(migrate_on_load)
-    migrate_on_load()
 
 
-def unregister() -> None:
-    for handler in [h for h in bpy.app.handlers.load_post if _is_migration_handler(h)]:
-        bpy.app.handlers.load_post.remove(handler)  # also one left by a reloaded copy of this module
+def detach() -> None:
     for owner in (bpy.types.Scene, bpy.types.Material):
         if hasattr(owner, "unity"):
             del owner.unity
-    for cls in reversed(CLASSES):
-        if getattr(cls, "is_registered", False):
-            bpy.utils.unregister_class(cls)
-
-
-@persistent
-def migrate_on_load(*_args) -> None:
-    """``load_post`` handler: bring the Unity settings of every material and scene to the current
-    schema version. While the add-on is enabled at Blender's start-up, ``bpy.data`` is not yet
-    readable; the files loaded afterwards are migrated by this handler."""
-    try:
-        data = bpy.data
-        data.materials  # noqa: B018 - raises AttributeError on the restricted start-up data
-    except AttributeError:
-        return
-    migrate_data(data)
-
-
-def _is_migration_handler(handler) -> bool:
-    return getattr(handler, "__module__", None) == __name__ and getattr(handler, "__name__", None) == "migrate_on_load"

@@ -15,7 +15,8 @@ import pytest
 from mathutils import Matrix
 
 import addon
-from addon import engine, viewport
+from addon.engine import render as engine
+from addon.engine import viewport
 from blendlib import blender, render_view
 from tests.reference.scenes import look_at, perspective
 from tests.support.blender_fixtures import add_cube, empty_scene, unlit_material
@@ -85,7 +86,7 @@ def test_free_view_reduced_then_full_and_equal_to_render_view():
         expected = render_view(scene, view, proj, 200, 150)
         np.testing.assert_array_equal(pixels, viewport.display_pixels(expected))
         # F12's Combined pass and the viewport get the same linear values (alpha 1)
-        from addon.engine import result_arrays
+        from addon.engine.render import result_arrays
 
         np.testing.assert_array_equal(pixels.reshape(-1, 4), result_arrays(expected)["Combined"])
         # same view, same scene: nothing new is rendered

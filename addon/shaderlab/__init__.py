@@ -1,0 +1,15 @@
+"""ShaderLab ``.shader`` files for a material's Unity settings (README "ShaderLab import and export").
+
+- :mod:`.ops`: Import ShaderLab… (file browser), Import ShaderLab from Clipboard, Export ShaderLab…
+  (file browser); parsing and writing are :mod:`blendlib.formats.shaderlab`'s.
+- :mod:`.panel`: their row in the Unity Material panel (:mod:`addon.material_settings.panel`).
+"""
+
+from __future__ import annotations
+
+from ..registration import feature
+from . import ops, panel
+
+__all__ = ["ops", "panel", "register", "unregister"]
+
+register, unregister = feature(ops.CLASSES)
