@@ -20,6 +20,7 @@ to it stays in :attr:`Parser.shader` (see :mod:`.tree`).
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from typing import Any
 
 from .diagnostics import ShaderLabError, SourceWarning
@@ -98,6 +99,17 @@ class Parser:
     def unclosed(self, open_tok: Token, owner: str) -> ShaderLabError:
         return self.s.error(f"unexpected end of file: '{{' of {owner} is never closed by '}}'", open_tok)
 
+    def block_tokens(self, open_tok: Token, owner: str) -> Iterator[Token]:
+        """The tokens of the block ``open_tok`` opens, one at a time, up to its closing ``}``
+        (consumed, not given); the loop's body may read further tokens itself."""
+        while True:
+            tok = self.s.next()
+            if tok.kind == "eof":
+                raise self.unclosed(open_tok, owner)
+            if tok.kind == "punct" and tok.text == "}":
+                return
+            yield tok
+
     def skip_command(self, head: Token, warning: str | None) -> None:
         """Skip a command not read: the rest of its line, or up to the end of a ``{ ... }`` block
         opening on that line (stops before a ``}`` that closes the enclosing block)."""
@@ -125,12 +137,7 @@ class Parser:
             raise self.s.error(f"Category blocks nested more than {MAX_NESTING} deep", open_tok)
         shader = self.shader
         in_category = owner == "Category"
-        while True:
-            tok = self.s.next()
-            if tok.kind == "eof":
-                raise self.unclosed(open_tok, owner)
-            if tok.kind == "punct" and tok.text == "}":
-                return
+        for tok in self.block_tokens(open_tok, owner):
             if tok.kind == "code":
                 if tok.code_kind.endswith("INCLUDE"):
                     shader.includes.append(tok.text)
@@ -258,28 +265,19 @@ class Parser:
         """Read ``{ "Name"="Value" … }`` into ``into``; returns the value tokens by lower-case name."""
         open_tok = self.open_block(head)
         positions: dict[str, Token] = {}
-        while True:
-            tok = self.s.next()
-            if tok.kind == "eof":
-                raise self.unclosed(open_tok, owner)
-            if tok.kind == "punct" and tok.text == "}":
-                return positions
+        for tok in self.block_tokens(open_tok, owner):
             if tok.kind != "string":
                 raise self.s.error(f'expected a tag "Name"="Value" in {owner}, found {tok.describe()}', tok)
             self.expect("=", f'after tag "{tok.text}"')
             value = self.expect_string(f'value of tag "{tok.text}"')
             into[tok.text] = value.text
             positions[tok.text.lower()] = value
+        return positions
 
     def parse_subshader(self, subshader: SubShaderBlock) -> None:
         head = subshader.head
         open_tok = self.open_block(head)
-        while True:
-            tok = self.s.next()
-            if tok.kind == "eof":
-                raise self.unclosed(open_tok, "SubShader")
-            if tok.kind == "punct" and tok.text == "}":
-                return
+        for tok in self.block_tokens(open_tok, "SubShader"):
             if tok.kind == "code":
                 if tok.code_kind.endswith("INCLUDE"):
                     self.shader.includes.append(tok.text)
@@ -309,22 +307,13 @@ class Parser:
                 self.warn(f'UsePass "{arg.text}" recorded, not imported (the other shader is not available)', tok)
             elif word == "grabpass":
                 self.skip_command(tok, "GrabPass ignored")
-            elif word in STATE_COMMANDS:
-                self.parse_command(tok, subshader.body)
-            elif word in QUIET_COMMANDS:
-                self.parse_quiet(tok, subshader.body)
             else:
-                self.skip_command(tok, f"unknown command {tok.text!r} in SubShader ignored")
+                self.parse_any_command(tok, subshader.body, "SubShader")
 
     def parse_pass(self, pass_block: PassBlock) -> None:
         head = pass_block.head
         open_tok = self.open_block(head)
-        while True:
-            tok = self.s.next()
-            if tok.kind == "eof":
-                raise self.unclosed(open_tok, "Pass")
-            if tok.kind == "punct" and tok.text == "}":
-                return
+        for tok in self.block_tokens(open_tok, "Pass"):
             if tok.kind == "code":
                 pass_block.programs.append(tok.text)
                 continue
@@ -340,12 +329,8 @@ class Parser:
                 positions = self.parse_tags(tok, pass_block.tags)
                 if "queue" in positions:
                     self.warn("Queue is a SubShader tag; in a Pass's Tags it is ignored", positions["queue"])
-            elif word in STATE_COMMANDS:
-                self.parse_command(tok, pass_block.commands)
-            elif word in QUIET_COMMANDS:
-                self.parse_quiet(tok, pass_block.commands)
             else:
-                self.skip_command(tok, f"unknown command {tok.text!r} in Pass ignored")
+                self.parse_any_command(tok, pass_block.commands, "Pass")
 
     # commands -----------------------------------------------------------------
     def value(self, what: str) -> Value:
@@ -361,6 +346,15 @@ class Parser:
         if tok.kind in ("ident", "number"):
             return Value(tok, what)
         raise self.s.error(f"expected a value for {what}, found {tok.describe()}", tok)
+
+    def parse_any_command(self, head: Token, into: list, owner: str) -> None:
+        """A command in a SubShader or Pass: a state or quiet command joins ``into``, another is skipped."""
+        if head.lower in STATE_COMMANDS:
+            self.parse_command(head, into)
+        elif head.lower in QUIET_COMMANDS:
+            self.parse_quiet(head, into)
+        else:
+            self.skip_command(head, f"unknown command {head.text!r} in {owner} ignored")
 
     def parse_quiet(self, head: Token, into: list) -> None:
         """A command of :data:`QUIET_COMMANDS`: its value is kept (a reference must still name a property)."""
@@ -419,12 +413,7 @@ class Parser:
 
     def parse_stencil(self, stencil: Command) -> None:
         open_tok = self.open_block(stencil.head)
-        while True:
-            tok = self.s.next()
-            if tok.kind == "eof":
-                raise self.unclosed(open_tok, "Stencil")
-            if tok.kind == "punct" and tok.text == "}":
-                return
+        for tok in self.block_tokens(open_tok, "Stencil"):
             if tok.kind != "ident":
                 raise self.s.error(f"unexpected {tok.describe()} in Stencil", tok)
             word = tok.lower
