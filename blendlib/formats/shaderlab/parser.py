@@ -11,8 +11,10 @@ blocks, nested up to :data:`MAX_NESTING` deep; the first ``SubShader`` (later on
 skipped); ``Tags``, ``Pass``, ``Name``, ``UsePass`` (recorded) and ``Fallback``; the state commands
 of :data:`STATE_COMMANDS`; program blocks (``CGPROGRAM`` … ``ENDCG``) as text. Skipped with a
 warning: unknown commands (their line, or the ``{ … }`` block opening on it), ``GrabPass``, state
-commands outside a Category/SubShader/Pass, programs outside a Pass. Skipped quietly: the commands
-of :data:`QUIET_COMMANDS` and ``CustomEditor``/``Dependency``.
+commands outside a Category/SubShader/Pass, programs outside a Pass. Without a warning: the
+commands of :data:`QUIET_COMMANDS` in a SubShader or Pass are kept as commands that set nothing
+(a ``[_Prop]`` they name must still be declared); ``PackageRequirements { }``, ``CustomEditor``
+and ``Dependency`` are skipped.
 
 Malformed text raises :class:`~.diagnostics.ShaderLabError` at the first problem; the tree read up
 to it stays in :attr:`Parser.shader` (see :mod:`.tree`).
@@ -44,7 +46,7 @@ MAX_NESTING = 64
 STATE_COMMANDS = frozenset(
     ["cull", "zwrite", "ztest", "blend", "blendop", "colormask", "offset", "alphatomask", "stencil"]
 )
-#: Known commands that do not change what this renderer draws: their value is read, nothing warned.
+#: Known commands that do not change what this renderer draws: kept with their value, nothing warned.
 QUIET_COMMANDS = frozenset(["lod", "lighting", "zclip", "conservative", "packagerequirements"])
 #: Per-face stencil commands inside ``Stencil { }`` (not supported: :mod:`.state` warns).
 STENCIL_FACE_COMMANDS = frozenset(

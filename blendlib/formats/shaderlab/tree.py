@@ -4,15 +4,15 @@
 :class:`ShaderBlock` whose ``body`` holds, in source order, the blocks and commands of each level:
 
 * :class:`CategoryBlock` — state :class:`Command` s, :class:`TagsBlock` s, nested Categories and SubShaders;
-* :class:`SubShaderBlock` — state commands, :class:`PassBlock` s and :class:`UsePass` es (its Tags are
+* :class:`SubShaderBlock` — commands, :class:`PassBlock` s and :class:`UsePass` es (its Tags are
   kept as one dictionary with the position of the Queue tag);
-* :class:`PassBlock` — its name, tags, state commands and program texts.
+* :class:`PassBlock` — its name, tags, commands and program texts.
 
 A :class:`Command` keeps each argument as a :class:`Value` (a word, a number or a ``[_Prop]``
 reference with the declaration it names); what the words and numbers mean, and how Category,
 SubShader and Pass state combine, is :mod:`.state`'s business. Only the first SubShader is
-parsed; the others are counted (``subshader_count``). Unknown commands are skipped with a
-warning and have no node.
+parsed; the others are counted (``subshader_count``). Unknown commands (and the few known ones
+without a value, such as ``CustomEditor``) have no node.
 
 The parser builds the tree top-down — a node joins its parent before its own contents are read —
 so when it stops at a syntax error, the tree read so far is complete up to that point.
