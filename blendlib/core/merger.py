@@ -19,7 +19,8 @@ from enum import IntEnum
 import numpy as np
 
 from . import colorspace
-from .vertex import DEPTH_MAX, run_parts
+from .parts import run_parts
+from .vertex import DEPTH_MAX
 from .vocabulary import BlendFactor, BlendOp, ColorSpace, CompareFunction, Pass, StencilOp
 
 

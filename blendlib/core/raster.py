@@ -15,7 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .vertex import DEPTH_MAX, HALF, PIECE, SUBPIXEL, TriangleSetup, run_parts
+from .parts import PIECE, run_parts
+from .vertex import DEPTH_MAX, HALF, SUBPIXEL, TriangleSetup
 
 _SHIFT = SUBPIXEL.bit_length() - 1
 assert SUBPIXEL == 1 << _SHIFT  # divisions by S are shifts

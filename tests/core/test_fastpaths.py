@@ -146,7 +146,7 @@ def test_parallel_setup_and_spans_equal_serial():
     """A 160k-triangle sphere crossing the near plane: setup and span building split over two
     threads (and clipping in both halves) give the same buffers as one thread."""
     mesh = sc.uv_sphere(radius=1.0, segments=400, rings=200)
-    split = 2 * (1 << 15)  # raster.run_parts splits from this many items on
+    split = 2 * (1 << 15)  # parts.run_parts splits from this many items on
     assert mesh.triangle_count > split and mesh.positions.shape[0] > split
     p = Pass(cull=Cull.Off, zwrite=False, blend=True, src_blend=BlendFactor.SrcAlpha,
              dst_blend=BlendFactor.OneMinusSrcAlpha)
@@ -506,7 +506,7 @@ def test_renderers_set_up_together_equal_each_alone(monkeypatch):
 
 
 def test_run_parts_covers_the_range_in_pieces_in_order():
-    from blendlib.core.vertex import run_parts
+    from blendlib.core.parts import run_parts
 
     pool = ThreadPoolExecutor(max_workers=2)
     try:
