@@ -31,7 +31,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..core.drawlist import DrawCall, draw_calls
-from ..core.merger import BlendTable, FrameBuffers, Outcome, apply_layer, blend_lut
+from ..core.merger import BlendTable, FrameBuffers, Outcome, apply_layer, blend_lut, layers_by_rank
 from ..core.pipeline import Frame, FrameObserver, RenderCancelled, ShadedFragments, render_scene
 from ..core.scene import DrawScene, SceneError, validate_scene
 from ..core.vertex import DEPTH_MAX
@@ -250,15 +250,6 @@ class _Collector(FrameObserver):
         return pix.astype(np.int64), depth.astype(np.int64), call, key, written
 
 
-def _ranks(sorted_pix: np.ndarray) -> np.ndarray:
-    """Rank of each entry within its run of equal pixels (input grouped by pixel)."""
-    n = sorted_pix.size
-    starts = np.ones(n, dtype=bool)
-    starts[1:] = sorted_pix[1:] != sorted_pix[:-1]
-    idx = np.arange(n, dtype=np.int64)
-    return idx - np.maximum.accumulate(np.where(starts, idx, 0))
-
-
 class _Step2:
     """Applies a band's fragments far to near with their passes' state (no depth writes).
 
@@ -312,14 +303,9 @@ class _Step2:
         descent = (wp[1:] == wp[:-1]) & (w[1:] < w[:-1])
         suspects = np.unique(wp[1:][descent])
         del w, wp, descent
-        rank = _ranks(pix[order])
-        layers = int(rank.max()) + 1
-        bounds = np.concatenate([[0], np.cumsum(np.bincount(rank, minlength=layers))])
-        rank_t = rank.astype(np.uint16) if layers < 65536 else rank
-        by_rank = order[np.argsort(rank_t, kind="stable")]  # radix sort for 16-bit ranks
-        del order, rank, rank_t
-        for k in range(layers):
-            sel = by_rank[bounds[k]:bounds[k + 1]]
+        layers = layers_by_rank(order, pix[order])  # layer k: the k-th farthest fragment of each pixel
+        del order
+        for sel in layers:
             self.apply_layer(pix[sel], depth[sel], call[sel], key[sel])
         return suspects
 

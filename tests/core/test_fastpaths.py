@@ -17,6 +17,7 @@ import pytest
 
 from blendlib import render_scene
 from blendlib.core import merger
+from blendlib.core.merger import blending, ordering
 from blendlib.core.pipeline import BAND_PIXELS as PRODUCTION_BAND_PIXELS  # read before the tests' override
 from blendlib.core.scene import DrawScene
 from blendlib.core.vocabulary import (
@@ -65,7 +66,7 @@ def _assert_equal_with_table(scene: DrawScene, monkeypatch, expect_table: bool =
         calls.append(palette.shape[0])
         return original(buf, p, palette)
 
-    monkeypatch.setattr(merger, "blend_lut", counting)
+    monkeypatch.setattr(blending, "blend_lut", counting)
     merger.RECENT_TABLES.clear()  # tables kept from earlier renders would skip blend_lut
     frame = render_scene(scene)
     color, depth, stencil = render_reference(scene)
@@ -395,7 +396,7 @@ def test_point_texel_index_of_non_finite_coordinates_is_texel_zero():
 @pytest.mark.parametrize("color_space", [ColorSpace.Gamma, ColorSpace.Linear])
 def test_per_fragment_blending_by_channel_equals_reference(src, dst, op, color_space, monkeypatch):
     """Varying colours (a bilinear texture with values beyond [0, 1]) blend one channel at a time
-    (``merger._blend_ldr``): equal to the reference for every factor and op, in both spaces."""
+    (``blending._blend_ldr``): equal to the reference for every factor and op, in both spaces."""
     from blendlib.core.vocabulary import Texture
 
     p = Pass(cull=Cull.Off, zwrite=False, blend=True, src_blend=src, dst_blend=dst, blend_op=op)
@@ -558,7 +559,7 @@ def test_blend_tables_are_kept_across_renders_by_content(monkeypatch):
             built.append(lut.shape[0])
             super().__init__(lut, pairs)
 
-    monkeypatch.setattr(merger, "BlendTable", Counting)
+    monkeypatch.setattr(blending, "BlendTable", Counting)
     merger.RECENT_TABLES.clear()
     over = Pass(cull=Cull.Off, zwrite=False, blend=True, src_blend=BlendFactor.SrcAlpha,
                 dst_blend=BlendFactor.OneMinusSrcAlpha)
@@ -874,7 +875,7 @@ def test_colourless_passes_skip_shading_and_take_extreme_depths(ztest, monkeypat
         return free
 
     monkeypatch.setattr(pipeline, "_shade_colourless_chunk", counting_shade)
-    monkeypatch.setattr(merger, "order_free_depth", counting_free)
+    monkeypatch.setattr(ordering, "order_free_depth", counting_free)
     frames = [render_scene(scene, workers=1), render_scene(scene, workers=2, chunk_candidates=301),
               render_scene(scene, workers=2, observer=pipeline.FrameObserver())]
     assert colourless  # both prepasses skip shading
@@ -958,10 +959,10 @@ def test_small_frames_blend_through_tables_kept_from_larger_ones(monkeypatch):
             built.append(pairs)
             super().__init__(lut, pairs)
 
-    monkeypatch.setattr(merger, "BlendTable", Counting)
+    monkeypatch.setattr(blending, "BlendTable", Counting)
     # The large frame's 1280 fragments of the top colour get a table of channel pairs; the small
     # frame's 63 would ask for the other form, which the kept table stands in for.
-    monkeypatch.setattr(merger, "PAIR_TABLE_FRAGMENTS", 512)
+    monkeypatch.setattr(blending, "PAIR_TABLE_FRAGMENTS", 512)
     over = Pass(cull=Cull.Off, zwrite=False, blend=True, src_blend=BlendFactor.SrcAlpha,
                 dst_blend=BlendFactor.OneMinusSrcAlpha)
     big = _scene(over, ColorSpace.Linear)
