@@ -292,14 +292,14 @@ def test_point_texture_palette_equals_reference(lighting, hdr, blend, monkeypatc
 
 def test_texel_palette_is_left_when_the_texture_is_large(monkeypatch):
     """A texture with more texels than a quarter of the fragments it serves is shaded per fragment."""
-    from blendlib.core import pipeline, shade
+    from blendlib.core import fragment, shade
 
     def refuse(*_args):
         raise AssertionError("texel palette used for a large texture")
 
     monkeypatch.setattr(shade, "texel_palette", refuse)
     scene = _texel_palette_scene(Lighting.Unlit, Pass())
-    monkeypatch.setattr(pipeline, "TEXEL_PALETTE_SHARE", 10_000)
+    monkeypatch.setattr(fragment, "TEXEL_PALETTE_SHARE", 10_000)
     frame = render_scene(scene, workers=1)
     np.testing.assert_array_equal(frame.color, render_reference(scene)[0])
 
@@ -307,10 +307,10 @@ def test_texel_palette_is_left_when_the_texture_is_large(monkeypatch):
 def test_batched_bands_equal_per_draw_bands_and_reference(monkeypatch):
     """Without an observer, draw calls are prepared as batches (renderers in parallel when they
     hold enough triangles) and each worker draws its screen band of a whole batch with no wait
-    between calls: the frame, depth, stencil and warnings equal one thread, per-draw bands (the
-    observed driver) and the reference.
+    between calls: the frame, depth, stencil and warnings equal one thread, per-draw bands (an
+    observer that needs exact draw boundaries: one call a step) and the reference.
     Opaque ZWrite On draws between ZWrite Off ones make each band recompute its depth floor."""
-    from blendlib.core import pipeline
+    from blendlib.core import pipeline, prepare
 
     blend = dict(blend=True, src_blend=BlendFactor.SrcAlpha, dst_blend=BlendFactor.OneMinusSrcAlpha)
     opaque = Material(name="Opaque", color=(0.3, 0.8, 0.4, 1.0), passes=(Pass(),))
@@ -328,16 +328,16 @@ def test_batched_bands_equal_per_draw_bands_and_reference(monkeypatch):
     scene = DrawScene(camera=sc.camera(120, 96, eye=(0.3, 0.4, 4.0)), renderers=tuple(renderers),
                       light=sc.Light(direction=(0.2, 0.5, 0.8)))
     batches = []
-    original = pipeline._prepare_batch
+    original = pipeline.prepare_batch
 
     def counting(frame, runs):
         batches.append(sum(len(run) for run in runs))
         return original(frame, runs)
 
-    monkeypatch.setattr(pipeline, "_prepare_batch", counting)
+    monkeypatch.setattr(pipeline, "prepare_batch", counting)
     batched = render_scene(scene, workers=2)
     assert batches == [14]  # every draw call in one batch
-    monkeypatch.setattr(pipeline, "PARALLEL_PREPARE_TRIANGLES", 0)  # renderers prepared on the pool
+    monkeypatch.setattr(prepare, "PARALLEL_PREPARE_TRIANGLES", 0)  # renderers prepared on the pool
     pool_prepared = render_scene(scene, workers=2)
     observed = render_scene(scene, workers=2, observer=pipeline.FrameObserver())
     one = render_scene(scene, workers=1, chunk_candidates=211)
@@ -538,10 +538,10 @@ def test_run_parts_covers_the_range_in_pieces_in_order():
 def test_distinct_colours_equal_numpy_unique(rows):
     """Flat triangles' colours are deduplicated without a sort when all are the same bytes; the
     result is np.unique's, byte for byte."""
-    from blendlib.core.pipeline import _distinct_colors
+    from blendlib.core.fragment import distinct_colors
 
     colors = np.array(rows, dtype=np.float64)
-    got, inverse = _distinct_colors(colors)
+    got, inverse = distinct_colors(colors)
     want, want_inverse = np.unique(colors, axis=0, return_inverse=True)
     assert got.tobytes() == want.tobytes() and got.shape == want.shape
     np.testing.assert_array_equal(inverse.reshape(-1), want_inverse.reshape(-1))
@@ -649,7 +649,8 @@ def test_span_ends_by_float_division_equal_integer_division(reach, monkeypatch):
 
 def _fused_frames(scene: DrawScene, fuser: str, monkeypatch) -> tuple[list, list]:
     """Frames of ``scene`` by one thread, two, and chunks of 97 candidates, with the groups
-    ``pipeline.<fuser>`` made recorded as (calls in, calls out) per batch."""
+    ``pipeline.<fuser>`` (the driver's name for :mod:`blendlib.core.fuse`'s) made recorded as
+    (calls in, calls out) per batch."""
     from blendlib.core import pipeline
 
     groups = []
@@ -674,7 +675,7 @@ def test_constant_colour_draw_calls_fused_equal_reference(hdr, color_space, monk
     different calls, a textured call and an alpha-tested one between groups. The frame equals
     the reference, one thread and two, with blend tables (large chunks) and per-fragment
     blending (small chunks), and equals the frame drawn call by call."""
-    from blendlib.core import pipeline
+    from blendlib.core import fuse
     from blendlib.core.vocabulary import StencilOp, Texture
 
     blend = Pass(cull=Cull.Off, zwrite=False, blend=True, src_blend=BlendFactor.SrcAlpha,
@@ -700,10 +701,10 @@ def test_constant_colour_draw_calls_fused_equal_reference(hdr, color_space, monk
                                              z=-0.2 * k), mat, name=f"Quad{k}"))
     scene = DrawScene(camera=sc.camera(120, 96, eye=(0.3, 0.4, 4.0)), renderers=tuple(renderers),
                       color_space=color_space, hdr=hdr)
-    groups, frames = _fused_frames(scene, "_fuse_constant_calls", monkeypatch)
+    groups, frames = _fused_frames(scene, "fuse_constant_calls", monkeypatch)
     # 5 blended calls -> 1; the opaque ones: 3 fused, then the textured, the alpha-tested, 1 alone.
     assert groups[0] == (11, 5)
-    monkeypatch.setattr(pipeline, "FUSE_TRIANGLES", 0)
+    monkeypatch.setattr(fuse, "FUSE_TRIANGLES", 0)
     frames.append(render_scene(scene, workers=1))
     assert groups[-1] == (11, 11)
     color, depth, stencil = render_reference(scene)
@@ -726,7 +727,7 @@ def _rotation(axis: int, degrees: float) -> np.ndarray:
                                              (True, ColorSpace.Linear)])
 def test_draw_calls_sharing_shading_fused_equal_reference(hdr, color_space, monkeypatch):
     """Consecutive draw calls whose materials differ only in pass and cutoff are shaded as one
-    and merged call by call (``_fuse_shared_shading``). Two groups: lit quads with a Point
+    and merged call by call (``fuse.fuse_shared_shading``). Two groups: lit quads with a Point
     texture (texel palettes) under different object matrices (one mirrored, one crossing the
     near plane: clipped), overlapping, with blend modes the tables serve and one they cannot
     (DstAlpha), alpha tests with different cutoffs, stencil, ColorMask, and two passes of one
@@ -736,7 +737,7 @@ def test_draw_calls_sharing_shading_fused_equal_reference(hdr, color_space, monk
     that cut a call's rows, and equals the frame drawn call by call."""
     import dataclasses
 
-    from blendlib.core import pipeline
+    from blendlib.core import fuse
     from blendlib.core.scene import Light
     from blendlib.core.vocabulary import StencilOp, Texture
 
@@ -789,13 +790,13 @@ def test_draw_calls_sharing_shading_fused_equal_reference(hdr, color_space, monk
     scene = DrawScene(camera=sc.camera(120, 96, eye=(0.3, 0.4, 4.0), near=0.5), renderers=tuple(renderers),
                       color_space=color_space, hdr=hdr, light=Light(direction=(0.36, 0.48, 0.8)),
                       ambient=(0.3, 0.2, 0.1))
-    groups, frames = _fused_frames(scene, "_fuse_shared_shading", monkeypatch)
+    groups, frames = _fused_frames(scene, "fuse_shared_shading", monkeypatch)
     # The spheres (3 calls), the marker, the quads (6 calls), the veil, the glazes (2 calls).
     assert groups[0] == (13, 5)
-    monkeypatch.setattr(pipeline, "FUSE_FRAGMENTS", 1500)  # smaller groups
+    monkeypatch.setattr(fuse, "FUSE_FRAGMENTS", 1500)  # smaller groups
     frames.append(render_scene(scene, workers=1))
     assert 5 < groups[-1][1] < 13
-    monkeypatch.setattr(pipeline, "FUSE_TRIANGLES", 0)
+    monkeypatch.setattr(fuse, "FUSE_TRIANGLES", 0)
     frames.append(render_scene(scene, workers=1))
     assert groups[-1] == (13, 13)
     color, depth, stencil = render_reference(scene)
@@ -841,8 +842,8 @@ def test_colourless_passes_skip_shading_and_take_extreme_depths(ztest, monkeypat
     blended pass: the prepass's fragments are not shaded, and with ZTest Less/LEqual/Greater/
     GEqual (no stencil) its depth is the per-pixel minimum/maximum, applied in any order. A
     colourless pass with a stencil op, and one with ZTest Equal, take the ordered path. The
-    frame equals the reference, one thread and two, and the observed (fully shaded) render."""
-    from blendlib.core import pipeline
+    frame equals the reference, one thread and two, observed, and with every pass shaded in full."""
+    from blendlib.core import fragment, pipeline, prepare
     from blendlib.core.vocabulary import StencilOp, Texture
 
     texture = Texture(np.random.default_rng(5).uniform(0, 1, (8, 8, 4)).astype(np.float32), name="t")
@@ -863,7 +864,7 @@ def test_colourless_passes_skip_shading_and_take_extreme_depths(ztest, monkeypat
                                              matrix=sc.scale(1.0, 0.6, 1.4)),
                                  sc.renderer(sc.fan((0.3, -0.2, 0.5), 0.8, 7), stamp, name="Stamp")))
     colourless, order_free = [], []
-    shade_original, free_original = pipeline._shade_colourless_chunk, merger.order_free_depth
+    shade_original, free_original = fragment.shade_colourless_chunk, ordering.order_free_depth
 
     def counting_shade(*args):
         colourless.append(1)
@@ -874,13 +875,17 @@ def test_colourless_passes_skip_shading_and_take_extreme_depths(ztest, monkeypat
         order_free.append(free)
         return free
 
-    monkeypatch.setattr(pipeline, "_shade_colourless_chunk", counting_shade)
+    monkeypatch.setattr(fragment, "shade_colourless_chunk", counting_shade)
     monkeypatch.setattr(ordering, "order_free_depth", counting_free)
     frames = [render_scene(scene, workers=1), render_scene(scene, workers=2, chunk_candidates=301),
               render_scene(scene, workers=2, observer=pipeline.FrameObserver())]
     assert colourless  # both prepasses skip shading
     assert any(order_free) == (ztest is not CompareFunction.Equal)
     assert not all(order_free)  # the stencil prepass is merged in order
+    colourless.clear()
+    monkeypatch.setattr(prepare, "chunk_shading", lambda p: fragment.shade_chunk)  # every pass shaded in full
+    frames.append(render_scene(scene, workers=2))
+    assert not colourless
     color, depth, stencil = render_reference(scene)
     assert (stencil == 2).sum() > 50
     for frame in frames:
@@ -892,7 +897,7 @@ def test_colourless_passes_skip_shading_and_take_extreme_depths(ztest, monkeypat
 def test_passes_selecting_the_same_triangles_share_their_coverage(monkeypatch):
     """Two passes of one material with one Cull cover the same pixels: their rows are computed
     once (batched coverage and per-renderer preparation alike) and equal each pass's own."""
-    from blendlib.core import pipeline, raster, vertex
+    from blendlib.core import pipeline, prepare, raster, vertex
 
     camera = sc.camera(80, 60, eye=(0.0, 0.0, 2.5))
     a, b = vertex.setup_renderers([vertex.SetupInput(sc.uv_sphere(0.9, 14, 9), np.eye(4)),
@@ -915,7 +920,7 @@ def test_passes_selecting_the_same_triangles_share_their_coverage(monkeypatch):
     covered = []
     coverage = raster.coverage_rows
     monkeypatch.setattr(raster, "coverage_rows", lambda *args, **kw: covered.append(1) or coverage(*args, **kw))
-    monkeypatch.setattr(pipeline, "PARALLEL_PREPARE_TRIANGLES", 0)  # per-renderer preparation
+    monkeypatch.setattr(prepare, "PARALLEL_PREPARE_TRIANGLES", 0)  # per-renderer preparation
     glass = Material(name="Glass", queue=Queue.Transparent, color=(0.9, 0.3, 0.2, 0.5),
                      passes=(Pass(zwrite=True, color_mask=frozenset()),
                              Pass(zwrite=False, blend=True, src_blend=BlendFactor.SrcAlpha,
