@@ -18,11 +18,9 @@ from __future__ import annotations
 import bpy
 import numpy as np
 
-from blendlib import blender
+import blendlib
+from blendlib import RenderCancelled, SceneError, blender
 from blendlib.blender.render import one_warning_per_cause
-from blendlib.core import pipeline
-from blendlib.core.pipeline import RenderCancelled
-from blendlib.core.scene import SceneError
 
 from . import sort_analysis, viewport
 
@@ -85,10 +83,10 @@ class UnityPassesRenderEngine(bpy.types.RenderEngine):
             if analysed:
                 from blendlib.explain.sorted_reference import analyze
 
-                analysis = analyze(draw, advice=False, progress=self._progress, should_cancel=self.test_break)
+                analysis = analyze(draw, progress=self._progress, should_cancel=self.test_break)
                 frame = analysis.frame
             else:
-                frame = pipeline.render_scene(draw, progress=self._progress, should_cancel=self.test_break)
+                frame = blendlib.render_scene(draw, progress=self._progress, should_cancel=self.test_break)
         except RenderCancelled:
             # An error report (not a bare return) also stops write_still / animation from saving
             # an empty frame when the break did not come from Blender's own Esc handling.

@@ -15,10 +15,9 @@ import threading
 import bpy
 from bpy.props import IntProperty
 
+from blendlib import RenderCancelled, SceneError
 from blendlib.blender import build_draw_scene
 from blendlib.blender import framedebug as bfd
-from blendlib.core.pipeline import RenderCancelled
-from blendlib.core.scene import SceneError
 from blendlib.explain import framedebug as fd
 
 #: The one kept capture: scene pointer, capture id, FrameCapture.

@@ -18,8 +18,7 @@ class UNITY_OT_sort_analyze(bpy.types.Operator):
 
     def execute(self, context):
         import blendlib
-        from blendlib.core.pipeline import RenderCancelled
-        from blendlib.core.scene import SceneError
+        from blendlib import RenderCancelled, SceneError
 
         try:
             analysis = blendlib.analyze(context.scene)
