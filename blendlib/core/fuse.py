@@ -24,12 +24,13 @@ from .scene import SceneMemo
 from .vocabulary import CompareFunction, Lighting
 
 #: Consecutive draw calls of one constant colour each are fused (drawn as one) in groups of at
-#: most this many triangles: a few hundred triangles cost about 1 ms a call in fixed array-call
-#: overhead; big meshes gain nothing and would be copied.
+#: most this many triangles: a call of a few hundred triangles costs mostly fixed array-call
+#: overhead; big meshes gain nothing and would be copied (docs/benchmark.md, "Why the
+#: constants are what they are").
 FUSE_TRIANGLES = 1 << 15
 #: Draw calls with shared shading are fused in groups of at most this many fragments (about a
 #: chunk): beyond that the fixed cost saved is small beside the work, and a chunk holding rows of
-#: several large calls loses their proof of distinct pixels (S2's planes ran 3x slower fused).
+#: several large calls loses their proof of distinct pixels (large planes ran much slower fused).
 FUSE_FRAGMENTS = 1 << 17
 
 
@@ -146,7 +147,7 @@ def fuse_shared_shading(prepared: list[PreparedCall], memo: SceneMemo | None = N
     as one: raster, interpolation and shading of their concatenated triangles once per chunk,
     then each call's fragments (a contiguous run of the chunk; calls in draw order) pass its
     own alpha test and merge with its own pass (:func:`.pipeline.draw_members`). Saves the per-call
-    fixed cost of those stages (about 1 ms a call on the 2-core machine). ``memo``: as
+    fixed cost of those stages. ``memo``: as
     :func:`_shading_key`'s."""
     out: list[PreparedCall] = []
     group: list[PreparedCall] = []

@@ -37,7 +37,7 @@ __all__ = ["Frame", "FrameObserver", "RenderCancelled", "render_scene"]
 #: per-chunk Python work stays small (docs/benchmark.md, "Why the constants are what they are").
 CHUNK_CANDIDATES = 1 << 17
 #: Frames with fewer pixels render in one thread by default: below this, handing screen bands to
-#: a second thread costs more than it saves (the viewport's reduced first frames).
+#: a second thread costs more than it saves (the viewport's reduced first frames; docs/benchmark.md).
 SMALL_FRAME_PIXELS = 1 << 18
 #: Without an observer, consecutive draw calls are prepared (vertex setup and coverage, one
 #: renderer per task) as a batch of up to this many source triangles and draw calls; then each
@@ -47,7 +47,7 @@ BATCH_DRAWS = 64
 #: Frames of at least this many pixels draw every step in screen bands, one per worker. In
 #: smaller frames (a 960x540 viewport) bands pay only for fragments shaded one by one: the
 #: cheap per-fragment work of palettes, constant colours and blend tables is mostly array calls
-#: holding the GIL, which two threads contend for.
+#: holding the GIL, which two threads contend for (docs/benchmark.md).
 BAND_PIXELS = 600_000
 #: ... unless the step holds at least this many candidate fragments of per-fragment shading.
 BAND_SHADED_FRAGMENTS = 1 << 17

@@ -313,7 +313,7 @@ def setup_renderers(items: list[SetupInput], camera: Camera, pool=None, parts: i
     for k, item in enumerate(items):  # converted while copied: one pass, no float64 temporary
         pos_columns[:, v_offsets[k]:v_offsets[k + 1]] = np.asarray(item.mesh.positions).T
     # Vertex indices per triangle (T, 3), and per corner (3, T): gathers through a strided index
-    # array (a column of the former) cost about 1.6 times as much (S4's million triangles).
+    # array (a column of the former) cost markedly more on large meshes.
     if len(items) == 1:
         tris = np.asarray(items[0].mesh.triangles, dtype=np.int64)
         corners = np.ascontiguousarray(np.asarray(items[0].mesh.triangles).T, dtype=np.int64)

@@ -50,13 +50,13 @@ from ..core.scene import DrawScene, SceneError, SceneMemo, scene_parts
 from . import allocator
 
 #: Frames of fewer pixels render in one process: the hand-over (pickling the scene, copying the
-#: helper's rows back: about 3 ms at 960x540) outweighs the half frame it saves.
+#: helper's rows back) outweighs the half frame it saves (docs/benchmark.md, "Why the constants
+#: are what they are").
 MIN_PIXELS = 200_000
 
 #: Fragments per chunk in a band render. Smaller than ``render_scene``'s default: with no other
 #: thread contending for the interpreter lock, arrays that stay in the core's own 1 MB L2 cache
-#: pay (960x540 example scenes: blend_modes 75 -> 63 ms, self_overlap 86 -> 72 ms, gamma_linear
-#: 41 -> 35 ms per split frame against 1 << 17).
+#: pay (docs/benchmark.md, "Why the constants are what they are").
 BAND_CHUNK_CANDIDATES = 1 << 15
 
 #: Bytes before the pixel data in the shared file; byte 0 is the stop flag the helper polls
@@ -96,8 +96,8 @@ class _PartsWriter:
     from an earlier request is sent as its number.
 
     After :func:`~blendlib.core.scene.reuse_unchanged` a changed scene shares most parts with
-    the last one: such a request carries the changed parts only (pickling a 960x540 template's
-    meshes cost the viewport's reduced frame 1-2.5 ms), and the helper's memo keeps what it
+    the last one: such a request carries the changed parts only (pickling a template's meshes
+    again was a noticeable share of the viewport's reduced frame), and the helper's memo keeps what it
     derived from the rest. A message is: the numbers the helper may forget, then each new part
     as (number, part) with the parts it holds as numbers, then the request. The numbers kept are
     those of the parts of the last scene sent, on both sides.

@@ -23,10 +23,11 @@ REDUCED_FACTOR = 4
 #: Frames of at most this many pixels are rendered at full size at once (no reduced frame first).
 REDUCED_MIN_PIXELS = 128 * 128
 #: The helper process begins a full frame during the reduced one when the previous split frame
-#: took at least this many seconds of work in both processes together (100 ms: a full frame of
-#: about 50 ms). Both cores then work from the start, which brings heavy full frames 5-24 ms
-#: sooner, but the reduced frame shares the machine and takes 3-17 ms longer: scenes whose full
-#: frames are well within a 60 ms budget keep their reduced frames quick.
+#: took at least this many seconds of work in both processes together (a full frame of half
+#: that). Both cores then work from the start, which brings heavy full frames sooner, but the
+#: reduced frame shares the machine and takes longer: scenes whose full frames are well within
+#: the viewport's budget keep their reduced frames quick (docs/benchmark.md, "Why the constants
+#: are what they are").
 BEGIN_AFTER_WORK_S = 0.100
 
 

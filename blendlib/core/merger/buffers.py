@@ -93,7 +93,7 @@ class FrameBuffers:
             self.color = np.empty((n, 4), dtype=np.float32)
         else:
             self.color = np.empty((n, 4), dtype=np.uint8)
-        # One fill of whole packed pixels (a (1, 4) broadcast copies byte by byte, 50x slower).
+        # One fill of whole packed pixels (a (1, 4) broadcast copies byte by byte).
         self.packed()[lo:hi].fill(np.ascontiguousarray(self.encode(clear)).view(self.packed().dtype)[0, 0])
         self.depth = np.empty(n, dtype=np.int64)
         self.depth[lo:hi] = DEPTH_MAX
@@ -168,7 +168,7 @@ class FrameBuffers:
             else:
                 # float32 division of the exact integers equals float32(q / 255.0) for every code
                 # and float32(d / (2**24 - 1)) for every depth code (both checked exhaustively in
-                # tests/core/test_fastpaths.py), at a seventh of a table lookup's time.
+                # tests/core/test_fastpaths.py), cheaper than a table lookup.
                 np.divide(src_color[lo:hi], _FLOAT32_255, out=color[lo:hi], dtype=np.float32)
             np.divide(src_depth[lo:hi], _FLOAT32_DEPTH_MAX, out=depth[lo:hi], dtype=np.float32)
 
