@@ -146,9 +146,8 @@ def fuse_shared_shading(prepared: list[PreparedCall], memo: SceneMemo | None = N
     pass and cutoff: blend-mode swatches, alpha-test cutoffs, a small mesh's passes) drawn
     as one: raster, interpolation and shading of their concatenated triangles once per chunk,
     then each call's fragments (a contiguous run of the chunk; calls in draw order) pass its
-    own alpha test and merge with its own pass (:func:`.pipeline.draw_members`). Saves the per-call
-    fixed cost of those stages. ``memo``: as
-    :func:`_shading_key`'s."""
+    own alpha test and merge with its own pass (:func:`.pipeline._draw_members`). Saves the
+    per-call fixed cost of those stages. ``memo``: as :func:`_shading_key`'s."""
     out: list[PreparedCall] = []
     group: list[PreparedCall] = []
     key = None

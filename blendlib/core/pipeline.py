@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import os
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor, wait
 from dataclasses import replace
 
@@ -342,9 +342,22 @@ def _draw_band(frame: FrameContext, items: list[tuple[PreparedCall, raster.Rows]
             if prepared.members is None:
                 _draw_chunks(frame, prepared, rows, state, observer)
             else:
-                draw_members(frame, prepared, rows, state)
+                _draw_members(frame, prepared, rows, state)
         if state.pass_state.zwrite:
             floors.written(y0, y1)
+
+
+def _shaded_chunks(frame: FrameContext, prepared: PreparedCall, rows: raster.Rows,
+                   state: DrawState) -> Iterator[tuple[int, int, ShadedFragments]]:
+    """``rows`` of a prepared call in chunks of :attr:`FrameContext.chunk_candidates`, in draw
+    order: (first row, end row, the chunk's shaded fragments) for each chunk holding any,
+    until the render's stop flag is set."""
+    for a, b in raster.row_chunks(rows, frame.chunk_candidates):
+        if frame.stop_flag.is_set():
+            return
+        shaded = prepared.shade(prepared.setup, rows, a, b, state)
+        if shaded is not None:
+            yield a, b, shaded
 
 
 def _draw_chunks(frame: FrameContext, prepared: PreparedCall, rows: raster.Rows, state: DrawState,
@@ -352,12 +365,7 @@ def _draw_chunks(frame: FrameContext, prepared: PreparedCall, rows: raster.Rows,
     """Raster, shade and merge ``rows`` of one prepared call, chunk by chunk in draw order, with
     ``state`` (the call's, with the band's depth floors); the observer told of every fragment."""
     buf, p, tables = frame.buf, state.pass_state, prepared.tables
-    for a, b in raster.row_chunks(rows, frame.chunk_candidates):
-        if frame.stop_flag.is_set():
-            return
-        shaded = prepared.shade(prepared.setup, rows, a, b, state)
-        if shaded is None:
-            continue
+    for _, _, shaded in _shaded_chunks(frame, prepared, rows, state):
         merged = shaded if shaded.alive is None else shaded.select(shaded.alive)
         if observer is None:
             merge(buf, p, merged.pix, merged.stored_depth, merged.rgba, merged.ids, merged.palette,
@@ -374,19 +382,14 @@ def _draw_chunks(frame: FrameContext, prepared: PreparedCall, rows: raster.Rows,
         observer.fragments(state.call, shaded, outcome)
 
 
-def draw_members(frame: FrameContext, prepared: PreparedCall, rows: raster.Rows, state: DrawState) -> None:
+def _draw_members(frame: FrameContext, prepared: PreparedCall, rows: raster.Rows, state: DrawState) -> None:
     """:func:`_draw_chunks` of calls with shared shading (:func:`.fuse.fuse_shared_shading`):
     each chunk is shaded once (``state``: how, with the band's depth floors); then each call's
     fragments, a contiguous run of the chunk (rows come in call order), pass its own alpha test
     and merge with its own pass, call after call."""
     members = prepared.members
     firsts = np.array([m.first for m in members], dtype=np.int64)
-    for a, b in raster.row_chunks(rows, frame.chunk_candidates):
-        if frame.stop_flag.is_set():
-            return
-        shaded = prepared.shade(prepared.setup, rows, a, b, state)
-        if shaded is None:
-            continue
+    for a, b, shaded in _shaded_chunks(frame, prepared, rows, state):
         member = np.searchsorted(firsts, rows.tri[a:b], side="right") - 1  # (R,) nondecreasing
         bounds = [0, *(np.flatnonzero(member[1:] != member[:-1]) + 1).tolist(), b - a]
         ends = np.cumsum(rows.length[a:b]).tolist()
