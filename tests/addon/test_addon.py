@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 
 import addon
+import blendlib
 from blendlib import blender, render
-from blendlib.core import colorspace, pipeline
+from blendlib.core import colorspace
 from blendlib.core.vocabulary import PASS_PRESETS, Pass, preset
 from blendlib.formats import images
 from tests.support.blender_fixtures import add_cube, add_plane, empty_scene, principled_material, unlit_material
@@ -304,13 +305,13 @@ def test_engine_cancel_writes_nothing(tmp_path, monkeypatch):
     scene = glass_scene()
     scene.render.filepath = str(tmp_path / "cancel.png")
     calls = []
-    original = pipeline.render_scene
+    original = blendlib.render_scene
 
     def cancelling(draw, progress=None, should_cancel=None):
         calls.append(should_cancel)
         return original(draw, progress=progress, should_cancel=lambda: True)
 
-    monkeypatch.setattr(pipeline, "render_scene", cancelling)
+    monkeypatch.setattr(blendlib, "render_scene", cancelling)
     with pytest.raises(RuntimeError, match="cancelled"):
         bpy.ops.render.render(write_still=True)
     assert calls and callable(calls[0])  # the engine passes its test_break
