@@ -63,8 +63,9 @@ class DrawState:
     #: merge does not need are computed when the observer reads them.
     observed: bool = False
     #: ``zbound`` (T,) int64 per setup triangle (:func:`.raster.depth_upper_codes`) and ``zfloor``
-    #: (H,) int64 the smallest depth code stored in each buffer row: rows whose bound is at or
-    #: below (``Less``: below) the floor pass the depth test, so a pass without ZWrite needs no
+    #: (H,) int64 the smallest depth code stored in each buffer row (current in the rows of the
+    #: screen band being drawn: :class:`.pipeline.RowFloors`): rows whose bound is at or below
+    #: (``Less``: below) the floor pass the depth test, so a pass without ZWrite needs no
     #: per-fragment depth there (a hierarchical-Z test per row, exact). None: not applicable.
     zbound: np.ndarray | None = None
     zfloor: np.ndarray | None = None
