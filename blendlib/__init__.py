@@ -1,22 +1,30 @@
 """Unity Passes for Blender: the library.
 
 Layers, one folder each: :mod:`blendlib.core` (the bpy-free renderer: a
-:class:`DrawScene` in, a :class:`Frame` of numpy buffers out), :mod:`blendlib.formats`
-(ShaderLab and image files, bpy-free), :mod:`blendlib.blender` (the only layer that
-touches bpy) and :mod:`blendlib.cli`. :func:`render`, :func:`render_view` and :func:`write_image` import the
-Blender layer lazily so that ``import blendlib`` works without bpy.
+:class:`DrawScene` in, a :class:`Frame` of numpy buffers out), :mod:`blendlib.explain` (the
+tools that explain a frame), :mod:`blendlib.formats` (ShaderLab and image files, bpy-free),
+:mod:`blendlib.runtime` (processes and threads: the viewport's scheduler and band helper),
+:mod:`blendlib.blender` (the only layer that touches bpy) and :mod:`blendlib.cli`.
+:func:`render`, :func:`render_view` and :func:`write_image` import the Blender layer lazily so
+that ``import blendlib`` works without bpy.
+
+This namespace is the library's face for callers outside it (the add-on among them): the
+scene and result types, the errors a render raises (:class:`SceneError`,
+:class:`RenderCancelled`) and the observer hooks (:class:`FrameObserver`), each defined once
+in :mod:`blendlib.core`.
 """
 
 from __future__ import annotations
 
-from .core.pipeline import Frame, RenderCancelled, render_scene
+from .core.pipeline import render_scene
+from .core.records import Frame, FrameObserver, RenderCancelled
 from .core.scene import Camera, DrawScene, Light, Mesh, Renderer, SceneError
 from .core.vocabulary import Material, Pass, Texture
 
 __all__ = [
-    "Camera", "DrawScene", "Frame", "Light", "Material", "Mesh", "Pass", "RenderCancelled", "Renderer",
-    "SceneError", "Texture", "analyze", "draw_list", "pixel_history", "render", "render_scene", "render_view",
-    "write_image",
+    "Camera", "DrawScene", "Frame", "FrameObserver", "Light", "Material", "Mesh", "Pass", "RenderCancelled",
+    "Renderer", "SceneError", "Texture", "analyze", "draw_list", "pixel_history", "render", "render_scene",
+    "render_view", "write_image",
 ]
 
 
@@ -44,18 +52,20 @@ def render_view(scene, view_matrix, projection_matrix, width: int, height: int, 
     return viewport.render_view(scene, view_matrix, projection_matrix, width, height, **kwargs)
 
 
-def analyze(scene=None, **kwargs):
+def analyze(scene=None, *, advice: bool = True, max_advice: int = 5, **kwargs):
     """The sorted reference, sort error, inversions, overdraw and advice of a ``bpy.types.Scene``
     (default: the context scene) as F12 renders it: a :class:`blendlib.explain.sorted_reference.Analysis`.
-    A :class:`DrawScene` is analysed directly. Keyword arguments go to
-    :func:`blendlib.explain.sorted_reference.analyze` (``advice``, ``max_advice``, ``progress``, ...)."""
-    from .explain.sorted_reference import analyze as analyze_draw_scene
+    A :class:`DrawScene` is analysed directly. ``advice``: check a fix for each of the
+    ``max_advice`` largest inversion pairs (:mod:`blendlib.explain.advice`). Other keyword
+    arguments go to :func:`blendlib.explain.sorted_reference.analyze` (``progress``,
+    ``should_cancel``, ``workers``)."""
+    from .explain.advice import analyze_and_advise
 
     if not isinstance(scene, DrawScene):
         from . import blender
 
         scene = blender.draw_scene_final(scene)
-    return analyze_draw_scene(scene, **kwargs)
+    return analyze_and_advise(scene, max_advice=max_advice if advice else 0, **kwargs)
 
 
 def draw_list(scene=None, **kwargs):

@@ -3,8 +3,8 @@
 import sys
 
 from .cli import main
-from .core.allocator import keep_freed_memory
+from .runtime.allocator import keep_freed_memory
 
 if __name__ == "__main__":
-    keep_freed_memory()  # this process is the command line's own (core/allocator.py)
+    keep_freed_memory()  # this process is the command line's own (runtime/allocator.py)
     sys.exit(main())

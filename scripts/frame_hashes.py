@@ -78,7 +78,7 @@ def _json_digest(value) -> str:
 
 
 def _explain(draw, key: str, out: dict) -> None:
-    from blendlib.explain import framedebug, sorted_reference
+    from blendlib.explain import advice, framedebug
 
     stats = framedebug.draw_list(draw)
     out[f"{key} drawlist"] = _json_digest(framedebug.draw_list_json(stats))
@@ -87,7 +87,7 @@ def _explain(draw, key: str, out: dict) -> None:
     histories, frame = framedebug.pixel_histories(draw, pixels)
     out[f"{key} pixels"] = _json_digest([hist.to_json() for hist in histories])
     out[f"{key} pixels frame"] = _digest(frame.color, frame.depth, frame.stencil)
-    analysis = sorted_reference.analyze(draw, max_advice=2)
+    analysis = advice.analyze_and_advise(draw, max_advice=2)
     out[f"{key} analyze"] = _digest(analysis.frame.color, analysis.reference, analysis.error, analysis.overdraw,
                                     analysis.inverted)
     out[f"{key} analyze summary"] = _json_digest(analysis.summary())

@@ -14,9 +14,11 @@ maps the cumulative time of the pipeline's stage functions to stages:
   ``shade.texture_uv_of`` and ``shade.point_texel_index_of`` (Point-filtered textures shaded
   once per texel, fragments given their texel)
 - ordering: ``merger.merge`` minus the layers it applies and the tables it builds (counting
-  fragments per pixel, peeling layers)
-- merge: ``merger.apply_layer`` and blend-table building (tests, blending, writes)
-- output: ``FrameBuffers`` creation and ``output`` (clear, conversion to the Frame's float32)
+  fragments per pixel, peeling layers; ``merger/ordering.py``)
+- merge: ``merger.apply_layer`` and blend-table building (tests, blending, writes;
+  ``merger/ordering.py``, ``merger/blending.py``)
+- output: ``FrameBuffers`` creation and ``output`` (clear, conversion to the Frame's float32;
+  ``merger/buffers.py``)
 - other: the rest (draw list, per-chunk bookkeeping in ``pipeline``, Python overhead)
 
 cProfile adds a per-call cost, so shares of call-heavy stages read a little high. Run it from
@@ -37,9 +39,9 @@ STAGES = {
     "interpolation": [("raster.py", "interpolate"), ("raster.py", "interpolate_runs")],
     "shading": [("shade.py", "shade"), ("shade.py", "texel_palette"), ("shade.py", "point_texel_index_of"),
                 ("shade.py", "texture_uv_of")],
-    "merge": [("merger.py", "apply_layer")],
-    "tables": [("merger.py", "blend_lut"), ("merger.py", "__init__")],
-    "output": [("merger.py", "output")],
+    "merge": [("ordering.py", "apply_layer")],
+    "tables": [("blending.py", "blend_lut"), ("blending.py", "__init__")],
+    "output": [("buffers.py", "output"), ("buffers.py", "__init__")],
 }
 ORDER = ("setup", "coverage", "interpolation", "shading", "ordering", "merge", "output", "other")
 
@@ -54,15 +56,7 @@ def stage_shares(stats: pstats.Stats) -> tuple[float, dict[str, float]]:
         if func == "render_scene":
             total = max(total, ct)
     seconds = {stage: sum(cum.get(k, 0.0) for k in keys) for stage, keys in STAGES.items()}
-    # merger.py __init__ covers FrameBuffers (output) and BlendTable (tables): split by caller below.
-    buffers_init = 0.0
-    for (file, _line, func), (_cc, _nc, _tt, ct, callers) in stats.stats.items():
-        if Path(file).name == "merger.py" and func == "__init__":
-            if any(c[2] == "render_scene" for c in callers):
-                buffers_init += ct
-    seconds["tables"] -= buffers_init
-    seconds["output"] += buffers_init
-    merge_total = cum.get(("merger.py", "merge"), 0.0)
+    merge_total = cum.get(("ordering.py", "merge"), 0.0)
     seconds["ordering"] = max(merge_total - seconds["merge"] - seconds["tables"], 0.0)
     seconds["merge"] += seconds.pop("tables")
     seconds["other"] = max(total - sum(seconds.values()), 0.0)

@@ -2,7 +2,7 @@
 
 Main thread: ``view_update`` extracts the scene (bpy is not thread-safe) into a bpy-free
 template; ``view_draw`` works out the region's view, submits template + view to the
-:class:`~blendlib.blender.viewport.ViewportScheduler` when either changed (stale work is
+:class:`~blendlib.runtime.scheduler.ViewportScheduler` when either changed (stale work is
 cancelled there), and draws the newest finished frame. Worker thread: renders a reduced
 frame, then the full one, and asks for a redraw after each.
 
@@ -22,6 +22,7 @@ import numpy as np
 from blendlib import SceneError, blender
 from blendlib.blender import viewport
 from blendlib.blender.pixels import bottom_first
+from blendlib.runtime.scheduler import ViewportScheduler
 
 
 def display_pixels(frame) -> np.ndarray:
@@ -59,7 +60,7 @@ class ViewportSession:
 
     def __init__(self, redraw: Callable[[], None], render: Callable[..., Any] | None = None):
         kwargs = {} if render is None else {"render": render}
-        self.scheduler = viewport.ViewportScheduler(on_ready=redraw, **kwargs)
+        self.scheduler = ViewportScheduler(on_ready=redraw, **kwargs)
         self.template = None
         self._extracted = None  # the last template extracted: its unchanged parts are reused
         self.scene_version = 0

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from ..core.pipeline import Frame
+from ..core.records import Frame
 from ..explain import framedebug as fd
 from .extract import build_draw_scene
 from .render import write_image

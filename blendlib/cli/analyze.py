@@ -119,13 +119,13 @@ def run(args: argparse.Namespace) -> int:
         raise CliError("--advice must be 0 or more")
     named = {"--reference": reference, "--error": error, "--overdraw": overdraw}
     check_distinct({"FILE.blend": blend, **{k: v for k, v in named.items() if v is not None}})
-    from ..core.pipeline import RenderCancelled
+    from ..core.records import RenderCancelled
     from ..core.scene import SceneError
-    from ..explain.sorted_reference import analyze
+    from ..explain.advice import analyze_and_advise
 
     draw = load_draw_scene(args)
     try:
-        result = analyze(draw, advice=args.advice > 0, max_advice=args.advice)
+        result = analyze_and_advise(draw, max_advice=args.advice)
     except SceneError as exc:
         raise CliError(str(exc)) from None
     except RenderCancelled:

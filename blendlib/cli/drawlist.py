@@ -40,7 +40,7 @@ def table(rows: list[list[str]], right: set[int]) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..core.pipeline import RenderCancelled
+    from ..core.records import RenderCancelled
     from ..core.scene import SceneError
     from ..explain import framedebug as fd
 

@@ -37,7 +37,7 @@ def _rgba(values) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..core.pipeline import RenderCancelled
+    from ..core.records import RenderCancelled
     from ..core.scene import SceneError
     from ..explain import framedebug as fd
 

@@ -107,7 +107,7 @@ def run(args: argparse.Namespace) -> int:
         return run_frames(args, blend, out)
     require_bpy()
     from .. import blender
-    from ..core.pipeline import RenderCancelled
+    from ..core.records import RenderCancelled
     from ..core.scene import SceneError
 
     with sigint_cancels() as interrupted:
@@ -149,7 +149,7 @@ def run_frames(args: argparse.Namespace, blend: Path, out: Path) -> int:
             check_pattern(depth, "--depth", frames)
     require_bpy()
     from .. import blender
-    from ..core.pipeline import RenderCancelled
+    from ..core.records import RenderCancelled
     from ..core.scene import SceneError
 
     scene = open_scene(blend, args.scene)

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .scene import DrawScene, Renderer
+from .scene import DrawScene, Renderer, SceneError
 from .vocabulary import LAST_OPAQUE_QUEUE, Pass, SortMode
 
 
@@ -31,7 +31,7 @@ def sort_key_distance(scene: DrawScene, renderer: Renderer) -> float:
     axis = np.asarray(scene.sort_axis, dtype=np.float64)
     length = float(np.sqrt(_dot3(axis, axis)))
     if length == 0.0 or not np.isfinite(length):
-        raise ValueError("scene: sort_axis must be a non-zero finite vector for CustomAxis sorting")
+        raise SceneError("scene: sort_axis must be a non-zero finite vector for CustomAxis sorting")
     return _dot3(delta, axis / length)
 
 
@@ -73,7 +73,8 @@ class DrawCall:
 
 
 def draw_calls(scene: DrawScene) -> list[DrawCall]:
-    """Every draw call of the frame in order: each renderer's passes in order, numbered from 1."""
+    """Every draw call of the frame in order: each renderer's passes in order, numbered from 1.
+    Raises :class:`~.scene.SceneError` (one line) for a scene that cannot be sorted."""
     calls: list[DrawCall] = []
     for r in sorted_renderers(scene):
         distance = sort_distance(scene, r)

@@ -15,7 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .vertex import DEPTH_MAX, HALF, PIECE, SUBPIXEL, TriangleSetup, run_parts
+from .parts import PIECE, run_parts
+from .vertex import DEPTH_MAX, HALF, SUBPIXEL, TriangleSetup
 
 _SHIFT = SUBPIXEL.bit_length() - 1
 assert SUBPIXEL == 1 << _SHIFT  # divisions by S are shifts
@@ -211,7 +212,7 @@ def _spans(X: np.ndarray, Y: np.ndarray, area2: np.ndarray, selected: np.ndarray
     total = int(nrows.sum())
     starts = np.cumsum(nrows) - nrows
     # Per-triangle values are expanded to rows through one row -> triangle index and gathers
-    # (np.repeat with counts of one or two, the common case, is three times slower).
+    # (np.repeat copies run by run: slow with counts of one or two, the common case).
     of_row = np.repeat(np.arange(nrows.size, dtype=np.int64), nrows)
 
     def each(per_triangle: np.ndarray) -> np.ndarray:
@@ -323,9 +324,9 @@ class Fragments:
 
 
 #: Runs at least this long on average are expanded with ``np.repeat``, shorter ones by a gather
-#: through a run index made once. Measured on chunks of 32k and 128k elements: a gather costs
-#: the same whatever the runs (44 us for 32k float64), repeat 120 us for runs of 4, 68 for 8,
-#: 45 for 16, 27 for 32 (it copies run by run).
+#: through a run index made once: a gather costs the same whatever the runs, repeat copies run
+#: by run, so it wins from about this length on (docs/benchmark.md, "Why the constants are what
+#: they are").
 REPEAT_MIN_RUN = 16
 
 
@@ -381,7 +382,7 @@ def depth_upper_codes(setup: TriangleSetup, offset_factor: float = 0.0, offset_u
     """(T,) int64: a code no fragment of each setup triangle exceeds (its vertices' largest
     depth after Offset, plus one code for rounding: depth is a convex combination of them)."""
     zw = setup.zw
-    z = np.maximum(np.maximum(zw[:, 0], zw[:, 1]), zw[:, 2])  # as max(axis=1), NaN included, at a third of its time
+    z = np.maximum(np.maximum(zw[:, 0], zw[:, 1]), zw[:, 2])  # as max(axis=1), NaN included; no strided reduction
     if offset_factor != 0.0 or offset_units != 0.0:
         z = z + (float(offset_factor) * setup.slope() + float(offset_units) * 2.0**-24)
     z = np.minimum(np.maximum(z, 0.0), 1.0)

@@ -123,8 +123,8 @@ def affine_inverse(matrix) -> np.ndarray:
     """Inverse (4, 4) float64 of an affine 4x4 matrix (last row 0 0 0 1), by cofactors.
 
     Written out rather than ``np.linalg.inv``: a LAPACK call wakes OpenBLAS's worker threads,
-    which then spin for a while on the CPU the render's own threads need (measured: a 50 ms
-    one-thread render used 100 ms of CPU). Non-affine matrices go to ``np.linalg.inv``.
+    which then spin for a while on the CPU the render's own threads need (a one-thread render
+    used about twice its wall time in CPU). Non-affine matrices go to ``np.linalg.inv``.
     """
     m = np.asarray(matrix, dtype=np.float64)
     if not np.array_equal(m[3], (0.0, 0.0, 0.0, 1.0)):

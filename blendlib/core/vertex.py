@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .parts import PIECE, run_parts
 from .scene import Camera, Mesh, cofactors3_many
 from .vocabulary import Cull
 
@@ -265,38 +266,6 @@ def _world_normals(normals: np.ndarray, nmat: np.ndarray) -> np.ndarray:
     return out.T.reshape(t, 3, 3)  # a (T, 3, 3) view
 
 
-#: Elements (vertices, triangles) per piece of the per-element stages. A piece's arrays (64k
-#: int64 or float64: 512 KB each) stay in a core's 1 MB L2 cache through the dozens of array
-#: operations a stage makes over them; a million triangles at once stream every operation
-#: through memory, which two cores share (S4: coverage 219 -> 152 ms on two threads).
-PIECE = 1 << 16
-
-
-def run_parts(pool, parts: int, n: int, fn, min_part: int = 1 << 15, piece: int | None = None) -> None:
-    """Call ``fn(lo, hi)`` over ``[0, n)`` in contiguous ranges, on ``pool`` when given.
-
-    Up to ``parts`` ranges on the pool (none below ``2 * min_part`` elements), and with
-    ``piece`` at least as many as keep each range within ``piece`` elements (equal sizes; the
-    pool's threads take them in order, without a pool they run one after another here).
-    ``fn`` must only write its own slice of preallocated outputs.
-    """
-    count = 1 if pool is None or parts <= 1 or n < 2 * min_part else parts
-    if piece is not None:
-        count = max(count, -(-n // piece))
-    if count <= 1:
-        fn(0, n)
-        return
-    bounds = np.linspace(0, n, count + 1).astype(np.int64)
-    ranges = [(int(lo), int(hi)) for lo, hi in zip(bounds[:-1], bounds[1:], strict=True) if hi > lo]
-    if pool is None or parts <= 1:
-        for lo, hi in ranges:
-            fn(lo, hi)
-        return
-    futures = [pool.submit(fn, lo, hi) for lo, hi in ranges]
-    for f in futures:
-        f.result()
-
-
 @dataclass(frozen=True, eq=False)
 class SetupInput:
     """One renderer for :func:`setup_renderers`: its mesh, object → world matrix (4, 4), and
@@ -344,7 +313,7 @@ def setup_renderers(items: list[SetupInput], camera: Camera, pool=None, parts: i
     for k, item in enumerate(items):  # converted while copied: one pass, no float64 temporary
         pos_columns[:, v_offsets[k]:v_offsets[k + 1]] = np.asarray(item.mesh.positions).T
     # Vertex indices per triangle (T, 3), and per corner (3, T): gathers through a strided index
-    # array (a column of the former) cost about 1.6 times as much (S4's million triangles).
+    # array (a column of the former) cost markedly more on large meshes.
     if len(items) == 1:
         tris = np.asarray(items[0].mesh.triangles, dtype=np.int64)
         corners = np.ascontiguousarray(np.asarray(items[0].mesh.triangles).T, dtype=np.int64)

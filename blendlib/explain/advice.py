@@ -12,10 +12,15 @@ the depth prepass (preset "Alpha Blend ZWrite"): it removes the inversions, but 
 the front layer, so the frame still differs from the sorted reference — the technique's price,
 reported as ``differing_after``. Splitting the mesh or sorting its triangles (Blender's Mesh ›
 Sort Elements) are named too; they depend on the view and are not measured.
+
+Advice sits on top of the analysis (:mod:`.sorted_reference` knows nothing of it):
+:func:`analyze_and_advise` runs one and then the other, for the callers that want both
+(``blendlib.analyze``, ``python -m blendlib analyze``, the add-on's Analyze button).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
@@ -23,6 +28,7 @@ import numpy as np
 from ..core.drawlist import sort_key_distance
 from ..core.scene import DrawScene, Renderer
 from ..core.vocabulary import SortMode, preset, queue_text
+from .sorted_reference import Analysis, analyze, sort_error
 
 PREPASS_PRESET = "Alpha Blend ZWrite"
 
@@ -46,12 +52,10 @@ def with_prepass(scene: DrawScene, key: tuple[str, int]) -> DrawScene:
         for r in scene.renderers))
 
 
-def _measure(scene: DrawScene, original, front, behind, workers) -> tuple[int, int]:
+def _measure(scene: DrawScene, original: Analysis, front, behind, workers) -> tuple[int, int]:
     """(pixels of the pair still inverted, pixels differing from the original sorted reference)."""
-    from .sorted_reference import _error, analyze
-
-    after = analyze(scene, advice=False, workers=workers)
-    error = _error(after.frame.color, original.reference, original.hdr)
+    after = analyze(scene, workers=workers)
+    error = sort_error(after.frame.color, original.reference, original.hdr)
     return after.pair_pixels(front, behind), int(np.count_nonzero(error > original.step))
 
 
@@ -95,7 +99,7 @@ def _pair_candidates(scene: DrawScene, a: Renderer, b: Renderer) -> list[tuple[d
     return out
 
 
-def advise(scene: DrawScene, analysis, limit: int = 5, workers: int | None = None) -> list[dict]:
+def advise(scene: DrawScene, analysis: Analysis, limit: int = 5, workers: int | None = None) -> list[dict]:
     """Advice items for the ``limit`` largest inversion pairs (fields of docs/json.md), each checked."""
     items = []
     before_differing = analysis.differing
@@ -134,3 +138,20 @@ def advise(scene: DrawScene, analysis, limit: int = 5, workers: int | None = Non
                                f"but drawn first: {sentence} (checked: {inv.pixels} → {pairs} inverted pixels, "
                                f"{before_differing} → {differing} differing)")})
     return items
+
+
+def analyze_and_advise(
+    scene: DrawScene,
+    *,
+    max_advice: int = 5,
+    workers: int | None = None,
+    progress: Callable[[float], None] | None = None,
+    should_cancel: Callable[[], bool] | None = None,
+) -> Analysis:
+    """:func:`~.sorted_reference.analyze` of ``scene``, its ``advice`` filled with a checked fix
+    for each of the ``max_advice`` largest inversion pairs (:func:`advise`; 0: none). Raises as
+    ``analyze`` does."""
+    analysis = analyze(scene, workers=workers, progress=progress, should_cancel=should_cancel)
+    if max_advice > 0 and analysis.inversions:
+        analysis.advice = advise(scene, analysis, limit=max_advice, workers=workers)
+    return analysis

@@ -1,6 +1,6 @@
 """The frame debugger (docs/framedebugger.md): draw-call statistics, pixel history, and stepping through draws.
 
-Everything here watches an ordinary render through :class:`blendlib.core.pipeline.FrameObserver`:
+Everything here watches an ordinary render through :class:`blendlib.core.records.FrameObserver`:
 
 - :func:`draw_list`: every draw call with its triangles, fragments rasterised and fragments
   written (what an occlusion query counts), from one render.
@@ -32,7 +32,8 @@ import numpy as np
 from ..core import merger, shade
 from ..core.drawlist import DrawCall, draw_calls
 from ..core.merger import FrameBuffers, Outcome
-from ..core.pipeline import Frame, FrameObserver, ShadedFragments, render_scene
+from ..core.pipeline import render_scene
+from ..core.records import Frame, FrameObserver, ShadedFragments
 from ..core.scene import DrawScene, SceneError
 from ..core.vertex import DEPTH_MAX
 from ..core.vocabulary import pass_state_text
@@ -126,13 +127,6 @@ class _StatsObserver(FrameObserver):
     def stats(self, calls: list[DrawCall]) -> list[DrawStats]:
         return [DrawStats(c, self.triangles.get(c.index, 0), self.rasterised.get(c.index, 0),
                           self.passed.get(c.index, 0)) for c in calls]
-
-
-def _calls(scene: DrawScene) -> list[DrawCall]:
-    try:
-        return draw_calls(scene)
-    except ValueError as exc:
-        raise SceneError(str(exc)) from None
 
 
 def draw_list(scene: DrawScene, *, progress: Callable[[float], None] | None = None,
@@ -344,14 +338,14 @@ class FrameCapture:
                 progress: Callable[[float], None] | None = None, should_cancel: Callable[[], bool] | None = None,
                 workers: int | None = None) -> FrameCapture:
         """Render ``scene`` once, keeping statistics and snapshots within ``memory`` bytes (0: none)."""
-        calls = _calls(scene)
+        calls = draw_calls(scene)
         cam = scene.camera
         per = snapshot_bytes(cam.width, cam.height, scene.hdr)
         most = int(memory) // per if per else 0
         interval = 0 if most <= 0 or not calls else max(1, math.ceil(len(calls) / most))
         observer = _StatsObserver(snapshot_every=interval, last=len(calls))
         frame = render_scene(scene, progress=progress, should_cancel=should_cancel, workers=workers,
-                             observer=observer)
+                             observer=observer, calls=calls)
         return cls(scene, observer.stats(calls), frame, observer.snapshots, interval)
 
     def frame_after(self, k: int, *, highlight: bool = False,
@@ -369,7 +363,7 @@ class FrameCapture:
         resume = (self.snapshots[base], base) if base else None
         observer = _StatsObserver(mark_draw=k if highlight and k > 0 else None)
         frame = render_scene(self.scene, until_draw=k, resume=resume, workers=workers,
-                             observer=observer if highlight else None)
+                             observer=observer if highlight else None, calls=self.calls)
         if not highlight:
             return frame, None
         cam = self.scene.camera

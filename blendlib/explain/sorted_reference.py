@@ -31,9 +31,10 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..core.drawlist import DrawCall, draw_calls
-from ..core.merger import BlendTable, FrameBuffers, Outcome, apply_layer, blend_lut
-from ..core.pipeline import Frame, FrameObserver, RenderCancelled, ShadedFragments, render_scene
-from ..core.scene import DrawScene, SceneError, validate_scene
+from ..core.merger import BlendTable, FrameBuffers, Outcome, apply_layer, blend_lut, layers_by_rank
+from ..core.pipeline import render_scene
+from ..core.records import Frame, FrameObserver, RenderCancelled, ShadedFragments
+from ..core.scene import DrawScene, validate_scene
 from ..core.vertex import DEPTH_MAX
 from ..core.vocabulary import LAST_OPAQUE_QUEUE, QUEUE_NUMBERS, Queue
 
@@ -82,7 +83,8 @@ class Analysis:
     - ``overdraw`` (H, W, 2) uint32: fragments rasterised, fragments written (every draw call).
     - ``inverted`` (H, W) uint16: renderer pairs (A, B) inverted at the pixel.
     - ``inversions``: :class:`Inversion` per pair, most pixels first.
-    - ``advice``: list of advice dicts (:mod:`blendlib.explain.advice`), filled by :func:`analyze`.
+    - ``advice``: list of advice dicts (docs/json.md), filled by
+      :func:`blendlib.explain.advice.analyze_and_advise` (empty from :func:`analyze` alone).
     """
 
     frame: Frame
@@ -250,15 +252,6 @@ class _Collector(FrameObserver):
         return pix.astype(np.int64), depth.astype(np.int64), call, key, written
 
 
-def _ranks(sorted_pix: np.ndarray) -> np.ndarray:
-    """Rank of each entry within its run of equal pixels (input grouped by pixel)."""
-    n = sorted_pix.size
-    starts = np.ones(n, dtype=bool)
-    starts[1:] = sorted_pix[1:] != sorted_pix[:-1]
-    idx = np.arange(n, dtype=np.int64)
-    return idx - np.maximum.accumulate(np.where(starts, idx, 0))
-
-
 class _Step2:
     """Applies a band's fragments far to near with their passes' state (no depth writes).
 
@@ -312,14 +305,9 @@ class _Step2:
         descent = (wp[1:] == wp[:-1]) & (w[1:] < w[:-1])
         suspects = np.unique(wp[1:][descent])
         del w, wp, descent
-        rank = _ranks(pix[order])
-        layers = int(rank.max()) + 1
-        bounds = np.concatenate([[0], np.cumsum(np.bincount(rank, minlength=layers))])
-        rank_t = rank.astype(np.uint16) if layers < 65536 else rank
-        by_rank = order[np.argsort(rank_t, kind="stable")]  # radix sort for 16-bit ranks
-        del order, rank, rank_t
-        for k in range(layers):
-            sel = by_rank[bounds[k]:bounds[k + 1]]
+        layers = layers_by_rank(order, pix[order])  # layer k: the k-th farthest fragment of each pixel
+        del order
+        for sel in layers:
             self.apply_layer(pix[sel], depth[sel], call[sel], key[sel])
         return suspects
 
@@ -403,7 +391,7 @@ def _band_inversions(pix, depth, call, written, renderer_of_call: np.ndarray, nr
     return np.unique(np.concatenate(found))
 
 
-def _error(frame_color: np.ndarray, reference: np.ndarray, hdr: bool) -> np.ndarray:
+def sort_error(frame_color: np.ndarray, reference: np.ndarray, hdr: bool) -> np.ndarray:
     """(H, W) float32: the largest absolute difference over RGBA (8-bit steps on the codes for LDR)."""
     if hdr:
         diff = np.abs(frame_color.astype(np.float64) - reference.astype(np.float64))
@@ -416,28 +404,24 @@ def _error(frame_color: np.ndarray, reference: np.ndarray, hdr: bool) -> np.ndar
 def analyze(
     scene: DrawScene,
     *,
-    advice: bool = True,
-    max_advice: int = 5,
     workers: int | None = None,
     progress: Callable[[float], None] | None = None,
     should_cancel: Callable[[], bool] | None = None,
 ) -> Analysis:
     """Render ``scene`` and its sorted reference; sort error, inversions, overdraw (docs/sorting.md).
 
-    ``advice``: also check a fix for each of the ``max_advice`` largest inversion pairs by
-    re-rendering with it (:mod:`blendlib.explain.advice`). Raises :class:`SceneError` for input
-    that cannot render, :class:`blendlib.core.pipeline.RenderCancelled` when cancelled.
+    The result's ``advice`` is empty: advice is checked on top of an analysis
+    (:func:`blendlib.explain.advice.analyze_and_advise`). Raises
+    :class:`~blendlib.core.scene.SceneError` for input that cannot render,
+    :class:`~blendlib.core.records.RenderCancelled` when cancelled.
     """
     validate_scene(scene)  # one-line SceneError before anything is allocated
-    try:
-        calls = draw_calls(scene)
-    except ValueError as exc:
-        raise SceneError(str(exc)) from None
+    calls = draw_calls(scene)
     cam = scene.camera
     width, height = int(cam.width), int(cam.height)
     collector = _Collector(calls, width, height)
     frame = render_scene(scene, observer=collector, workers=workers, progress=progress,
-                         should_cancel=should_cancel)
+                         should_cancel=should_cancel, calls=calls)
     n = width * height
     inverted = np.zeros(n, dtype=np.uint16)
     pair_counts: dict[int, int] = {}
@@ -484,18 +468,13 @@ def analyze(
                         pair_counts[pair] = pair_counts.get(pair, 0) + count
         last_sorted = max(c.index for c in calls if c.queue <= LAST_SORTED_QUEUE)
         if any(c.queue > LAST_SORTED_QUEUE for c in calls):
-            reference = render_scene(scene, resume=(buf, last_sorted), workers=workers).color
+            reference = render_scene(scene, resume=(buf, last_sorted), workers=workers, calls=calls).color
         else:
             reference = buf.output()[0]
     overdraw = np.stack([collector.rasterised, collector.written], axis=-1).reshape(height, width, 2)[::-1].copy()
     inversions = [Inversion(renderers[pair // nrend], renderers[pair % nrend], count)
                   for pair, count in pair_counts.items()]
     inversions.sort(key=lambda inv: (-inv.pixels, inv.front, inv.behind))
-    result = Analysis(frame=frame, reference=reference, error=_error(frame.color, reference, scene.hdr),
-                      overdraw=overdraw, inverted=inverted.reshape(height, width)[::-1].copy(),
-                      inversions=inversions, hdr=bool(scene.hdr))
-    if advice and inversions:
-        from .advice import advise
-
-        result.advice = advise(scene, result, limit=max_advice, workers=workers)
-    return result
+    return Analysis(frame=frame, reference=reference, error=sort_error(frame.color, reference, scene.hdr),
+                    overdraw=overdraw, inverted=inverted.reshape(height, width)[::-1].copy(),
+                    inversions=inversions, hdr=bool(scene.hdr))

@@ -1,7 +1,7 @@
 """Image files without Blender: PNG, OpenEXR, NPY, and buffer comparison.
 
 Arrays here are ``(H, W, C)`` with row 0 the *top* of the image (as a
-:class:`blendlib.core.pipeline.Frame` and as the files store them).
+:class:`blendlib.core.records.Frame` and as the files store them).
 
 - PNG (Pillow): written as 8-bit RGBA of the values (``floor(clamp(v, 0, 1) * 255 + 0.5)``,
   no colour conversion); read: every colour type (grey, grey+alpha, RGB, RGBA, palette) at

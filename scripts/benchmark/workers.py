@@ -157,7 +157,7 @@ class ProjectWorker:
                         snapshot_mb=cap.snapshot_memory / 2**20, step_to=k, step_from=base)
             del cap
             with Timer() as t:
-                analysis = analyze(draw, advice=False, workers=workers)
+                analysis = analyze(draw, workers=workers)
             runs["analyze_s"].append(t.wall)
             info.update(inversion_pairs=len(analysis.inversions), differing_px=int(analysis.differing))
             del analysis
@@ -169,7 +169,7 @@ class ProjectWorker:
             out[k.replace("_s", "_ratio")] = out[k] / plain if plain > 0 else None
         out["plain_peak_mb"] = traced_peak_mb(lambda d: render_scene(d, **kwargs), draw)
         out["capture_peak_mb"] = traced_peak_mb(lambda d: fd.FrameCapture.capture(d, workers=workers), draw)
-        out["analyze_peak_mb"] = traced_peak_mb(lambda d: analyze(d, advice=False, workers=workers), draw)
+        out["analyze_peak_mb"] = traced_peak_mb(lambda d: analyze(d, workers=workers), draw)
         out.update(info)
         out["size"] = [int(cam.width), int(cam.height)]
         return {"explain": out}
@@ -196,8 +196,9 @@ class ProjectWorker:
         import numpy as np
 
         from blendlib.blender import viewport as vp
-        from blendlib.core.bandprocs import BandRenderer
         from blendlib.core.pipeline import render_scene
+        from blendlib.runtime import scheduler
+        from blendlib.runtime.bandprocs import BandRenderer
 
         scene = self.scene
         depsgraph = bpy.context.evaluated_depsgraph_get()
@@ -205,7 +206,7 @@ class ProjectWorker:
         view = np.linalg.inv(vp.as_matrix(cam_obj.matrix_world, "matrix_world"))
         proj = vp.as_matrix(cam_obj.calc_matrix_camera(depsgraph, x=width, y=height), "projection")
         camera = vp.camera_from_matrices(view, proj, width, height)
-        small = vp.reduced_size(width, height)
+        small = scheduler.reduced_size(width, height)
         reduced = dataclasses.replace(camera, width=small[0], height=small[1]) if small else camera
         target = next((o for o in scene.objects if o.type == "MESH"), None)
         nudges = [0]
@@ -224,7 +225,7 @@ class ProjectWorker:
                 stamps.append(time.perf_counter())
                 ready.notify_all()
 
-        sched = vp.ViewportScheduler(on_ready=on_ready)
+        sched = scheduler.ViewportScheduler(on_ready=on_ready)
         bands = BandRenderer()
         bands.wait_ready()
         runs: dict[str, list[float]] = {k: [] for k in VIEWPORT_TIMES}
@@ -239,7 +240,7 @@ class ProjectWorker:
                     template = vp.extract_template(scene, depsgraph)
                 seen = dataclasses.replace(template, camera=turned)
                 with Timer() as tr2:  # as the scheduler does: after a heavy split frame the helper
-                    if small and vp.begins_early(bands):
+                    if small and scheduler.begins_early(bands):
                         bands.begin(seen)  # begins the next one before the reduced frame renders
                     bands(dataclasses.replace(template, camera=turned_small))
                 with Timer() as tf2:
@@ -250,7 +251,7 @@ class ProjectWorker:
                     template = vp.extract_template(scene, depsgraph, previous=template)
                 draw = dataclasses.replace(template, camera=turned)
                 with Timer() as tr:
-                    if small and vp.begins_early(bands):
+                    if small and scheduler.begins_early(bands):
                         bands.begin(draw)
                     bands(dataclasses.replace(template, camera=turned_small))
                 with Timer() as tf:
@@ -407,7 +408,7 @@ WORKERS = {"project": ProjectWorker, "opengl": OpenGLWorker, "eevee": EeveeWorke
 def serve(kind: str) -> int:
     """Serve JSON-line commands on stdin; answers go to the original stdout, everything else
     (Blender's own prints) to stderr."""
-    from blendlib.core.allocator import keep_freed_memory
+    from blendlib.runtime.allocator import keep_freed_memory
 
     # As the command line does (and as Blender's own jemalloc behaves): freed memory is kept
     # for reuse, in every backend's worker alike.

@@ -17,6 +17,7 @@ import pytest
 
 from blendlib import render_scene
 from blendlib.core import merger
+from blendlib.core.merger import blending, ordering
 from blendlib.core.pipeline import BAND_PIXELS as PRODUCTION_BAND_PIXELS  # read before the tests' override
 from blendlib.core.scene import DrawScene
 from blendlib.core.vocabulary import (
@@ -65,7 +66,7 @@ def _assert_equal_with_table(scene: DrawScene, monkeypatch, expect_table: bool =
         calls.append(palette.shape[0])
         return original(buf, p, palette)
 
-    monkeypatch.setattr(merger, "blend_lut", counting)
+    monkeypatch.setattr(blending, "blend_lut", counting)
     merger.RECENT_TABLES.clear()  # tables kept from earlier renders would skip blend_lut
     frame = render_scene(scene)
     color, depth, stencil = render_reference(scene)
@@ -146,7 +147,7 @@ def test_parallel_setup_and_spans_equal_serial():
     """A 160k-triangle sphere crossing the near plane: setup and span building split over two
     threads (and clipping in both halves) give the same buffers as one thread."""
     mesh = sc.uv_sphere(radius=1.0, segments=400, rings=200)
-    split = 2 * (1 << 15)  # raster.run_parts splits from this many items on
+    split = 2 * (1 << 15)  # parts.run_parts splits from this many items on
     assert mesh.triangle_count > split and mesh.positions.shape[0] > split
     p = Pass(cull=Cull.Off, zwrite=False, blend=True, src_blend=BlendFactor.SrcAlpha,
              dst_blend=BlendFactor.OneMinusSrcAlpha)
@@ -291,14 +292,14 @@ def test_point_texture_palette_equals_reference(lighting, hdr, blend, monkeypatc
 
 def test_texel_palette_is_left_when_the_texture_is_large(monkeypatch):
     """A texture with more texels than a quarter of the fragments it serves is shaded per fragment."""
-    from blendlib.core import pipeline, shade
+    from blendlib.core import fragment, shade
 
     def refuse(*_args):
         raise AssertionError("texel palette used for a large texture")
 
     monkeypatch.setattr(shade, "texel_palette", refuse)
     scene = _texel_palette_scene(Lighting.Unlit, Pass())
-    monkeypatch.setattr(pipeline, "TEXEL_PALETTE_SHARE", 10_000)
+    monkeypatch.setattr(fragment, "TEXEL_PALETTE_SHARE", 10_000)
     frame = render_scene(scene, workers=1)
     np.testing.assert_array_equal(frame.color, render_reference(scene)[0])
 
@@ -306,10 +307,10 @@ def test_texel_palette_is_left_when_the_texture_is_large(monkeypatch):
 def test_batched_bands_equal_per_draw_bands_and_reference(monkeypatch):
     """Without an observer, draw calls are prepared as batches (renderers in parallel when they
     hold enough triangles) and each worker draws its screen band of a whole batch with no wait
-    between calls: the frame, depth, stencil and warnings equal one thread, per-draw bands (the
-    observed driver) and the reference.
+    between calls: the frame, depth, stencil and warnings equal one thread, per-draw bands (an
+    observer that needs exact draw boundaries: one call a step) and the reference.
     Opaque ZWrite On draws between ZWrite Off ones make each band recompute its depth floor."""
-    from blendlib.core import pipeline
+    from blendlib.core import pipeline, prepare
 
     blend = dict(blend=True, src_blend=BlendFactor.SrcAlpha, dst_blend=BlendFactor.OneMinusSrcAlpha)
     opaque = Material(name="Opaque", color=(0.3, 0.8, 0.4, 1.0), passes=(Pass(),))
@@ -327,16 +328,16 @@ def test_batched_bands_equal_per_draw_bands_and_reference(monkeypatch):
     scene = DrawScene(camera=sc.camera(120, 96, eye=(0.3, 0.4, 4.0)), renderers=tuple(renderers),
                       light=sc.Light(direction=(0.2, 0.5, 0.8)))
     batches = []
-    original = pipeline._prepare_batch
+    original = pipeline.prepare_batch
 
     def counting(frame, runs):
         batches.append(sum(len(run) for run in runs))
         return original(frame, runs)
 
-    monkeypatch.setattr(pipeline, "_prepare_batch", counting)
+    monkeypatch.setattr(pipeline, "prepare_batch", counting)
     batched = render_scene(scene, workers=2)
     assert batches == [14]  # every draw call in one batch
-    monkeypatch.setattr(pipeline, "PARALLEL_PREPARE_TRIANGLES", 0)  # renderers prepared on the pool
+    monkeypatch.setattr(prepare, "PARALLEL_PREPARE_TRIANGLES", 0)  # renderers prepared on the pool
     pool_prepared = render_scene(scene, workers=2)
     observed = render_scene(scene, workers=2, observer=pipeline.FrameObserver())
     one = render_scene(scene, workers=1, chunk_candidates=211)
@@ -395,7 +396,7 @@ def test_point_texel_index_of_non_finite_coordinates_is_texel_zero():
 @pytest.mark.parametrize("color_space", [ColorSpace.Gamma, ColorSpace.Linear])
 def test_per_fragment_blending_by_channel_equals_reference(src, dst, op, color_space, monkeypatch):
     """Varying colours (a bilinear texture with values beyond [0, 1]) blend one channel at a time
-    (``merger._blend_ldr``): equal to the reference for every factor and op, in both spaces."""
+    (``blending._blend_ldr``): equal to the reference for every factor and op, in both spaces."""
     from blendlib.core.vocabulary import Texture
 
     p = Pass(cull=Cull.Off, zwrite=False, blend=True, src_blend=src, dst_blend=dst, blend_op=op)
@@ -505,28 +506,6 @@ def test_renderers_set_up_together_equal_each_alone(monkeypatch):
         pool.shutdown()
 
 
-def test_run_parts_covers_the_range_in_pieces_in_order():
-    from blendlib.core.vertex import run_parts
-
-    pool = ThreadPoolExecutor(max_workers=2)
-    try:
-        for n, piece, threads, parts in ((100, 7, None, 1), (100, 7, pool, 2), (100, None, pool, 2),
-                                         (5, 7, pool, 2), (0, 7, None, 1), (1 << 17, None, pool, 2)):
-            seen = []
-            run_parts(threads, parts, n, lambda lo, hi, seen=seen: seen.append((lo, hi)), piece=piece)
-            seen.sort()
-            assert seen[0][0] == 0 and seen[-1][1] == n
-            assert all(a[1] == b[0] for a, b in zip(seen, seen[1:], strict=False))
-            if piece is not None:
-                assert all(hi - lo <= piece for lo, hi in seen) and len(seen) == max(1, -(-n // piece))
-            elif n >= 1 << 16:
-                assert len(seen) == parts  # no piece: the parts alone
-            else:
-                assert seen == [(0, n)]
-    finally:
-        pool.shutdown()
-
-
 @pytest.mark.parametrize("rows", [
     [(0.2, 0.4, 0.6, 0.5)] * 5,
     [(0.2, 0.4, 0.6, 0.5)],
@@ -537,10 +516,10 @@ def test_run_parts_covers_the_range_in_pieces_in_order():
 def test_distinct_colours_equal_numpy_unique(rows):
     """Flat triangles' colours are deduplicated without a sort when all are the same bytes; the
     result is np.unique's, byte for byte."""
-    from blendlib.core.pipeline import _distinct_colors
+    from blendlib.core.fragment import distinct_colors
 
     colors = np.array(rows, dtype=np.float64)
-    got, inverse = _distinct_colors(colors)
+    got, inverse = distinct_colors(colors)
     want, want_inverse = np.unique(colors, axis=0, return_inverse=True)
     assert got.tobytes() == want.tobytes() and got.shape == want.shape
     np.testing.assert_array_equal(inverse.reshape(-1), want_inverse.reshape(-1))
@@ -558,7 +537,7 @@ def test_blend_tables_are_kept_across_renders_by_content(monkeypatch):
             built.append(lut.shape[0])
             super().__init__(lut, pairs)
 
-    monkeypatch.setattr(merger, "BlendTable", Counting)
+    monkeypatch.setattr(blending, "BlendTable", Counting)
     merger.RECENT_TABLES.clear()
     over = Pass(cull=Cull.Off, zwrite=False, blend=True, src_blend=BlendFactor.SrcAlpha,
                 dst_blend=BlendFactor.OneMinusSrcAlpha)
@@ -646,165 +625,6 @@ def test_span_ends_by_float_division_equal_integer_division(reach, monkeypatch):
         np.testing.assert_array_equal(getattr(fast, name), getattr(exact, name), err_msg=name)
 
 
-def _fused_frames(scene: DrawScene, fuser: str, monkeypatch) -> tuple[list, list]:
-    """Frames of ``scene`` by one thread, two, and chunks of 97 candidates, with the groups
-    ``pipeline.<fuser>`` made recorded as (calls in, calls out) per batch."""
-    from blendlib.core import pipeline
-
-    groups = []
-    original = getattr(pipeline, fuser)
-
-    def recording(prepared, memo=None):
-        out = original(prepared, memo)
-        groups.append((len(prepared), len(out)))
-        return out
-
-    monkeypatch.setattr(pipeline, fuser, recording)
-    merger.RECENT_TABLES.clear()
-    return groups, [render_scene(scene, workers=1), render_scene(scene, workers=2),
-                    render_scene(scene, workers=1, chunk_candidates=97)]
-
-
-@pytest.mark.parametrize("hdr,color_space", [(False, ColorSpace.Gamma), (False, ColorSpace.Linear),
-                                             (True, ColorSpace.Linear)])
-def test_constant_colour_draw_calls_fused_equal_reference(hdr, color_space, monkeypatch):
-    """Consecutive Unlit untextured draw calls with one pass state (text labels) are drawn as
-    one: overlapping blended quads, ZWrite On with Offset and a stencil op, equal colours in
-    different calls, a textured call and an alpha-tested one between groups. The frame equals
-    the reference, one thread and two, with blend tables (large chunks) and per-fragment
-    blending (small chunks), and equals the frame drawn call by call."""
-    from blendlib.core import pipeline
-    from blendlib.core.vocabulary import StencilOp, Texture
-
-    blend = Pass(cull=Cull.Off, zwrite=False, blend=True, src_blend=BlendFactor.SrcAlpha,
-                 dst_blend=BlendFactor.OneMinusSrcAlpha)
-    stamp = Pass(offset_factor=-1.0, offset_units=-1.0, stencil=True, stencil_ref=3,
-                 stencil_pass=StencilOp.IncrSat, stencil_zfail=StencilOp.Invert)
-    colors = [(0.9, 0.2, 0.1, 0.5), (0.1, 0.8, 0.3, 0.35), (0.9, 0.2, 0.1, 0.5), (0.2, 0.3, 0.95, 0.7),
-              (0.5, 0.5, 0.5, 0.25)]
-    renderers = []
-    for k, color in enumerate(colors):
-        mat = sc.unlit(color, queue=Queue.Transparent, passes=(blend,), name=f"Glass{k}")
-        renderers.append(sc.renderer(sc.fan((0.25 * k - 0.5, 0.1 * k, 0.15 * k), 0.9, 9, 0.2 * k), mat,
-                                     name=f"Glass{k}"))
-    texture = Texture(np.random.default_rng(3).uniform(0, 1, (4, 4, 4)).astype(np.float32), name="t")
-    for k in range(6):
-        if k == 3:  # a textured call splits the opaque group
-            mat = Material(name="Textured", lighting=Lighting.Unlit, main_tex=texture, passes=(stamp,))
-        elif k == 4:  # so does an alpha-tested one
-            mat = sc.unlit((0.3, 0.6, 0.9, 0.4), passes=(Pass(alpha_test=True),), cutoff=0.3, name="Cut")
-        else:
-            mat = sc.unlit((0.1 + 0.15 * k, 0.7, 0.2, 1.0), passes=(stamp,), name=f"Stamp{k}")
-        renderers.append(sc.renderer(sc.quad(-1.2 + 0.35 * k, -1.0 + 0.2 * k, 0.2 + 0.35 * k, 0.6 + 0.1 * k,
-                                             z=-0.2 * k), mat, name=f"Quad{k}"))
-    scene = DrawScene(camera=sc.camera(120, 96, eye=(0.3, 0.4, 4.0)), renderers=tuple(renderers),
-                      color_space=color_space, hdr=hdr)
-    groups, frames = _fused_frames(scene, "_fuse_constant_calls", monkeypatch)
-    # 5 blended calls -> 1; the opaque ones: 3 fused, then the textured, the alpha-tested, 1 alone.
-    assert groups[0] == (11, 5)
-    monkeypatch.setattr(pipeline, "FUSE_TRIANGLES", 0)
-    frames.append(render_scene(scene, workers=1))
-    assert groups[-1] == (11, 11)
-    color, depth, stencil = render_reference(scene)
-    assert len(np.unique(stencil)) > 2 and len(np.unique(color.reshape(-1, 4), axis=0)) > 8
-    for frame in frames:
-        np.testing.assert_array_equal(frame.color, color)
-        np.testing.assert_array_equal(frame.depth, depth)
-        np.testing.assert_array_equal(frame.stencil, stencil)
-
-
-def _rotation(axis: int, degrees: float) -> np.ndarray:
-    c, s = np.cos(np.radians(degrees)), np.sin(np.radians(degrees))
-    m = np.eye(4)
-    i, j = [k for k in range(3) if k != axis]
-    m[i, i], m[i, j], m[j, i], m[j, j] = c, -s, s, c
-    return m
-
-
-@pytest.mark.parametrize("hdr,color_space", [(False, ColorSpace.Gamma), (False, ColorSpace.Linear),
-                                             (True, ColorSpace.Linear)])
-def test_draw_calls_sharing_shading_fused_equal_reference(hdr, color_space, monkeypatch):
-    """Consecutive draw calls whose materials differ only in pass and cutoff are shaded as one
-    and merged call by call (``_fuse_shared_shading``). Two groups: lit quads with a Point
-    texture (texel palettes) under different object matrices (one mirrored, one crossing the
-    near plane: clipped), overlapping, with blend modes the tables serve and one they cannot
-    (DstAlpha), alpha tests with different cutoffs, stencil, ColorMask, and two passes of one
-    renderer; before them smooth-lit spheres with a Bilinear texture (shaded per fragment), Cull
-    and cutoff per call; after them two calls without ZWrite, whose rows' depth floors apply.
-    The frame equals the reference with one thread and two and with chunks
-    that cut a call's rows, and equals the frame drawn call by call."""
-    import dataclasses
-
-    from blendlib.core import pipeline
-    from blendlib.core.scene import Light
-    from blendlib.core.vocabulary import StencilOp, Texture
-
-    rng = np.random.default_rng(5)
-    texture = Texture(rng.uniform(0, 1, (4, 4, 4)).astype(np.float32), name="cells")
-    over = Pass(cull=Cull.Off, zwrite=False, blend=True, src_blend=BlendFactor.SrcAlpha,
-                dst_blend=BlendFactor.OneMinusSrcAlpha)
-    passes = [
-        (over,),
-        (Pass(zwrite=False, blend=True, src_blend=BlendFactor.DstAlpha, dst_blend=BlendFactor.One),),
-        (Pass(alpha_test=True, stencil=True, stencil_ref=2, stencil_pass=StencilOp.Replace),),
-        (Pass(alpha_test=True, color_mask=frozenset("RG"), ztest=CompareFunction.Greater),),
-        (Pass(zwrite=False, blend=True, src_blend=BlendFactor.One, dst_blend=BlendFactor.One),
-         Pass(offset_factor=0.0, stencil=True, stencil_comp=CompareFunction.NotEqual, stencil_ref=2,
-              stencil_pass=StencilOp.IncrSat, blend=True, src_blend=BlendFactor.DstColor,
-              dst_blend=BlendFactor.Zero)),
-    ]
-    matrices = [_rotation(2, 20) @ sc.translate(-0.6, 0.2, 0.3), sc.scale(-1.0, 1.0, 1.0) @ _rotation(1, 35),
-                _rotation(1, -50) @ sc.translate(0.4, -0.3, -0.2),
-                sc.translate(0.0, -0.4, 0.0) @ _rotation(0, -90) @ sc.scale(1.5, 4.0, 1.0),  # through the near plane
-                _rotation(0, 30) @ sc.translate(0.5, 0.5, 0.5)]
-    renderers = []
-    for k, (own, matrix) in enumerate(zip(passes, matrices, strict=True)):
-        mat = Material(name=f"Cell{k}", queue=Queue.Transparent, color=(0.9, 0.8, 0.7, 0.8), main_tex=texture,
-                       main_tex_filter=TextureFilter.Point, main_tex_tiling=(3.0, 2.0), lighting=Lighting.Lambert,
-                       cutoff=0.2 * k, passes=own)
-        renderers.append(sc.renderer(sc.quad(-1, -1, 1, 1), mat, name=f"Cell{k}", matrix=matrix))
-    sphere = sc.uv_sphere(0.6, 10, 6)
-    corners = np.asarray(sphere.positions, dtype=np.float64)[np.asarray(sphere.triangles)]
-    sphere = dataclasses.replace(sphere, uvs=(corners[..., :2] * 0.8 + 0.5).astype(np.float32))
-    for k, own in enumerate([Pass(), Pass(cull=Cull.Front), Pass(alpha_test=True)]):
-        mat = Material(name=f"Ball{k}", color=(0.6, 0.9, 0.8, 1.0), main_tex=texture, cutoff=0.45,
-                       main_tex_filter=TextureFilter.Bilinear, lighting=Lighting.Lambert, passes=(own,))
-        renderers.append(sc.renderer(sphere, mat, name=f"Ball{k}", matrix=sc.translate(-0.9 + 0.8 * k, 0.6, -1.0)))
-    # Unlit passes without ZWrite before and after the quads: the rows' depth floors they test
-    # against (DrawState.zfloor) must be taken again after the quads write depth.
-    behind = Pass(zwrite=False, blend=True, src_blend=BlendFactor.SrcAlpha, dst_blend=BlendFactor.OneMinusSrcAlpha)
-    renderers.append(sc.renderer(sc.quad(-0.2, -1.5, 0.4, 1.5, z=-3.0), sc.unlit(
-        (0.2, 0.9, 0.1, 0.5), queue=Queue.AlphaTest, passes=(behind,), name="Marker"), name="Marker"))
-    renderers.append(sc.renderer(sc.quad(-3, -3, 3, 3, z=-2.5), sc.unlit(
-        (0.9, 0.1, 0.8, 0.6), queue=Queue.Overlay, passes=(behind,), name="Veil"), name="Veil"))
-    # Then two textured calls without ZWrite (ZTest Less, LEqual): depth floors prove some rows.
-    for k, ztest in enumerate([CompareFunction.Less, CompareFunction.LEqual]):
-        glaze = Pass(zwrite=False, ztest=ztest, blend=True, src_blend=BlendFactor.One,
-                     dst_blend=BlendFactor.OneMinusSrcColor)
-        mat = Material(name=f"Glaze{k}", queue=Queue.Overlay, main_tex=texture, main_tex_filter=TextureFilter.Point,
-                       lighting=Lighting.Unlit, passes=(glaze,))
-        renderers.append(sc.renderer(sc.quad(-2.2 + 1.6 * k, -2.0, -0.2 + 1.6 * k, 0.3, z=-0.4 + 0.5 * k), mat,
-                                     name=f"Glaze{k}"))
-    scene = DrawScene(camera=sc.camera(120, 96, eye=(0.3, 0.4, 4.0), near=0.5), renderers=tuple(renderers),
-                      color_space=color_space, hdr=hdr, light=Light(direction=(0.36, 0.48, 0.8)),
-                      ambient=(0.3, 0.2, 0.1))
-    groups, frames = _fused_frames(scene, "_fuse_shared_shading", monkeypatch)
-    # The spheres (3 calls), the marker, the quads (6 calls), the veil, the glazes (2 calls).
-    assert groups[0] == (13, 5)
-    monkeypatch.setattr(pipeline, "FUSE_FRAGMENTS", 1500)  # smaller groups
-    frames.append(render_scene(scene, workers=1))
-    assert 5 < groups[-1][1] < 13
-    monkeypatch.setattr(pipeline, "FUSE_TRIANGLES", 0)
-    frames.append(render_scene(scene, workers=1))
-    assert groups[-1] == (13, 13)
-    color, depth, stencil = render_reference(scene)
-    assert len(np.unique(stencil)) >= 3 and len(np.unique(color.reshape(-1, 4), axis=0)) > 200
-    for frame in frames:
-        np.testing.assert_array_equal(frame.color, color)
-        np.testing.assert_array_equal(frame.depth, depth)
-        np.testing.assert_array_equal(frame.stencil, stencil)
-
-
 def test_matrices_of_many_renderers_equal_written_out_sums():
     """The batched 4x4 products and cofactors of the vertex stage equal the written-out
     Python-float sums of docs/pipeline.md §1 (mirroring matrices included)."""
@@ -840,8 +660,8 @@ def test_colourless_passes_skip_shading_and_take_extreme_depths(ztest, monkeypat
     blended pass: the prepass's fragments are not shaded, and with ZTest Less/LEqual/Greater/
     GEqual (no stencil) its depth is the per-pixel minimum/maximum, applied in any order. A
     colourless pass with a stencil op, and one with ZTest Equal, take the ordered path. The
-    frame equals the reference, one thread and two, and the observed (fully shaded) render."""
-    from blendlib.core import pipeline
+    frame equals the reference, one thread and two, observed, and with every pass shaded in full."""
+    from blendlib.core import fragment, pipeline, prepare
     from blendlib.core.vocabulary import StencilOp, Texture
 
     texture = Texture(np.random.default_rng(5).uniform(0, 1, (8, 8, 4)).astype(np.float32), name="t")
@@ -862,7 +682,7 @@ def test_colourless_passes_skip_shading_and_take_extreme_depths(ztest, monkeypat
                                              matrix=sc.scale(1.0, 0.6, 1.4)),
                                  sc.renderer(sc.fan((0.3, -0.2, 0.5), 0.8, 7), stamp, name="Stamp")))
     colourless, order_free = [], []
-    shade_original, free_original = pipeline._shade_colourless_chunk, merger.order_free_depth
+    shade_original, free_original = fragment.shade_colourless_chunk, ordering.order_free_depth
 
     def counting_shade(*args):
         colourless.append(1)
@@ -873,13 +693,17 @@ def test_colourless_passes_skip_shading_and_take_extreme_depths(ztest, monkeypat
         order_free.append(free)
         return free
 
-    monkeypatch.setattr(pipeline, "_shade_colourless_chunk", counting_shade)
-    monkeypatch.setattr(merger, "order_free_depth", counting_free)
+    monkeypatch.setattr(fragment, "shade_colourless_chunk", counting_shade)
+    monkeypatch.setattr(ordering, "order_free_depth", counting_free)
     frames = [render_scene(scene, workers=1), render_scene(scene, workers=2, chunk_candidates=301),
               render_scene(scene, workers=2, observer=pipeline.FrameObserver())]
     assert colourless  # both prepasses skip shading
     assert any(order_free) == (ztest is not CompareFunction.Equal)
     assert not all(order_free)  # the stencil prepass is merged in order
+    colourless.clear()
+    monkeypatch.setattr(prepare, "chunk_shading", lambda p: fragment.shade_chunk)  # every pass shaded in full
+    frames.append(render_scene(scene, workers=2))
+    assert not colourless
     color, depth, stencil = render_reference(scene)
     assert (stencil == 2).sum() > 50
     for frame in frames:
@@ -891,7 +715,7 @@ def test_colourless_passes_skip_shading_and_take_extreme_depths(ztest, monkeypat
 def test_passes_selecting_the_same_triangles_share_their_coverage(monkeypatch):
     """Two passes of one material with one Cull cover the same pixels: their rows are computed
     once (batched coverage and per-renderer preparation alike) and equal each pass's own."""
-    from blendlib.core import pipeline, raster, vertex
+    from blendlib.core import pipeline, prepare, raster, vertex
 
     camera = sc.camera(80, 60, eye=(0.0, 0.0, 2.5))
     a, b = vertex.setup_renderers([vertex.SetupInput(sc.uv_sphere(0.9, 14, 9), np.eye(4)),
@@ -914,7 +738,7 @@ def test_passes_selecting_the_same_triangles_share_their_coverage(monkeypatch):
     covered = []
     coverage = raster.coverage_rows
     monkeypatch.setattr(raster, "coverage_rows", lambda *args, **kw: covered.append(1) or coverage(*args, **kw))
-    monkeypatch.setattr(pipeline, "PARALLEL_PREPARE_TRIANGLES", 0)  # per-renderer preparation
+    monkeypatch.setattr(prepare, "PARALLEL_PREPARE_TRIANGLES", 0)  # per-renderer preparation
     glass = Material(name="Glass", queue=Queue.Transparent, color=(0.9, 0.3, 0.2, 0.5),
                      passes=(Pass(zwrite=True, color_mask=frozenset()),
                              Pass(zwrite=False, blend=True, src_blend=BlendFactor.SrcAlpha,
@@ -958,10 +782,10 @@ def test_small_frames_blend_through_tables_kept_from_larger_ones(monkeypatch):
             built.append(pairs)
             super().__init__(lut, pairs)
 
-    monkeypatch.setattr(merger, "BlendTable", Counting)
+    monkeypatch.setattr(blending, "BlendTable", Counting)
     # The large frame's 1280 fragments of the top colour get a table of channel pairs; the small
     # frame's 63 would ask for the other form, which the kept table stands in for.
-    monkeypatch.setattr(merger, "PAIR_TABLE_FRAGMENTS", 512)
+    monkeypatch.setattr(blending, "PAIR_TABLE_FRAGMENTS", 512)
     over = Pass(cull=Cull.Off, zwrite=False, blend=True, src_blend=BlendFactor.SrcAlpha,
                 dst_blend=BlendFactor.OneMinusSrcAlpha)
     big = _scene(over, ColorSpace.Linear)

@@ -195,7 +195,7 @@ def test_setups_are_kept_per_renderer_and_camera(monkeypatch):
     """A memo keeps each small renderer's vertex setup (and a whole frame's coverage rows) per
     camera: frames through a camera seen before set up only the renderers that changed, a third
     camera evicts the oldest, big meshes are never kept; every frame equals a plain render."""
-    from blendlib.core import pipeline, vertex
+    from blendlib.core import prepare, vertex
 
     draw = seeded_scene(8)
     set_up = []
@@ -225,13 +225,13 @@ def test_setups_are_kept_per_renderer_and_camera(monkeypatch):
     assert frame(moved) == n  # near: evicted everywhere by now
     # Over the memo's budget, or each renderer over the size limit: set up every frame.
     budget = sum(r.mesh.triangle_count for r in moved.renderers[:2])
-    monkeypatch.setattr(pipeline, "MEMO_SETUP_BUDGET", budget)
+    monkeypatch.setattr(prepare, "MEMO_SETUP_BUDGET", budget)
     fresh = SceneMemo()
     for _ in range(2):
         set_up.clear()
         render_scene(moved, memo=fresh)
         assert sum(set_up) == (n if _ == 0 else n - 2)  # the first two fit the budget, the rest do not
-    monkeypatch.setattr(pipeline, "MEMO_SETUP_BUDGET", 1 << 30)
-    monkeypatch.setattr(pipeline, "MEMO_SETUP_TRIANGLES", 0)
+    monkeypatch.setattr(prepare, "MEMO_SETUP_BUDGET", 1 << 30)
+    monkeypatch.setattr(prepare, "MEMO_SETUP_TRIANGLES", 0)
     assert frame(dataclasses.replace(moved, camera=far.camera)) == n
     assert frame(dataclasses.replace(moved, camera=far.camera)) == n

@@ -205,7 +205,7 @@ def test_colourless_prepass_is_shaded_only_where_a_history_reads_it(monkeypatch)
     pixel histories (colours, depths, triangles of the prepass fragments) equal those of renders
     that shade every prepass fragment, while the draw list shades none of them and a history
     only the chunks on its pixel."""
-    from blendlib.core import pipeline
+    from blendlib.core import fragment, prepare
 
     knot = sc.Material(name="Knot", queue=Queue.Transparent, color=(0.7, 0.5, 0.9, 0.5),
                        passes=(Pass(cull=Cull.Off, color_mask=frozenset()),
@@ -214,18 +214,18 @@ def test_colourless_prepass_is_shaded_only_where_a_history_reads_it(monkeypatch)
     scene = sc.scene(sc.camera(64, 48, eye=(0.3, 0.5, 3.0)),
                      sc.renderer(sc.uv_sphere(0.9, 16, 10), knot, name="Knot", matrix=sc.scale(1.0, 0.5, 1.3)))
     shaded = []
-    original = pipeline._shade_chunk
+    original = fragment.shade_chunk
 
     def counting(setup, rows, start, stop, state):
         shaded.append(state.call.pass_index)
         return original(setup, rows, start, stop, state)
 
-    monkeypatch.setattr(pipeline, "_shade_chunk", counting)
+    monkeypatch.setattr(fragment, "shade_chunk", counting)
     lean = fd.draw_list(scene, workers=2)
     assert 0 not in shaded  # the draw list read no prepass colour
     pixels = [(32, 24), (20, 30), (40, 18)]
     histories = [fd.pixel_history(scene, x, y).to_json() for x, y in pixels]
     assert any(f["pass"] == 0 for h in histories for f in h["fragments"])
-    monkeypatch.setattr(pipeline, "_skip_unused_shading", lambda prepared: prepared)
+    monkeypatch.setattr(prepare, "chunk_shading", lambda p: original)  # every pass shaded in full
     assert [s.to_json() for s in lean] == [s.to_json() for s in fd.draw_list(scene, workers=2)]
     assert histories == [fd.pixel_history(scene, x, y).to_json() for x, y in pixels]

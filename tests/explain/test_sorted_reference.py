@@ -35,7 +35,7 @@ def transparent(scene, every: int = 1):
 def assert_reference(scene):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        result = analyze(scene, advice=False)
+        result = analyze(scene)
         color, _, _ = render_sorted_reference(scene)
     assert result.reference.dtype == np.float32 and result.reference.shape == color.shape
     if not np.array_equal(result.reference, color):
@@ -62,10 +62,10 @@ def test_random_scenes_equal_the_scalar_sorted_reference(scene):
 
 def test_small_bands_and_blocks_give_the_same_result(monkeypatch):
     scene = transparent(seeded_scene(42))
-    whole = analyze(scene, advice=False)
+    whole = analyze(scene)
     monkeypatch.setattr(sr, "BLOCK_ROWS", 1)
     monkeypatch.setattr(sr, "BAND_FRAGMENTS", 5)
-    banded = analyze(scene, advice=False)
+    banded = analyze(scene)
     assert np.array_equal(whole.reference, banded.reference)
     assert np.array_equal(whole.inverted, banded.inverted) and whole.inversions == banded.inversions
 
@@ -91,7 +91,7 @@ def test_a_scene_in_correct_order_has_no_error_and_no_inversions():
 
 
 def test_two_quads_in_the_wrong_order():
-    result = analyze(_two_quads(False), advice=False)
+    result = analyze(_two_quads(False))
     overlap = 4 * 12  # columns 6..9, all 12 rows
     assert [inv.as_json() for inv in result.inversions] == [
         {"front": "Red", "front_slot": 0, "behind": "Blue", "behind_slot": 0, "pixels": overlap}]
@@ -120,7 +120,7 @@ def test_two_crossing_quads_give_exactly_the_crossing_pixels():
     a, b = sc.renderer(rising, mat, name="A"), sc.renderer(falling, mat, name="B")
     scene = sc.scene(cam, a, b)
     assert [c.renderer.name for c in draw_calls(scene)] == ["A", "B"]  # same sort point: by name
-    result = analyze(scene, advice=False)
+    result = analyze(scene)
     da, db = _depth_alone(a, cam), _depth_alone(b, cam)
     expected = da < db  # A drawn first and nearer: (A, B) inverted
     assert 0 < expected.sum() < expected.size
@@ -147,7 +147,7 @@ def test_overdraw_equals_the_per_draw_fragment_counts(seed):
     cam = scene.camera
     counts = _Counts(cam.width * cam.height)
     render_scene(scene, observer=counts)
-    result = analyze(scene, advice=False)
+    result = analyze(scene)
     assert result.overdraw.dtype == np.uint32 and result.overdraw.shape == (cam.height, cam.width, 2)
     for k in (0, 1):
         total = sum(v[k] for v in counts.per_call.values()) if counts.per_call else np.zeros(cam.width * cam.height)
@@ -185,7 +185,7 @@ def test_overlay_tests_against_step_one_depth_and_its_own_writes():
 
 def test_hdr_error_is_absolute():
     scene = replace(_two_quads(False), hdr=True)
-    result = analyze(scene, advice=False)
+    result = analyze(scene)
     diff = np.abs(result.frame.color.astype(np.float64) - result.reference.astype(np.float64)).max(axis=-1)
     assert np.array_equal(result.error, diff.astype(np.float32))
     assert 0 < float(result.error.max()) < 1 and result.differing == 4 * 12
@@ -197,14 +197,14 @@ def test_self_overlap_and_the_prepass():
     ball = sc.renderer(sc.uv_sphere(1.0, 12, 8), sc.unlit((0.9, 0.6, 0.1, 0.4), queue=Queue.Transparent,
                                                            passes=[replace(BLEND, cull=Cull.Off)]),
                        name="Ball")
-    result = analyze(sc.scene(cam, ball), advice=False)
+    result = analyze(sc.scene(cam, ball))
     assert result.inversions and all(i.self_overlap for i in result.inversions)
     queue, passes = preset("Alpha Blend ZWrite")
     prepass = replace(ball, material=replace(ball.material, queue=queue, passes=passes))
-    fixed = analyze(sc.scene(cam, prepass), advice=False)
+    fixed = analyze(sc.scene(cam, prepass))
     assert fixed.inversions == []
     # the price: only the front layer shows, unlike the sorted reference of the two-sided material
-    price = sr._error(fixed.frame.color, result.reference, False)
+    price = sr.sort_error(fixed.frame.color, result.reference, False)
     assert np.count_nonzero(price > 1) > 0
 
 
@@ -280,6 +280,6 @@ def test_inversions_equal_a_plain_pairwise_count(seed):
         inverted[pix] = len(found)
         for pair in found:
             pairs[pair] = pairs.get(pair, 0) + 1
-    result = analyze(scene, advice=False)
+    result = analyze(scene)
     assert {(i.front, i.behind): i.pixels for i in result.inversions} == pairs
     assert np.array_equal(result.inverted, inverted.reshape(cam.height, cam.width)[::-1])

@@ -133,7 +133,7 @@ def _compare(named_scenes):
     for name, scene in named_scenes:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
-            result = analyze(scene, advice=False)
+            result = analyze(scene)
             _, ref_depth, ref_stencil = render_sorted_reference(scene)
         frame = result.frame
         gl_plain = render_gl(scene)
@@ -286,7 +286,7 @@ def test_each_hand_made_scene_sorts_differently_and_gl_peeling_follows(name):
     """Each scene's frame differs from its reference, and GL's peeled image agrees with the reference on
     every such pixel with the reference's stencil (the stencil layers' stencil differs from the frame's)."""
     scene = HAND_MADE[name]()
-    result = analyze(scene, advice=False)
+    result = analyze(scene)
     differ = np.abs(result.frame.color.astype(np.float64) - result.reference).max(axis=-1) > STEP
     (color, _, stencil), peels = _sorted_gl(scene)
     _, _, ref_stencil = render_sorted_reference(scene)

@@ -1,20 +1,25 @@
 """Frames split across processes: two horizontal bands drawn at the same time (docs/pipeline.md §8).
 
-Threads of one process share one interpreter lock, and on a 960x540 viewport frame numpy's array
-calls are short enough that two rendering threads spend much of their time waiting for it (py-spy:
-the lock is held about 60 % of the wall time of a two-thread blend_modes frame, so a second
-thread gained nothing there). A band drawn by another process has a lock of its own.
+Threads of one process share one interpreter lock, and on a viewport-sized frame numpy's array
+calls are short enough that two rendering threads spend much of their time waiting for it (a
+profile of a two-thread frame shows the lock held most of the wall time, so a second thread
+gains little there). A band drawn by another process has a lock of its own.
 
 :class:`BandRenderer` keeps one helper process, started once and reused for every frame. Per
 frame the helper draws the top band and this process the bottom one, both through
 :func:`~blendlib.core.pipeline.render_scene`'s ``band`` (each does the whole vertex setup and
-draws only its rows); the helper's rows come back through a shared memory file. Pixels never
-depend on one another, so the joined frame equals ``render_scene``'s bit for bit. The cut between
-the bands follows the measured times of the previous frame, so both halves end together.
-:meth:`BandRenderer.begin` starts the helper's band of a frame early (during the viewport's
-reduced frame); the helper keeps the last scene, so a view change sends only the camera, and
-the parts of it a changed scene shares (:func:`~blendlib.core.scene.reuse_unchanged`) are sent
-by number, not again (:class:`_PartsWriter`).
+draws only its rows). Pixels never depend on one another, so the joined frame equals
+``render_scene``'s bit for bit. The cut between the bands follows the measured times of the
+previous frame, so both halves end together. :meth:`BandRenderer.begin` starts the helper's band
+of a frame early (during the viewport's reduced frame); the helper keeps the last scene, so a
+view change sends only the camera, and the parts of it a changed scene shares
+(:func:`~blendlib.core.scene.reuse_unchanged`) are sent by number, not again (:class:`_PartsWriter`).
+
+Requests and replies are pickled messages over a :mod:`multiprocessing.connection` pair
+(``send_bytes`` / ``recv_bytes`` frame them; ``wait`` polls while ``should_cancel`` is
+checked). The helper's rows come back through an anonymous shared file (``memfd_create``):
+nothing named is left behind if either process dies. Its first byte is the stop flag, which
+the helper reads between chunks.
 
 Frames below :data:`MIN_PIXELS`, renders with other options, and machines where the helper
 cannot run (one core, Windows, a helper that failed) go to ``render_scene`` unchanged.
@@ -27,8 +32,6 @@ import io
 import mmap
 import os
 import pickle
-import select
-import struct
 import subprocess
 import sys
 import tempfile
@@ -36,26 +39,29 @@ import threading
 import time
 import weakref
 from collections.abc import Callable
+from multiprocessing import Pipe
+from multiprocessing.connection import Connection, wait
 
 import numpy as np
 
-from blendlib.core import allocator, pipeline
-from blendlib.core.pipeline import Frame, RenderCancelled
-from blendlib.core.scene import DrawScene, SceneError, SceneMemo, scene_parts
+from ..core import pipeline
+from ..core.records import Frame, RenderCancelled
+from ..core.scene import DrawScene, SceneError, SceneMemo, scene_parts
+from . import allocator
 
 #: Frames of fewer pixels render in one process: the hand-over (pickling the scene, copying the
-#: helper's rows back: about 3 ms at 960x540) outweighs the half frame it saves.
+#: helper's rows back) outweighs the half frame it saves (docs/benchmark.md, "Why the constants
+#: are what they are").
 MIN_PIXELS = 200_000
 
 #: Fragments per chunk in a band render. Smaller than ``render_scene``'s default: with no other
 #: thread contending for the interpreter lock, arrays that stay in the core's own 1 MB L2 cache
-#: pay (960x540 example scenes: blend_modes 75 -> 63 ms, self_overlap 86 -> 72 ms, gamma_linear
-#: 41 -> 35 ms per split frame against 1 << 17).
+#: pay (docs/benchmark.md, "Why the constants are what they are").
 BAND_CHUNK_CANDIDATES = 1 << 15
 
-#: Bytes before the pixel data in the shared file; byte 0 is the stop flag the helper polls.
+#: Bytes before the pixel data in the shared file; byte 0 is the stop flag the helper polls
+#: (the shared memory, not a message: the helper reads it between chunks without waiting).
 _HEAD = 64
-_LENGTH = struct.Struct("<Q")
 #: How often a waiting render polls ``should_cancel`` (seconds).
 _POLL_S = 0.01
 
@@ -74,35 +80,14 @@ def _band_views(buffer: mmap.mmap, rows: int, width: int) -> tuple[np.ndarray, n
     return color, depth, stencil
 
 
-def _write(stream, data: bytes) -> None:
-    stream.write(_LENGTH.pack(len(data)))
-    stream.write(data)
-    stream.flush()
+def _send(conn: Connection, message) -> None:
+    """Send one pickled message (a request's scene parts go through :class:`_PartsWriter`)."""
+    conn.send_bytes(pickle.dumps(message, protocol=pickle.HIGHEST_PROTOCOL))
 
 
-def _send(stream, message) -> None:
-    _write(stream, pickle.dumps(message, protocol=pickle.HIGHEST_PROTOCOL))
-
-
-def _read(stream, arrived: list[float] | None = None) -> bytes | None:
-    """The next message's bytes, or None at the end of the stream; appends to ``arrived`` the
-    ``perf_counter`` time its first bytes came (the wait for them excluded)."""
-    head = stream.read(_LENGTH.size)
-    if len(head) < _LENGTH.size:
-        return None
-    if arrived is not None:
-        arrived.append(time.perf_counter())
-    (n,) = _LENGTH.unpack(head)
-    data = stream.read(n)
-    if len(data) < n:
-        return None
-    return data
-
-
-def _receive(stream, arrived: list[float] | None = None):
-    """The next message, or None at the end of the stream (see :func:`_read`)."""
-    data = _read(stream, arrived)
-    return None if data is None else pickle.loads(data)
+def _receive(conn: Connection):
+    """The next message; raises EOFError when the other process closed its end (or died)."""
+    return pickle.loads(conn.recv_bytes())
 
 
 class _PartsWriter:
@@ -111,8 +96,8 @@ class _PartsWriter:
     from an earlier request is sent as its number.
 
     After :func:`~blendlib.core.scene.reuse_unchanged` a changed scene shares most parts with
-    the last one: such a request carries the changed parts only (pickling a 960x540 template's
-    meshes cost the viewport's reduced frame 1-2.5 ms), and the helper's memo keeps what it
+    the last one: such a request carries the changed parts only (pickling a template's meshes
+    again was a noticeable share of the viewport's reduced frame), and the helper's memo keeps what it
     derived from the rest. A message is: the numbers the helper may forget, then each new part
     as (number, part) with the parts it holds as numbers, then the request. The numbers kept are
     those of the parts of the last scene sent, on both sides.
@@ -181,7 +166,13 @@ def _same_but_camera(scene: DrawScene, other: DrawScene | None) -> bool:
 
 
 def _anonymous_file() -> int:
-    """A file descriptor of a file with no name (nothing to clean up if this process dies)."""
+    """A file descriptor of a file with no name, the band's shared memory.
+
+    ``memfd_create`` (Linux), else an unlinked temporary file: nothing has a name, so nothing
+    is left behind when either process dies, however it dies (a named segment of
+    ``multiprocessing.shared_memory`` outlives a crash, and its resource tracker is another
+    process to run).
+    """
     if hasattr(os, "memfd_create"):
         return os.memfd_create("unity-passes-bands")
     handle = tempfile.TemporaryFile()
@@ -191,7 +182,9 @@ def _anonymous_file() -> int:
 
 
 class _Helper:
-    """One helper process (``python -m blendlib.core.bandprocs FD``) and the file it shares."""
+    """One helper process (``python -m blendlib.runtime.bandprocs CONN FD``), the connection
+    to it (a :func:`multiprocessing.Pipe`: length-framed messages over a socket pair whose
+    other end the helper inherits as descriptor CONN) and the file FD it shares."""
 
     def __init__(self) -> None:
         self.fd = _anonymous_file()
@@ -201,26 +194,34 @@ class _Helper:
         # The helper imports blendlib and numpy from wherever this process found them (a venv,
         # Blender's bundled Python plus the extension's wheels).
         env["PYTHONPATH"] = os.pathsep.join(p for p in sys.path if p and os.path.isdir(p))
-        self.proc = subprocess.Popen(
-            [sys.executable, "-m", "blendlib.core.bandprocs", str(self.fd)],
-            stdin=subprocess.PIPE, stdout=subprocess.PIPE, pass_fds=(self.fd,), env=env,
-        )
+        self.conn, theirs = Pipe()
+        try:
+            self.proc = subprocess.Popen(
+                [sys.executable, "-m", "blendlib.runtime.bandprocs", str(theirs.fileno()), str(self.fd)],
+                stdin=subprocess.DEVNULL, pass_fds=(theirs.fileno(), self.fd), env=env,
+            )
+        except OSError:
+            self.conn.close()
+            os.close(self.fd)
+            raise
+        finally:
+            theirs.close()  # the helper's copy stays open: its end closes when it exits
         self.ready = False
         self.closed = False
         #: The last scene sent: the helper keeps it, so a frame that differs only in its camera
-        #: sends just the camera (pickling a scene takes 1-2 ms of a 60 ms frame).
+        #: sends just the camera (pickling a whole scene is a noticeable part of a frame).
         self.scene: DrawScene | None = None
         #: The scene parts the helper holds (a changed scene sends only its new parts).
         self.parts = _PartsWriter()
 
     def poll_ready(self, timeout: float = 0.0) -> bool:
         """Whether the helper has started (read its hello if it has arrived)."""
-        if not self.ready and self.proc.poll() is None and self.readable(timeout):
-            self.ready = _receive(self.proc.stdout) == ("ready",)
+        if not self.ready and self.proc.poll() is None and self.conn.poll(timeout):
+            try:
+                self.ready = _receive(self.conn) == ("ready",)
+            except (OSError, EOFError, pickle.UnpicklingError):
+                self.ready = False
         return self.ready and self.proc.poll() is None
-
-    def readable(self, timeout: float) -> bool:
-        return bool(select.select([self.proc.stdout], [], [], timeout)[0])
 
     def reserve(self, size: int) -> mmap.mmap:
         """The shared file grown to at least ``size`` bytes, mapped here."""
@@ -233,34 +234,27 @@ class _Helper:
         return self.buffer
 
     def close(self) -> None:
-        """End the process and release the file, once (the descriptor's number may be reused after)."""
+        """End the process (it exits when its end of the connection sees ours close) and release
+        the file, once (the descriptor's number may be reused after)."""
         if self.closed:
             return
         self.closed = True
-        _shutdown(self.proc, self.fd)
+        try:
+            self.conn.close()
+            self.proc.wait(timeout=2.0)
+        except (OSError, subprocess.TimeoutExpired):
+            self.proc.kill()
+            self.proc.wait()
+        finally:
+            try:
+                os.close(self.fd)
+            except OSError:
+                pass
         if self.buffer is not None:
             try:
                 self.buffer.close()
             except BufferError:  # a view of the last frame is still referenced: freed with it
                 pass
-
-
-def _shutdown(proc: subprocess.Popen, fd: int) -> None:
-    """End the helper (it exits when its input closes) and release the shared file."""
-    try:
-        if proc.stdin is not None:
-            proc.stdin.close()
-        proc.wait(timeout=2.0)
-    except (OSError, subprocess.TimeoutExpired):
-        proc.kill()
-        proc.wait()
-    finally:
-        if proc.stdout is not None:
-            proc.stdout.close()
-        try:
-            os.close(fd)
-        except OSError:
-            pass
 
 
 @dataclasses.dataclass(eq=False)
@@ -434,7 +428,7 @@ class BandRenderer:
         else:
             request = ("scene", scene, cut, height, BAND_CHUNK_CANDIDATES)
         try:
-            _write(helper.proc.stdin, helper.parts.dumps(request, scene if request[0] == "scene" else None))
+            helper.conn.send_bytes(helper.parts.dumps(request, scene if request[0] == "scene" else None))
         except (OSError, ValueError) as exc:
             self._fail(f"helper process stopped: {exc}")
             return None
@@ -505,15 +499,12 @@ class BandRenderer:
         """The helper's answer, polling ``should_cancel`` meanwhile (True sets the stop flag);
         None if the helper died (then it is not used again)."""
         try:
-            while not helper.readable(_POLL_S):
+            while not wait([helper.conn], _POLL_S):
                 if helper.proc.poll() is not None:
                     raise EOFError
                 if buffer is not None and should_cancel is not None and buffer[0] == 0 and should_cancel():
                     buffer[0] = 1
-            reply = _receive(helper.proc.stdout)
-            if reply is None:
-                raise EOFError
-            return reply
+            return _receive(helper.conn)  # EOFError when the helper died (its end closed)
         except (OSError, ValueError, EOFError, pickle.UnpicklingError):
             self._fail(f"helper process exited with code {helper.proc.poll()}")
             return None
@@ -534,24 +525,29 @@ def balanced_fraction(fraction: float, cut: int, height: int, own_s: float, help
     return min(max(0.5 * fraction + 0.5 * target / height, 0.05), 0.95)
 
 
-def serve(fd: int) -> int:
+def serve(conn_fd: int, fd: int) -> int:
     """The helper's loop: read ("scene", scene, y0, y1, chunk) or ("view", camera, y0, y1, chunk)
-    requests (the latter: the last scene seen through ``camera``), draw band [y0, y1) into the
-    shared file ``fd``, answer ("ok", seconds since the request arrived), ("cancelled",),
-    ("error", line) or ("failed", line)."""
+    requests (the latter: the last scene seen through ``camera``) from the connection on
+    descriptor ``conn_fd``, draw band [y0, y1) into the shared file ``fd``, answer ("ok", seconds
+    since the request arrived), ("cancelled",), ("error", line) or ("failed", line). Returns 0
+    when the parent closes its end, whether it waits for a request or answers one."""
     allocator.keep_freed_memory()  # every frame allocates the same arrays again (allocator.py)
-    replies = os.fdopen(os.dup(1), "wb")
-    os.dup2(2, 1)  # anything printed goes to stderr, never into the replies
-    requests = sys.stdin.buffer
-    _send(replies, ("ready",))
+    os.dup2(2, 1)  # anything printed goes to stderr, never into the parent's own output
+    conn = Connection(conn_fd)
+    try:
+        _send(conn, ("ready",))
+    except OSError:  # the parent closed its end before this process started
+        return 0
     buffer: mmap.mmap | None = None
     scene: DrawScene | None = None
     memo = SceneMemo()
     parts = _PartsReader()
     while True:
-        arrived: list[float] = []
-        data = _read(requests, arrived)
-        if data is None:
+        try:
+            conn.poll(None)  # until the request's first bytes (or the end) arrive
+            arrived = time.perf_counter()
+            data = conn.recv_bytes()
+        except EOFError:
             return 0
         kind, content, y0, y1, chunk = parts.loads(data)
         try:
@@ -571,7 +567,7 @@ def serve(fd: int) -> int:
             pipeline.render_scene(scene, band=(y0, y1), workers=1, chunk_candidates=chunk,
                                   should_cancel=lambda stop=buffer: stop[0] != 0,
                                   out=_band_views(buffer, y1 - y0, width), memo=memo)
-            reply = ("ok", time.perf_counter() - arrived[0])
+            reply = ("ok", time.perf_counter() - arrived)
         except RenderCancelled:
             reply = ("cancelled",)
         except SceneError as exc:
@@ -579,8 +575,11 @@ def serve(fd: int) -> int:
             reply = ("error", str(exc))
         except Exception as exc:  # noqa: BLE001 - reported to the parent, which renders alone from then on
             reply = ("failed", f"{type(exc).__name__}: {exc}")
-        _send(replies, reply)
+        try:
+            _send(conn, reply)
+        except OSError:  # the parent closed its end meanwhile (it dropped the band and ended us)
+            return 0
 
 
 if __name__ == "__main__":
-    sys.exit(serve(int(sys.argv[1])))
+    sys.exit(serve(int(sys.argv[1]), int(sys.argv[2])))

@@ -1,4 +1,4 @@
-"""The viewport's worker: reduced frame first, then full; stale work cancelled; matrices → Camera.
+"""The viewport's worker (blendlib.runtime.scheduler): reduced frame first, then full; stale work cancelled.
 
 bpy-free: the scheduler renders DrawScenes built by hand (the add-on extracts them on the
 main thread), with the core renderer or a stand-in that blocks to expose the timing.
@@ -12,13 +12,10 @@ import threading
 import numpy as np
 import pytest
 
-from blendlib import render_scene
-from blendlib.blender import viewport
-from blendlib.blender.viewport import ViewportScheduler, camera_from_matrices, reduced_size
-from blendlib.core.pipeline import RenderCancelled
-from blendlib.core.scene import SceneError
+from blendlib import RenderCancelled, SceneError, render_scene
+from blendlib.runtime import scheduler
+from blendlib.runtime.scheduler import ViewportScheduler, reduced_size
 from tests.reference.random_scenes import seeded_scene
-from tests.reference.scenes import look_at, orthographic, perspective
 
 WAIT = 30.0
 
@@ -165,32 +162,6 @@ def test_render_errors_are_kept_and_the_worker_lives_on():
         sched.submit(scene_at(20, 10), "closed")
 
 
-def test_camera_from_matrices():
-    view = look_at((3, -5, 2), (0, 0, 0), (0, 0, 1))
-    persp = perspective(50, 4 / 3, 0.5, 40)
-    cam = camera_from_matrices(view, persp, 40, 30)
-    assert not cam.orthographic and (cam.width, cam.height) == (40, 30)
-    np.testing.assert_allclose(cam.position, (3, -5, 2), atol=1e-12)  # the sort position
-    ortho = camera_from_matrices(view.tolist(), orthographic(8, 6), 40, 30)
-    assert ortho.orthographic
-    for bad in (np.eye(3), [[1, 2], [3, 4]], "matrix", np.full((4, 4), np.nan)):
-        with pytest.raises(SceneError, match="4x4"):
-            camera_from_matrices(bad, persp, 40, 30)
-    with pytest.raises(SceneError, match="integers"):
-        camera_from_matrices(view, persp, 40.0, 30)
-    with pytest.raises(SceneError, match="singular"):
-        camera_from_matrices(np.zeros((4, 4)), persp, 40, 30)
-
-
-def test_camera_frame_rect():
-    # corners of a frame that the perspective maps to NDC x in [-0.5, 0.5], y in [-0.5, 0.5]
-    corners = np.array([[0.5, 0.5, 0.0], [0.5, -0.5, 0.0], [-0.5, -0.5, 0.0], [-0.5, 0.5, 0.0]])
-    assert viewport.camera_frame_rect(corners, np.eye(4), 200, 100) == (50, 25, 100, 50)
-    shifted = np.eye(4)
-    shifted[0, 3] = 0.5  # NDC x + 0.5: a quarter of the region to the right
-    assert viewport.camera_frame_rect(corners, shifted, 200, 100) == (100, 25, 100, 50)
-
-
 @pytest.mark.parametrize("begin_after_work_s", [0.0, 60.0])
 def test_the_helper_begins_heavy_full_frames_while_the_reduced_frame_renders(begin_after_work_s):
     """With a reduced stage, once a split frame took ``begin_after_work_s`` or more the
@@ -225,7 +196,7 @@ def test_the_helper_begins_heavy_full_frames_while_the_reduced_frame_renders(beg
 
 
 def test_the_scheduler_splits_large_frames_in_two_processes_and_ends_its_helper():
-    """By default the scheduler renders through a BandRenderer of its own (blendlib.core.bandprocs):
+    """By default the scheduler renders through a BandRenderer of its own (blendlib.runtime.bandprocs):
     a large frame comes out split and equal to render_scene; close() ends the helper."""
     done = threading.Event()
     sched = ViewportScheduler(on_ready=done.set, min_pixels=1 << 30)  # full frames only
@@ -252,10 +223,10 @@ def test_begins_early_only_after_a_heavy_split_frame():
         last_work_s = None
 
     bands = Bands()
-    assert not viewport.begins_early(bands, 0.1)  # no split frame measured yet
-    assert not viewport.begins_early(None, 0.0)  # no helper (a stand-in renderer)
+    assert not scheduler.begins_early(bands, 0.1)  # no split frame measured yet
+    assert not scheduler.begins_early(None, 0.0)  # no helper (a stand-in renderer)
     bands.last_work_s = 0.0999
-    assert not viewport.begins_early(bands, 0.1)
+    assert not scheduler.begins_early(bands, 0.1)
     bands.last_work_s = 0.1
-    assert viewport.begins_early(bands, 0.1)
-    assert viewport.begins_early(bands) == (0.1 >= viewport.BEGIN_AFTER_WORK_S)
+    assert scheduler.begins_early(bands, 0.1)
+    assert scheduler.begins_early(bands) == (0.1 >= scheduler.BEGIN_AFTER_WORK_S)

@@ -4,11 +4,10 @@ A render allocates the same large arrays chunk after chunk and frame after frame
 ``malloc`` by default serves arrays over its (adaptive, 128 KiB to 32 MiB) mmap threshold
 with fresh mappings and gives freed memory at the top of the heap back to the system beyond
 its trim threshold; either way the next allocation gets fresh pages, which the kernel must
-zero on first touch. Measured on the 2-core machine, in a process that also extracts scenes
-and renders other frames between viewport frames (the benchmark's viewport loop): blend_modes
-960x540 by one process 158 -> 103 ms, its reduced frame 44 -> 24 ms. Blender's own Linux
-build links jemalloc, which keeps freed pages for reuse anyway; the ``bpy`` module from PyPI
-and a plain Python use glibc.
+zero on first touch: in a process that also extracts scenes and renders other frames between
+viewport frames, that zeroing was a large part of a viewport frame's time (docs/benchmark.md,
+"Why the constants are what they are"). Blender's own Linux build links jemalloc, which keeps
+freed pages for reuse anyway; the ``bpy`` module from PyPI and a plain Python use glibc.
 
 :func:`keep_freed_memory` is for processes this project owns (the band helper, the command
 line, the benchmark's workers); the library never changes the allocator of a process that

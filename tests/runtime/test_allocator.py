@@ -1,4 +1,4 @@
-"""blendlib.core.allocator: glibc keeps freed arrays for reuse in processes that ask for it.
+"""blendlib.runtime.allocator: glibc keeps freed arrays for reuse in processes that ask for it.
 
 Each check runs in a fresh Python process: the allocator settings are per process, and the
 test process's own must not depend on test order.
@@ -19,7 +19,7 @@ pytestmark = pytest.mark.skipif(platform.system() != "Linux" or platform.libc_ve
 PROBE = """
 import ctypes, sys
 import numpy as np
-from blendlib.core.allocator import keep_freed_memory
+from blendlib.runtime.allocator import keep_freed_memory
 class MallInfo2(ctypes.Structure):
     _fields_ = [(n, ctypes.c_size_t) for n in ("arena", "ordblks", "smblks", "hblks", "hblkhd", "usmblks",
                                                  "fsmblks", "uordblks", "fordblks", "keepcost")]

@@ -1,4 +1,5 @@
-"""Frames split across processes (blendlib.core.bandprocs) and render_scene's ``band``.
+"""Frames split across processes (blendlib.runtime.bandprocs); render_scene's ``band`` itself
+is tested in tests/core/test_band_renders.py.
 
 The split frame must equal one render_scene bit for bit, whatever the cut; the helper process
 must stop on cancel, survive errors and, when it dies, leave frames to this process.
@@ -14,11 +15,10 @@ import pickle
 import numpy as np
 import pytest
 
-from blendlib import render_scene
-from blendlib.core import bandprocs, raster
-from blendlib.core.bandprocs import BandRenderer, balanced_fraction
-from blendlib.core.pipeline import RenderCancelled
-from blendlib.core.scene import SceneError, reuse_unchanged, scene_parts
+from blendlib import RenderCancelled, SceneError, render_scene
+from blendlib.core.scene import reuse_unchanged, scene_parts
+from blendlib.runtime import bandprocs
+from blendlib.runtime.bandprocs import BandRenderer, balanced_fraction
 from tests.reference.random_scenes import seeded_scene
 
 WAIT = 30.0
@@ -45,71 +45,12 @@ def bands():
     renderer.close()
 
 
-@pytest.mark.parametrize("seed", [1, 4, 7, 12])
-def test_band_renders_are_the_rows_of_the_full_frame(seed):
-    """render_scene(band=...) draws exactly the full frame's rows, for cuts at the edges too
-    (stencil, blending and depth writes of random scenes)."""
-    draw = scene_at(seed)
-    full = render_scene(draw, workers=1)
-    height = draw.camera.height
-    for cut in (1, 17, height // 2, height - 1):
-        low = render_scene(draw, workers=1, band=(0, cut))
-        high = render_scene(draw, workers=2, band=(cut, height))
-        assert low.color.shape == (cut, draw.camera.width, 4)
-        np.testing.assert_array_equal(np.concatenate([high.color, low.color]), full.color)
-        np.testing.assert_array_equal(np.concatenate([high.depth, low.depth]), full.depth)
-        np.testing.assert_array_equal(np.concatenate([high.stencil, low.stencil]), full.stencil)
-        assert low.warnings == full.warnings == high.warnings
-
-
-def test_coverage_rows_in_a_band_are_the_full_rows_there():
-    draw = scene_at(5, 64, 40)
-    from blendlib.core import vertex
-    from blendlib.core.pipeline import _setup_input
-
-    renderer = next(r for r in draw.renderers if r.mesh.triangle_count)
-    setup = vertex.setup_renderers([_setup_input(renderer)], draw.camera)[0]
-    selected = np.arange(setup.X.shape[0], dtype=np.int64)
-    full = raster.coverage_rows(setup, selected, 64, 40)
-    part = raster.coverage_rows(setup, selected, 64, 40, band=(9, 23))
-    keep = (full.y >= 9) & (full.y < 23)
-    assert 0 < part.count < full.count
-    for name in raster.Rows.__dataclass_fields__:
-        np.testing.assert_array_equal(getattr(part, name), getattr(full, name)[keep])
-
-
-def test_bad_bands_are_one_line_errors():
-    draw = scene_at(2)
-    for band in ((0, 0), (-1, 4), (10, 49), (30, 20)):
-        with pytest.raises(SceneError, match="band"):
-            render_scene(draw, band=band)
-
-
 @pytest.mark.parametrize("seed", [1, 3, 4, 7, 9, 12])
 def test_split_frames_equal_render_scene(bands, seed):
     draw = scene_at(seed)
     before = bands.split_frames
     assert_same_frame(bands(draw), render_scene(draw))
     assert bands.split_frames == before + 1
-
-
-def test_band_renders_write_into_given_arrays():
-    """``out``: a band goes straight into its rows of a whole frame's arrays."""
-    draw = scene_at(7)
-    full = render_scene(draw, workers=1)
-    height, width = draw.camera.height, draw.camera.width
-    color = np.full((height, width, 4), -1.0, dtype=np.float32)
-    depth = np.full((height, width), -1.0, dtype=np.float32)
-    stencil = np.full((height, width), 7, dtype=np.uint8)
-    cut = 20  # buffer rows [0, 20) are the bottom 20 rows of the image
-    frame = render_scene(draw, band=(0, cut), out=(color[height - cut:], depth[height - cut:], stencil[height - cut:]))
-    assert np.shares_memory(frame.color, color) and np.shares_memory(frame.stencil, stencil)
-    np.testing.assert_array_equal(color[height - cut:], full.color[height - cut:])
-    np.testing.assert_array_equal(depth[height - cut:], full.depth[height - cut:])
-    np.testing.assert_array_equal(stencil[height - cut:], full.stencil[height - cut:])
-    assert np.all(color[:height - cut] == -1.0) and np.all(stencil[:height - cut] == 7)  # other rows untouched
-    with pytest.raises(ValueError, match="out array"):
-        render_scene(draw, band=(0, cut), out=(color, depth[height - cut:], stencil[height - cut:]))
 
 
 def moved(camera, dx: float):

@@ -1,0 +1,282 @@
+"""Chunk shading (docs/pipeline.md §5–§7): rows of one draw call → :class:`.records.ShadedFragments`.
+
+A chunk of a call's covered rows is rasterised (:mod:`.raster`), interpolated and shaded
+(:mod:`.shade`) and alpha-tested, taking the cheapest path that gives the per-fragment
+arithmetic's result bit for bit:
+
+- :func:`shade_chunk`: triangles whose shading inputs are constant are shaded once per
+  triangle; Point-filtered textured triangles with a constant normal take their colour from a
+  texel palette (one colour per normal and texel); the rest are shaded per fragment.
+- :func:`shade_constant_chunk`: every fragment takes a colour known per triangle (fused
+  constant-colour calls, :mod:`.fuse`), or no colour at all.
+- :func:`shade_colourless_chunk`: a pass that writes no colour and has no alpha test (a depth
+  prepass): pixels and depth only; observers read its colours lazily.
+
+Every chunk shader is a :data:`ChunkShader`: rows ``[start, stop)`` of a call's
+:class:`~.raster.Rows` over its setup, under its :class:`~.records.DrawState` → the chunk's
+fragments in primitive order, or None when the rows cover no pixel.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from . import raster, shade
+from .merger import table_pays
+from .records import DrawState, ShadedFragments
+from .vertex import TriangleSetup
+from .vocabulary import ColorSpace, TextureFilter
+
+#: ``shade(setup, rows, start, stop, state)``: a chunk of a draw call's rows → its shaded fragments.
+ChunkShader = Callable[[TriangleSetup, raster.Rows, int, int, DrawState], ShadedFragments | None]
+
+
+#: A texel palette (one colour per normal and texel, :func:`shade.texel_palette`) replaces
+#: per-fragment shading when it has at most this share of the fragments it serves.
+TEXEL_PALETTE_SHARE = 4
+#: Textures up to this many texels are examined for repeated texels (a palette entry each).
+TEXEL_PALETTE_EXAMINE = 1 << 14
+
+
+def _texel_groups(state: DrawState, candidates: np.ndarray, normals, counts) -> tuple[np.ndarray, np.ndarray] | None:
+    """Point-filtered triangles whose normal is constant: their colour is a function of
+    (normal, texel). Returns ``(normals (G, 3), group (K,) int64 per triangle)`` when a palette
+    of G * (distinct texels) colours is cheaper than shading the candidates' fragments, else None."""
+    served = int(counts[candidates].sum())
+    h, w = state.texels.shape[:2]
+    # Finding the distinct texels of a large texture costs more than it can save unless even
+    # its full size would pay: only small textures are examined for repeated texels.
+    if h * w > TEXEL_PALETTE_EXAMINE and h * w * TEXEL_PALETTE_SHARE > served:
+        return None
+    texel_count = state.texels.distinct()[0].size
+    if texel_count * TEXEL_PALETTE_SHARE > served:
+        return None
+    if normals is None:  # Unlit: the colour depends on the texel alone
+        return np.zeros((1, 3), dtype=np.float64), np.zeros(candidates.size, dtype=np.int64)
+    corner = np.ascontiguousarray(normals[candidates, 0])
+    # Distinct by bytes, not value: -0.0 and 0.0 (or NaNs) stay apart, so each group's normal is
+    # bit for bit the one its fragments would be shaded with.
+    _, where, inverse = np.unique(corner.view(np.dtype((np.void, corner.itemsize * 3))).reshape(-1),
+                                  return_index=True, return_inverse=True)
+    if where.size * texel_count * TEXEL_PALETTE_SHARE > served:
+        return None
+    group = np.zeros(candidates.size, dtype=np.int64)
+    group[candidates] = inverse.reshape(-1)
+    return corner[where], group
+
+
+def distinct_colors(colors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``np.unique(colors, axis=0, return_inverse=True)`` of (K, 4) float64 colours, without its
+    sort when every row has the same bytes (an unlit or evenly lit mesh: the common case)."""
+    bits = np.ascontiguousarray(colors).view(np.int64)
+    if np.isfinite(colors).all() and (bits == bits[:1]).all():
+        return colors[:1], np.zeros(colors.shape[0], dtype=np.int64)
+    return np.unique(colors, axis=0, return_inverse=True)
+
+
+def alpha_test(rgba: np.ndarray | None, ids: np.ndarray | None, palette: np.ndarray | None,
+                cutoff: float) -> np.ndarray:
+    """(N,) bool: the fragments that survive ``clip(alpha - _Cutoff)``, their colours given as
+    in :class:`ShadedFragments` (``rgba``, or ``palette[ids]`` where ``ids >= 0``)."""
+    if ids is None:
+        alpha = rgba[:, 3]
+    elif rgba is None:
+        alpha = np.take(palette[:, 3], ids)
+    else:
+        alpha = np.where(ids >= 0, palette[np.maximum(ids, 0), 3], rgba[:, 3])
+    return ~(alpha - float(cutoff) < 0)
+
+
+def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedFragments | None:
+    """Raster + interpolate + shade + alpha test of rows [start, stop), in draw order.
+
+    Triangles whose inputs to shading are constant (no texture or flat UVs, Unlit or flat
+    normals: docs/pipeline.md §6) are shaded once per triangle; Point-filtered textured
+    triangles with a constant normal take their colour from a palette shaded once per
+    (normal, texel); the others are shaded once per fragment. Work per source triangle
+    (runs, flatness, table ids) is done per row and expanded.
+    """
+    p, material, texels = state.pass_state, state.material, state.texels
+    length = rows.length[start:stop]
+    n = int(length.sum())
+    if n == 0:
+        return None
+    # Rows come in triangle order: each source triangle's rows (so fragments) form one run.
+    row_src = setup.src[rows.tri[start:stop]]
+    first = np.ones(row_src.size, dtype=bool)
+    first[1:] = row_src[1:] != row_src[:-1]
+    run_of_row = np.cumsum(first) - 1
+    tris = row_src[first]  # (K,) the source triangles of this chunk
+    uvs = setup.uvs_of(tris) if texels is not None and setup.object_uvs is not None else None
+    normals = setup.world_normals_of(tris) if setup.object_normals is not None else None
+    flat = np.ones(tris.size, dtype=bool)  # shading inputs constant over the triangle (§6)
+    uv_flat = normal_flat = None
+    if uvs is not None:
+        uv_flat = raster.flat_corners(uvs)
+        flat &= uv_flat
+    if normals is not None:
+        normal_flat = raster.flat_corners(normals)
+        flat &= normal_flat
+    any_varying = not bool(np.all(flat))
+    counts = np.add.reduceat(length, np.flatnonzero(first))  # (K,) fragments per triangle
+    groups = None  # texel-palette groups (normals (G, 3), group (K,)) and the triangles they serve
+    if any_varying and uvs is not None and material.main_tex_filter is TextureFilter.Point:
+        candidates = ~uv_flat if normal_flat is None else ~uv_flat & normal_flat
+        if np.any(candidates):
+            groups = _texel_groups(state, candidates, normals, counts)
+            tabled = candidates
+    want_depth = state.depth_needed(rows, start, stop)
+    frags = raster.rasterize_rows(rows, start, stop, state.width, bary=want_depth or any_varying)
+    depth = weights = None
+    if frags.bary is not None:
+        depth, weights = raster.interpolate(setup, frags, p.offset_factor, p.offset_units,
+                                            weights=any_varying, depth=want_depth)
+    rgba = np.empty((n, 4), dtype=np.float64)
+    palettes: list[np.ndarray] = []  # colours fragments take by id: per flat triangle, per texel
+    ids = None  # (N,) int32 palette entry of each fragment, -1 for those shaded one by one
+    tabled_count = 0  # fragments with an id
+    row_flat = flat[run_of_row]
+    constant = None if not any_varying else np.repeat(row_flat, length)
+
+    def shade_at(uv: np.ndarray | None, normal: np.ndarray | None, count: int) -> np.ndarray:
+        uv = np.zeros((count, 2), dtype=np.float64) if uv is None else uv
+        normal = np.zeros((count, 3), dtype=np.float64) if normal is None else normal
+        return shade.shade(material, texels, state.lights, state.color_space, uv, normal)
+
+    if np.any(flat):
+        const_tris = np.nonzero(flat)[0]
+        colors = shade_at(None if uvs is None else uvs[const_tris, 0],
+                          None if normals is None else normals[const_tris, 0], const_tris.size)
+        # Triangles of one colour (an unlit mesh, a flat-lit plane) share one palette entry.
+        colors, inverse = distinct_colors(colors)
+        palettes.append(colors)
+        slot = np.full(tris.size, -1, dtype=np.int32)
+        slot[const_tris] = inverse.reshape(-1)
+        ids = np.repeat(slot[run_of_row], length)
+        tabled_count = n if not any_varying else int(counts[flat].sum())
+    if any_varying:
+        # Varying fragments are exactly those of the non-flat triangles: whole runs.
+        every = not np.any(flat)  # e.g. a smooth mesh: no masked copies needed
+        keep = slice(None) if every else ~flat
+        at = slice(None) if every else np.flatnonzero(~constant)  # their places in the chunk
+        w = weights if every else weights[:, ~constant]
+        # Channels first: each coordinate contiguous for the texel lookups (uv (2, M)).
+        uv = None if uvs is None else raster.interpolate_runs(w, uvs[keep], counts[keep], uv_flat[keep],
+                                                              channels_first=True)
+        if groups is not None:
+            palette_normals, group = groups
+            first_texel, of_texel = texels.distinct()
+            by_texel = np.repeat(tabled[keep], counts[keep])
+            every_texel = bool(by_texel.all())
+            u, v = (uv[0], uv[1]) if every_texel else (uv[0][by_texel], uv[1][by_texel])
+            u, v = shade.texture_uv_of(material, u, v)
+            texel = np.take(of_texel, shade.point_texel_index_of(texels, u, v, material.main_tex_wrap))
+            base = (sum(part.shape[0] for part in palettes) + group * first_texel.size).astype(np.int32)  # (K,)
+            texel += np.repeat(base[tabled], counts[tabled])
+            tabled_count += int(counts[tabled].sum())
+            places = np.arange(n)[at]  # of the non-flat fragments, in the chunk
+            if ids is None and every and every_texel:
+                ids = texel
+            else:
+                if ids is None:
+                    ids = np.full(n, -1, dtype=np.int32)
+                ids[places[by_texel]] = texel
+            palettes.append(shade.texel_palette(material, texels, state.lights, state.color_space, palette_normals))
+            keep = ~flat & ~tabled
+            shaded = ~by_texel
+            at = places[shaded]
+            w = w[:, shaded]
+            uv = uv[:, shaded]
+        if w.shape[1]:
+            normal = None if normals is None else raster.interpolate_runs(
+                w, normals[keep], counts[keep], normal_flat[keep], channels_first=True).T
+            rgba[at] = shade_at(None if uv is None else uv.T, normal, w.shape[1])
+    palette = None
+    if palettes:
+        palette = palettes[0] if len(palettes) == 1 else np.concatenate(palettes)
+        # 8-bit blending of a constant colour is a function of the destination code: tabulate
+        # it (256 rows per colour, one without Blend) when that is cheaper than blending every fragment.
+        if table_pays(p, state.hdr, state.color_space is ColorSpace.Linear, palette, tabled_count):
+            if tabled_count == n:
+                rgba = None  # every colour comes from the palette
+        else:
+            if tabled_count == n:
+                rgba = np.take(palette, ids, axis=0)
+            else:
+                tabled_at = ids >= 0
+                rgba[tabled_at] = np.take(palette, ids[tabled_at], axis=0)
+            ids = palette = None
+    alive = alpha_test(rgba, ids, palette, material.cutoff) if p.alpha_test else None
+    triangle_fn = None
+    if state.observed:  # source triangles only when an observer reads them (and only those it reads)
+        def triangle_fn(index: np.ndarray | None) -> np.ndarray:
+            if index is None:
+                return np.repeat(row_src, length)
+            return np.take(row_src, np.searchsorted(np.cumsum(length), index, side="right"))
+    disjoint = raster.rows_disjoint(rows, start, stop, state.width)
+    depth_fn = None
+    if depth is None and state.observed:
+        def depth_fn(index: np.ndarray | None) -> np.ndarray:
+            if index is None:
+                with_bary = frags if frags.bary is not None else raster.rasterize_rows(rows, start, stop, state.width)
+                return raster.interpolate(setup, with_bary, p.offset_factor, p.offset_units, weights=False)[0]
+            # Rasterise only the rows holding fragments ``index``, then pick them out.
+            ends = np.cumsum(length)
+            row = np.searchsorted(ends, index, side="right")
+            used, which = np.unique(row, return_inverse=True)
+            sub = rows.take_rows(start + used)
+            codes = raster.interpolate(setup, raster.rasterize_rows(sub, 0, sub.count, state.width),
+                                       p.offset_factor, p.offset_units, weights=False)[0]
+            sub_first = np.cumsum(sub.length) - sub.length
+            return codes[sub_first[which.reshape(-1)] + (index - (ends - length)[row])]
+    return ShadedFragments(frags.pix, depth, rgba, ids, palette, None, alive, disjoint, depth_fn, triangle_fn)
+
+
+def shade_colourless_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedFragments | None:
+    """:func:`shade_chunk` of a pass that writes no colour and has no alpha test: pixels and
+    depth only (the merger reads no colour of such a pass). Observed, the colours, deferred
+    depths and source triangles an observer reads come from :func:`shade_chunk` of the chunk,
+    run only when read (a pixel history reads the chunks on its pixel; a draw list none)."""
+    light = shade_constant_chunk(setup, rows, start, stop, state, None, None)
+    if light is None or not state.observed:
+        return light
+    full: list[ShadedFragments] = []
+
+    def part(index: np.ndarray | None) -> ShadedFragments:
+        if not full:
+            full.append(shade_chunk(setup, rows, start, stop, state))
+        return full[0] if index is None else full[0].select(index)
+
+    light.colors_fn = lambda index: part(index).colors()
+    light.triangle_fn = lambda index: part(index).triangle
+    if light.stored_depth is None:
+        light.depth_fn = lambda index: part(index).depth
+    return light
+
+
+def shade_constant_chunk(setup, rows, start: int, stop: int, state: DrawState, color_id: np.ndarray | None,
+                         palette: np.ndarray | None) -> ShadedFragments | None:
+    """:func:`shade_chunk` of rows whose every fragment takes a constant colour:
+    ``palette[color_id[tri]]`` for setup triangle ``tri`` (``color_id`` (T,) int32, ``palette``
+    (K, 4) float64), or no colour at all when ``palette`` is None. Depth as there; no weights,
+    no per-fragment shading."""
+    p = state.pass_state
+    length = rows.length[start:stop]
+    n = int(length.sum())
+    if n == 0:
+        return None
+    want_depth = state.depth_needed(rows, start, stop)
+    frags = raster.rasterize_rows(rows, start, stop, state.width, bary=want_depth)
+    depth = None
+    if want_depth:
+        depth = raster.interpolate(setup, frags, p.offset_factor, p.offset_units, weights=False)[0]
+    disjoint = raster.rows_disjoint(rows, start, stop, state.width)
+    if palette is None:
+        return ShadedFragments(frags.pix, depth, None, None, None, None, None, disjoint)
+    ids = raster.run_expander(length, n)(np.take(color_id, rows.tri[start:stop]))
+    rgba, chunk_palette = None, palette
+    if not table_pays(p, state.hdr, state.color_space is ColorSpace.Linear, palette, n):
+        rgba, ids, chunk_palette = np.take(palette, ids, axis=0), None, None  # blended one by one
+    return ShadedFragments(frags.pix, depth, rgba, ids, chunk_palette, None, None, disjoint)

@@ -1,0 +1,295 @@
+"""Preparing draw calls (docs/pipeline.md §1–§4): the derived state of each call, and the setup memo.
+
+Mesa's softpipe computes what the current state implies once per state change
+(``sp_state_derived.c``); here :func:`prepare_batch` does it once per draw call, before any
+fragment is drawn: the renderer's vertex setup (shared by its passes, kept across the
+viewport's frames in the :class:`~.scene.SceneMemo` within the budgets below), the triangles
+its Cull keeps and their covered rows, its :class:`~.records.DrawState` (with the per-triangle
+depth bounds of the hierarchical-Z shortcut) and how its chunks are shaded
+(:func:`chunk_shading`). The result is a :class:`PreparedCall`, which the driver
+(:mod:`.pipeline`) and the fusion of calls (:mod:`.fuse`) pass around whole.
+"""
+
+from __future__ import annotations
+
+import functools
+import threading
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import fragment, raster, shade, vertex
+from .drawlist import DrawCall
+from .fragment import ChunkShader
+from .merger import BlendTables, FrameBuffers
+from .records import DrawState
+from .scene import Camera, SceneMemo
+from .vertex import TriangleSetup
+from .vocabulary import ColorSpace, CompareFunction, Lighting, Material, Pass
+
+
+@dataclass(eq=False)
+class FrameContext:
+    """What the draw calls of one render share (made by :func:`.pipeline.render_scene`):
+    buffers, camera, lights, the thread pool and its stop flag, caches, notes for warnings."""
+
+    buf: FrameBuffers
+    camera: Camera
+    lights: shade.Lights
+    color_space: ColorSpace
+    hdr: bool
+    chunk_candidates: int
+    pool: ThreadPoolExecutor | None
+    workers: int
+    stop_flag: threading.Event
+    observed: bool = False
+    #: Buffer rows ``[y0, y1)`` (y from the bottom) this render draws, or None for all
+    #: (:func:`.pipeline.render_scene`'s ``band``: one process's share of a frame).
+    band: tuple[int, int] | None = None
+    #: Converted textures and (small renderers') setups, kept across renders when render_scene
+    #: is given a memo.
+    memo: SceneMemo = field(default_factory=SceneMemo)
+    #: Whether setups go into the memo (it outlives this render: render_scene was given one).
+    keep_setups: bool = False
+    warnings: list[str] = field(default_factory=list)
+    degenerate: list[tuple[str, int]] = field(default_factory=list)  # (object, zero-area triangles)
+
+    @property
+    def width(self) -> int:
+        return self.buf.width
+
+    @property
+    def height(self) -> int:
+        return self.buf.height
+
+    @functools.cached_property
+    def camera_key(self) -> tuple:
+        """What a kept vertex setup is for: the camera's matrices and size (:func:`_setups`)."""
+        return _camera_key(self.camera)
+
+    def record(self, notes: list[str], degenerate: tuple[str, int] | None) -> None:
+        """What :func:`_setup` found about a renderer, for the frame's warnings (in draw order)."""
+        self.warnings.extend(notes)
+        if degenerate is not None:
+            self.degenerate.append(degenerate)
+
+    def texels_of(self, material: Material):
+        """The material's texture in shading space, converted once per memo (main thread only)."""
+        texture, color_space = material.main_tex, self.color_space
+        if texture is None:
+            return None
+        return self.memo.lookup(("texels", color_space), texture, lambda: shade.texture_texels(texture, color_space))
+
+
+@dataclass(eq=False)
+class PreparedCall:
+    """A draw call ready to draw, the one record the driver and the fusion of calls pass around.
+
+    ``setup``: its renderer's triangle setup; ``selected`` (S,) int64: the setup triangles its
+    Cull keeps; ``rows``: their covered rows; ``state``: its :class:`~.records.DrawState`
+    (``zfloor`` filled in by whoever draws it, per screen band); ``shade``: how a chunk of its
+    rows is rasterised, interpolated and shaded (:data:`~.fragment.ChunkShader`: chosen by
+    :func:`chunk_shading`, or a fused one of :mod:`.fuse`); ``tables``: the blend tables of its
+    palettes, built once and shared by the bands that draw it; ``members``: the calls shaded
+    together and merged one by one (:func:`.fuse.fuse_shared_shading`), each with its own pass,
+    or None (``state`` is then only how the chunks are shaded).
+    """
+
+    call: DrawCall
+    setup: TriangleSetup
+    selected: np.ndarray
+    rows: raster.Rows
+    state: DrawState
+    shade: ChunkShader
+    tables: BlendTables = field(default_factory=BlendTables)
+    members: list[Member] | None = None
+
+
+@dataclass(eq=False)
+class Member:
+    """One draw call of a :class:`PreparedCall` with shared shading: its own state (pass,
+    cutoff), blend tables, and first triangle in the shared setup."""
+
+    state: DrawState
+    tables: BlendTables
+    first: int
+
+
+def chunk_shading(p: Pass) -> ChunkShader:
+    """How the chunks of a call with pass ``p`` are shaded: a pass that writes no colour and
+    has no alpha test (a depth prepass, ``ColorMask 0``) gets fragments without colours (only
+    depth and stencil reach the buffers; an observer's reads are shaded lazily), every other
+    pass :func:`.fragment.shade_chunk`."""
+    if not p.color_mask and not p.alpha_test:
+        return fragment.shade_colourless_chunk
+    return fragment.shade_chunk
+
+
+def setup_input(renderer) -> vertex.SetupInput:
+    """What the vertex setup of ``renderer`` needs: normals only for lit shading, UVs only with a texture."""
+    material = renderer.material
+    return vertex.SetupInput(renderer.mesh, renderer.matrix_world, need_normals=material.lighting is not Lighting.Unlit,
+                             need_uvs=material.main_tex is not None)
+
+
+def _setup_notes(renderer, setup) -> tuple[list[str], tuple[str, int] | None]:
+    """What to tell the user about a renderer's setup: skipped triangles, zero-area ones."""
+    notes = []
+    if setup.skipped_nonfinite:
+        label = f"object {renderer.name!r} slot {renderer.slot}"
+        notes.append(f"{label}: skipped {setup.skipped_nonfinite} triangles with non-finite vertices")
+    return notes, ((renderer.name, setup.degenerate) if setup.degenerate else None)
+
+
+#: A memo keeps the vertex setup of renderers of at most this many triangles per camera (and,
+#: for whole frames, their passes' coverage rows): the viewport's next frame through the same
+#: view redraws the renderers a change left alone without setting them up again (a moved
+#: object, an edited material). Bigger meshes are set up again: their setup is a small part of
+#: their frame, and keeping it would hold 100+ bytes a triangle.
+MEMO_SETUP_TRIANGLES = 1 << 17
+#: Cameras per renderer whose setups a memo keeps: the viewport's reduced and full frame sizes.
+MEMO_CAMERAS = 2
+#: At most this many triangles' setups (over all renderers and cameras) in one memo: about
+#: 120-200 bytes each, so some 300 MB; renderers beyond it are set up every frame.
+MEMO_SETUP_BUDGET = 1 << 21
+
+
+@dataclass(eq=False)
+class _Geometry:
+    """A renderer's triangle setup through one camera and, in whole frames, its passes' rows
+    by Cull ((selected triangles, rows)), kept in a memo (:data:`MEMO_SETUP_TRIANGLES`)."""
+
+    setup: TriangleSetup
+    rows: dict = field(default_factory=dict)
+
+
+def _camera_key(camera) -> tuple:
+    return (np.asarray(camera.view_matrix, dtype=np.float64).tobytes(),
+            np.asarray(camera.projection, dtype=np.float64).tobytes(), int(camera.width), int(camera.height))
+
+
+def _kept_geometry(frame: FrameContext, renderer) -> dict | None:
+    """The memo's geometry of ``renderer`` by camera key, or None when it is not kept (too big,
+    or the memo is this render's own: keeping every setup to the end would raise its peak)."""
+    if not frame.keep_setups or renderer.mesh.triangle_count > MEMO_SETUP_TRIANGLES:
+        return None
+    return frame.memo.lookup("geometry", renderer, dict)
+
+
+def _setups(frame: FrameContext, renderers: list, pool=None, parts: int = 1) -> list[_Geometry]:
+    """The geometry of each of ``renderers`` through the frame's camera: kept ones from the memo,
+    the others set up together (:func:`vertex.setup_renderers`: each equals its own setup) and
+    kept for the next frame."""
+    key = frame.camera_key
+    kept = [_kept_geometry(frame, r) for r in renderers]
+    out = [None if k is None else k.get(key) for k in kept]
+    todo = [i for i, g in enumerate(out) if g is None]
+    if todo:
+        made = vertex.setup_renderers([setup_input(renderers[i]) for i in todo], frame.camera, pool=pool,
+                                      parts=parts)
+        held = None  # triangles whose setups the memo holds (counted once something is to be kept)
+        for i, setup in zip(todo, made, strict=True):
+            out[i] = _Geometry(setup)
+            if kept[i] is None:
+                continue
+            if held is None:
+                held = sum(r.mesh.triangle_count * len(d) for r, d in frame.memo.entries("geometry"))
+            triangles = renderers[i].mesh.triangle_count
+            if len(kept[i]) >= MEMO_CAMERAS:  # the oldest camera goes
+                kept[i].pop(next(iter(kept[i])))
+                held -= triangles
+            if held + triangles <= MEMO_SETUP_BUDGET:
+                kept[i][key] = out[i]
+                held += triangles
+    if frame.band is not None:  # a band's rows are its own (the cut moves frame to frame): not kept
+        out = [_Geometry(g.setup) for g in out]
+    return out
+
+
+def _setup(frame: FrameContext, renderer, pool, parts: int) -> tuple[_Geometry, list[str], tuple[str, int] | None]:
+    """Vertex setup of one renderer (shared by its passes) and what to tell the user about it."""
+    geometry = _setups(frame, [renderer], pool, parts)[0]
+    return (geometry, *_setup_notes(renderer, geometry.setup))
+
+
+def _draw_state(frame: FrameContext, call: DrawCall, setup, texels,
+                selected: np.ndarray | None = None) -> tuple[DrawState, np.ndarray]:
+    """A draw call's derived state and the triangles its Cull keeps (``selected`` when known)."""
+    p = call.state
+    zbound = None
+    if not p.zwrite and p.ztest in (CompareFunction.Less, CompareFunction.LEqual):
+        zbound = raster.depth_upper_codes(setup, p.offset_factor, p.offset_units)
+    state = DrawState(call, call.renderer.material, texels, frame.lights, frame.color_space, frame.hdr,
+                      frame.width, observed=frame.observed, zbound=zbound)
+    return state, vertex.cull_select(setup, p.cull) if selected is None else selected
+
+
+def _prepare(frame: FrameContext, call: DrawCall, geometry: _Geometry, texels, pool, parts: int) -> PreparedCall:
+    """Cull, coverage and derived state of one draw call. Passes of a renderer with one Cull
+    cover the same pixels: their rows are computed once (``geometry.rows``; in a memo across
+    frames when the frame is whole)."""
+    setup, cull = geometry.setup, call.state.cull
+    known = geometry.rows.get(cull)
+    state, selected = _draw_state(frame, call, setup, texels, selected=None if known is None else known[0])
+    shade = chunk_shading(call.state)
+    if known is not None:
+        return PreparedCall(call, setup, selected, raster.Rows(**vars(known[1])), state, shade)
+    rows = raster.coverage_rows(setup, selected, frame.width, frame.height, pool=pool, parts=parts, band=frame.band)
+    geometry.rows[cull] = (selected, rows)
+    return PreparedCall(call, setup, selected, rows, state, shade)
+
+
+def _prepare_together(frame: FrameContext, runs: list[list[DrawCall]], texels) -> list[PreparedCall]:
+    """Prepare many small renderers' draw calls with one vertex setup and one coverage pass for
+    all of them (per-call array work on a few hundred triangles is mostly fixed cost)."""
+    geometries = _setups(frame, [run[0].renderer for run in runs])
+    items = []  # (call, geometry, state, selected, kept rows or None)
+    for run, geometry, run_texels in zip(runs, geometries, texels, strict=True):
+        frame.record(*_setup_notes(run[0].renderer, geometry.setup))
+        for call, tex in zip(run, run_texels, strict=True):
+            known = geometry.rows.get(call.state.cull)
+            state, selected = _draw_state(frame, call, geometry.setup, tex,
+                                          selected=None if known is None else known[0])
+            items.append((call, geometry, state, selected, None if known is None else known[1]))
+    todo = [k for k, item in enumerate(items) if item[4] is None]
+    made = raster.coverage_rows_many([(items[k][1].setup, items[k][3]) for k in todo], frame.width,
+                                     frame.height, frame.band) if todo else []
+    rows = [item[4] for item in items]
+    for k, r in zip(todo, made, strict=True):
+        rows[k] = r
+        call, geometry, _, selected, _ = items[k]
+        geometry.rows.setdefault(call.state.cull, (selected, r))
+    return [PreparedCall(call, geometry.setup, selected, r if kept is None else raster.Rows(**vars(r)), state,
+                         chunk_shading(call.state))
+            for (call, geometry, state, selected, kept), r in zip(items, rows, strict=True)]
+
+
+#: Below this many triangles a batch's renderers are prepared in the calling thread: their
+#: many small array operations hold the GIL, so a second thread only adds contention.
+PARALLEL_PREPARE_TRIANGLES = 1 << 15
+
+
+def prepare_batch(frame: FrameContext, runs: list[list[DrawCall]]) -> list[PreparedCall]:
+    """Prepare a batch's draw calls in draw order: renderers in parallel on the pool, or one
+    renderer with its per-vertex and per-triangle work split over the pool."""
+    runs = [run for run in runs if run[0].renderer.mesh.triangle_count > 0]
+    texels = [[frame.texels_of(call.renderer.material) for call in run] for run in runs]
+
+    def prepare_run(k: int, pool, parts: int):
+        geometry, notes, degenerate = _setup(frame, runs[k][0].renderer, pool, parts)
+        return notes, degenerate, [_prepare(frame, call, geometry, tex, pool, parts)
+                                   for call, tex in zip(runs[k], texels[k], strict=True)]
+
+    triangles = sum(int(run[0].renderer.mesh.triangle_count) for run in runs)
+    if len(runs) > 1 and triangles < PARALLEL_PREPARE_TRIANGLES:
+        return _prepare_together(frame, runs, texels)
+    if frame.pool is None or len(runs) <= 1:
+        results = [prepare_run(k, frame.pool, frame.workers) for k in range(len(runs))]
+    else:
+        results = list(frame.pool.map(lambda k: prepare_run(k, None, 1), range(len(runs))))
+    prepared: list[PreparedCall] = []
+    for notes, degenerate, items in results:
+        frame.record(notes, degenerate)
+        prepared.extend(items)
+    return prepared

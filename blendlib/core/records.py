@@ -1,0 +1,211 @@
+"""The records of a render: what its stages hand each other and what its observers receive.
+
+- :class:`Frame`: the rendered frame (the result of :func:`.pipeline.render_scene`).
+- :class:`DrawState`: what one draw call needs beyond its triangles, decided once per call.
+- :class:`ShadedFragments`: a chunk of one draw call's fragments after shading (the output of
+  :mod:`.fragment`, the input of :mod:`.merger`).
+- :class:`FrameObserver`: the hooks through which the tools that explain a frame
+  (``blendlib.explain``) receive every draw call and fragment, rather than forking the pipeline.
+- :class:`RenderCancelled`: raised when a render's ``should_cancel()`` answered True.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .drawlist import DrawCall
+from .merger import FrameBuffers
+from .shade import Lights, Texels
+from .vocabulary import ColorSpace, CompareFunction, Material, Pass
+
+
+class RenderCancelled(Exception):
+    """Raised when ``should_cancel()`` returned True; no buffers are returned."""
+
+
+@dataclass(eq=False)
+class Frame:
+    """A rendered frame. Row 0 is the top of the image.
+
+    - ``color`` (H, W, 4) float32: the stored frame values (sRGB-encoded in Gamma
+      mode and in Linear LDR; linear in Linear HDR).
+    - ``depth`` (H, W) float32: window depth ``d / (2**24 - 1)``.
+    - ``stencil`` (H, W) uint8.
+    - ``warnings``: one line each (skipped triangles, empty meshes, missing images).
+    - ``encoded``: whether ``color``'s rgb is sRGB-encoded (Gamma mode, and Linear LDR);
+      False only for Linear HDR, whose buffer holds linear values.
+    """
+
+    color: np.ndarray
+    depth: np.ndarray
+    stencil: np.ndarray
+    warnings: list[str] = field(default_factory=list)
+    encoded: bool = True
+
+
+@dataclass(frozen=True, eq=False)
+class DrawState:
+    """What one draw call needs beyond its triangles, decided once per draw call (the
+    "derived state" of the call): the draw call, its material and pass, the texture's
+    texels in shading space, the frame's lights, colour space, buffer kind and width."""
+
+    call: DrawCall
+    material: Material
+    texels: Texels | None
+    lights: Lights
+    color_space: ColorSpace
+    hdr: bool
+    width: int
+    #: An observer receives every fragment: source triangles are computed, and depth codes the
+    #: merge does not need are computed when the observer reads them.
+    observed: bool = False
+    #: ``zbound`` (T,) int64 per setup triangle (:func:`.raster.depth_upper_codes`) and ``zfloor``
+    #: (H,) int64 the smallest depth code stored in each buffer row (current in the rows of the
+    #: screen band being drawn: :class:`.pipeline.RowFloors`): rows whose bound is at or below
+    #: (``Less``: below) the floor pass the depth test, so a pass without ZWrite needs no
+    #: per-fragment depth there (a hierarchical-Z test per row, exact). None: not applicable.
+    zbound: np.ndarray | None = None
+    zfloor: np.ndarray | None = None
+
+    @property
+    def pass_state(self) -> Pass:
+        return self.call.state
+
+    def depth_needed(self, rows, start: int, stop: int) -> bool:
+        """Whether the fragments of rows ``[start, stop)`` need their depth codes."""
+        p = self.pass_state
+        if p.zwrite:
+            return True
+        if p.ztest is CompareFunction.Always:
+            return False
+        if self.zbound is None or self.zfloor is None:
+            return True
+        bound = self.zbound[rows.tri[start:stop]]
+        floor = self.zfloor[rows.y[start:stop]]
+        trivial = bound < floor if p.ztest is CompareFunction.Less else bound <= floor
+        return not bool(np.all(trivial))
+
+
+@dataclass(eq=False)
+class ShadedFragments:
+    """A chunk of one draw call's fragments after shading, in primitive order.
+
+    - ``pix`` (N,) int64: window pixel index ``y * W + x`` with y up (row 0 = bottom).
+    - ``depth`` (N,) int64: 24-bit depth code after Offset. When the chunk provably passes the
+      depth test of a pass without ZWrite (:meth:`DrawState.depth_needed`), the codes are only
+      computed when an observer reads ``depth`` (``stored_depth`` None, ``depth_fn`` set), or
+      never (no observer: ``depth`` None).
+    - ``rgba`` (N, 4) float64: shader output in shading space (rows with ``ids >= 0`` unset),
+      or None when every fragment has an id.
+    - ``ids`` (N,) int32 or None, ``palette`` (K, 4) float64 or None: fragments with
+      ``ids >= 0`` have the colour ``palette[ids]`` (shaded once per triangle).
+    - ``triangle`` (N,) int64: the source mesh triangle (index in the renderer's mesh), computed
+      when an observer reads it (``stored_triangle`` / ``triangle_fn``); None when not observed.
+    - ``alive`` (N,) bool or None: passed the alpha test (None: the pass has no alpha test).
+    - ``disjoint``: the fragments hit pairwise distinct pixels (one merge layer).
+    """
+
+    pix: np.ndarray
+    stored_depth: np.ndarray | None
+    rgba: np.ndarray
+    ids: np.ndarray | None
+    palette: np.ndarray | None
+    stored_triangle: np.ndarray | None
+    alive: np.ndarray | None
+    disjoint: bool = False
+    #: ``depth_fn(index)``: the deferred depth codes of fragments ``index`` (None: all).
+    depth_fn: Callable[[np.ndarray | None], np.ndarray] | None = None
+    #: ``triangle_fn(index)``: the source triangles of fragments ``index`` (None: all), deferred.
+    triangle_fn: Callable[[np.ndarray | None], np.ndarray] | None = None
+    #: ``colors_fn(index)``: the shader colours (M, 4) of fragments ``index`` (None: all), deferred
+    #: (a pass that writes no colour, observed: colours only for the fragments an observer reads).
+    colors_fn: Callable[[np.ndarray | None], np.ndarray] | None = None
+
+    @property
+    def triangle(self) -> np.ndarray | None:
+        """(N,) int64 source mesh triangles, computed on first use when deferred (observed renders)."""
+        if self.stored_triangle is None and self.triangle_fn is not None:
+            self.stored_triangle, self.triangle_fn = self.triangle_fn(None), None
+        return self.stored_triangle
+
+    @property
+    def count(self) -> int:
+        return int(self.pix.shape[0])
+
+    @property
+    def depth(self) -> np.ndarray | None:
+        """(N,) int64 depth codes, computed on first use when deferred (see the class doc)."""
+        if self.stored_depth is None and self.depth_fn is not None:
+            self.stored_depth, self.depth_fn = self.depth_fn(None), None
+        return self.stored_depth
+
+    def colors(self) -> np.ndarray:
+        """(N, 4) float64 shader colours, table entries filled in."""
+        if self.ids is None and self.rgba is None and self.colors_fn is not None:
+            return self.colors_fn(None)
+        if self.ids is None:
+            return self.rgba
+        if self.rgba is None:
+            return self.palette[self.ids]
+        out = self.rgba.copy()
+        tabled = self.ids >= 0
+        out[tabled] = self.palette[self.ids[tabled]]
+        return out
+
+    def span(self, lo: int, hi: int) -> ShadedFragments:
+        """Fragments ``[lo, hi)`` as views, palette kept (a chunk without deferred values)."""
+        def cut(a):
+            return None if a is None else a[lo:hi]
+
+        return ShadedFragments(cut(self.pix), cut(self.stored_depth), cut(self.rgba), cut(self.ids), self.palette,
+                               cut(self.stored_triangle), cut(self.alive), self.disjoint)
+
+    def select(self, keep: np.ndarray) -> ShadedFragments:
+        """The fragments where ``keep`` (bool (N,) or indices) holds."""
+        index = np.flatnonzero(keep) if keep.dtype == bool else keep
+
+        def take(a):
+            return None if a is None else np.take(a, index, axis=0)
+
+        def deferred(stored, fn):
+            # A deferred value of the selection asks for the selected fragments only (a pixel
+            # history reads a handful of each chunk).
+            if stored is not None or fn is None:
+                return None
+            return lambda sub: fn(index if sub is None else np.take(index, sub))
+
+        depth_fn = deferred(self.stored_depth, self.depth_fn)
+        triangle_fn = deferred(self.stored_triangle, self.triangle_fn)
+        colors_fn = deferred(self.rgba if self.ids is None else self.ids, self.colors_fn)
+        return ShadedFragments(take(self.pix), take(self.stored_depth), take(self.rgba), take(self.ids),
+                               self.palette, take(self.stored_triangle), take(self.alive), self.disjoint, depth_fn,
+                               triangle_fn, colors_fn)
+
+
+class FrameObserver:
+    """Receives the records of a render as it happens (frame debugger, sorted reference, overdraw).
+
+    :meth:`fragments` is called from band worker threads (each band owns distinct pixels;
+    within a band, chunks come in primitive order): implementations must be thread-safe.
+    The base class ignores everything.
+    """
+
+    #: Whether :meth:`draw_begin` / :meth:`draw_end` must see the buffers exactly as they are
+    #: between two draw calls (snapshots). False lets the renderer draw calls in batches, as
+    #: without an observer: ``draw_begin`` of a batch's calls comes before it is drawn and
+    #: ``draw_end`` after (with the buffers after the whole batch); fragments keep their order.
+    exact_boundaries = True
+
+    def draw_begin(self, call: DrawCall, buffers: FrameBuffers) -> None:
+        """Before draw call ``call`` (``buffers`` as left by the draw calls before it when
+        :attr:`exact_boundaries`; else as left by the batch before it)."""
+
+    def fragments(self, call: DrawCall, frags: ShadedFragments, outcome: np.ndarray) -> None:
+        """Every fragment rasterised in a chunk, with its :class:`.merger.Outcome` (N,) int8."""
+
+    def draw_end(self, call: DrawCall, buffers: FrameBuffers, triangles: int) -> None:
+        """After draw call ``call``; ``triangles``: the call's source triangles that reach the
+        rasteriser (neither culled nor degenerate nor entirely clipped away)."""

@@ -1,0 +1,77 @@
+"""render_scene's ``band``: one process's share of a frame (the band helper of
+blendlib.runtime.bandprocs draws one, this process the other). A band must equal the full
+frame's rows bit for bit, whatever the cut.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from blendlib import SceneError, render_scene
+from blendlib.core import raster, vertex
+from blendlib.core.prepare import setup_input
+from tests.reference.random_scenes import seeded_scene
+
+
+def scene_at(seed: int, width: int = 72, height: int = 48):
+    draw = seeded_scene(seed)
+    return dataclasses.replace(draw, camera=dataclasses.replace(draw.camera, width=width, height=height))
+
+
+@pytest.mark.parametrize("seed", [1, 4, 7, 12])
+def test_band_renders_are_the_rows_of_the_full_frame(seed):
+    """render_scene(band=...) draws exactly the full frame's rows, for cuts at the edges too
+    (stencil, blending and depth writes of random scenes)."""
+    draw = scene_at(seed)
+    full = render_scene(draw, workers=1)
+    height = draw.camera.height
+    for cut in (1, 17, height // 2, height - 1):
+        low = render_scene(draw, workers=1, band=(0, cut))
+        high = render_scene(draw, workers=2, band=(cut, height))
+        assert low.color.shape == (cut, draw.camera.width, 4)
+        np.testing.assert_array_equal(np.concatenate([high.color, low.color]), full.color)
+        np.testing.assert_array_equal(np.concatenate([high.depth, low.depth]), full.depth)
+        np.testing.assert_array_equal(np.concatenate([high.stencil, low.stencil]), full.stencil)
+        assert low.warnings == full.warnings == high.warnings
+
+
+def test_coverage_rows_in_a_band_are_the_full_rows_there():
+    draw = scene_at(5, 64, 40)
+    renderer = next(r for r in draw.renderers if r.mesh.triangle_count)
+    setup = vertex.setup_renderers([setup_input(renderer)], draw.camera)[0]
+    selected = np.arange(setup.X.shape[0], dtype=np.int64)
+    full = raster.coverage_rows(setup, selected, 64, 40)
+    part = raster.coverage_rows(setup, selected, 64, 40, band=(9, 23))
+    keep = (full.y >= 9) & (full.y < 23)
+    assert 0 < part.count < full.count
+    for name in raster.Rows.__dataclass_fields__:
+        np.testing.assert_array_equal(getattr(part, name), getattr(full, name)[keep])
+
+
+def test_bad_bands_are_one_line_errors():
+    draw = scene_at(2)
+    for band in ((0, 0), (-1, 4), (10, 49), (30, 20)):
+        with pytest.raises(SceneError, match="band"):
+            render_scene(draw, band=band)
+
+
+def test_band_renders_write_into_given_arrays():
+    """``out``: a band goes straight into its rows of a whole frame's arrays."""
+    draw = scene_at(7)
+    full = render_scene(draw, workers=1)
+    height, width = draw.camera.height, draw.camera.width
+    color = np.full((height, width, 4), -1.0, dtype=np.float32)
+    depth = np.full((height, width), -1.0, dtype=np.float32)
+    stencil = np.full((height, width), 7, dtype=np.uint8)
+    cut = 20  # buffer rows [0, 20) are the bottom 20 rows of the image
+    frame = render_scene(draw, band=(0, cut), out=(color[height - cut:], depth[height - cut:], stencil[height - cut:]))
+    assert np.shares_memory(frame.color, color) and np.shares_memory(frame.stencil, stencil)
+    np.testing.assert_array_equal(color[height - cut:], full.color[height - cut:])
+    np.testing.assert_array_equal(depth[height - cut:], full.depth[height - cut:])
+    np.testing.assert_array_equal(stencil[height - cut:], full.stencil[height - cut:])
+    assert np.all(color[:height - cut] == -1.0) and np.all(stencil[:height - cut] == 7)  # other rows untouched
+    with pytest.raises(ValueError, match="out array"):
+        render_scene(draw, band=(0, cut), out=(color, depth[height - cut:], stencil[height - cut:]))
