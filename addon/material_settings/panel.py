@@ -1,12 +1,12 @@
-"""Panels: "Unity Material" (Material Properties, with its pass list and Presets menu) and
-"Unity Camera" (Render Properties)."""
+"""Panels: "Unity Material" (Material Properties, with its pass list and Presets menu), "Unity
+Camera" (Render Properties) and "Unity Light" (Light Properties)."""
 
 from __future__ import annotations
 
 import bpy
 
-from blendlib.blender import read_pass
-from blendlib.core.vocabulary import PASS_PRESETS, Queue, pass_state_text, queue_text
+from blendlib.blender import derived_light_values, light_settings, read_pass
+from blendlib.core.vocabulary import NEVER, PASS_PRESETS, Queue, pass_draws, pass_state_text, queue_text
 
 from .. import ENGINE_ID
 from ..shaderlab.panel import draw_import_export
@@ -37,13 +37,25 @@ def exact_view(scene) -> bool:
             and scene.display_settings.display_device == "sRGB")
 
 
+def draw_rule(material_settings, item) -> tuple[str, str]:
+    """How ``item`` (a pass of ``material_settings``) draws in the forward path, and why
+    (:func:`blendlib.core.vocabulary.pass_draws`); an unreadable pass draws as stored."""
+    try:
+        passes = tuple(read_pass(p) for p in material_settings.passes)
+        return pass_draws(read_pass(item), passes)
+    except ValueError as exc:
+        return NEVER, f"invalid pass: {exc}"
+
+
 class UNITY_UL_passes(bpy.types.UIList):
-    """Passes of a Unity material, drawn from top to bottom"""
+    """Passes of a Unity material, drawn from top to bottom; passes the forward path does not draw
+    are greyed (the pass box below says why)"""
 
     bl_idname = "UNITY_UL_passes"
 
     def draw_item(self, context, layout, data, item, icon, active_data, active_propname, index=0, flt_flag=0):
         if self.layout_type in {"DEFAULT", "COMPACT"}:
+            layout.active = draw_rule(data, item)[0] != NEVER
             split = layout.split(factor=0.3)
             split.prop(item, "name", text="", emboss=False, icon="RENDERLAYERS")
             split.label(text=shaderlab_preview(item))
@@ -110,9 +122,17 @@ class UNITY_PT_material(_MaterialPanel, bpy.types.Panel):
         col = body.column(align=True)
         col.prop(unity, "main_tex_filter")
         col.prop(unity, "main_tex_wrap")
+        col.prop(unity, "main_tex_mipmaps")
+        sub = col.column(align=True)
+        sub.active = unity.main_tex_mipmaps
+        sub.prop(unity, "main_tex_preserve_coverage")
         body.prop(unity, "alpha_scale")
         body.prop(unity, "cutoff")
         body.prop(unity, "lighting")
+        body.prop(unity, "vertex_color")
+        sub = body.column()
+        sub.active = unity.vertex_color == "Particle"
+        sub.prop(unity, "tint_color")
 
 
 class UNITY_PT_material_passes(_MaterialPanel, bpy.types.Panel):
@@ -140,16 +160,20 @@ class UNITY_PT_material_passes(_MaterialPanel, bpy.types.Panel):
                          icon="INFO")
             return
         item = unity.passes[min(unity.active_pass_index, len(unity.passes) - 1)]
-        draw_pass(layout, item)
+        draw_pass(layout, item, draw_rule(unity, item))
 
 
-def draw_pass(layout, item) -> None:
+def draw_pass(layout, item, rule: tuple[str, str] | None = None) -> None:
     box = layout.box()
     box.label(text=shaderlab_preview(item), icon="TEXT")
+    if rule is not None:
+        box.label(text=("Not drawn: " if rule[0] == NEVER else "") + rule[1],
+                  icon="HIDE_ON" if rule[0] == NEVER else "INFO")
     col = box.column()
     col.use_property_split = True
     col.use_property_decorate = False
     col.prop(item, "name")
+    col.prop(item, "light_mode")
     sub = col.column(align=True)
     sub.prop(item, "cull")
     sub.prop(item, "zwrite")
@@ -174,6 +198,10 @@ def draw_pass(layout, item) -> None:
     sub.prop(item, "offset_factor")
     sub.prop(item, "offset_units")
     col.prop(item, "alpha_test")
+    sub = col.column()
+    sub.active = item.alpha_test
+    sub.prop(item, "alpha_test_comp")
+    col.prop(item, "alpha_to_mask")
     col.separator()
     col.prop(item, "stencil")
     sub = col.column(align=True)
@@ -213,6 +241,8 @@ class UNITY_PT_camera(bpy.types.Panel):
         sub = layout.column()
         sub.active = unity.sort_mode == "CustomAxis"
         sub.prop(unity, "sort_axis")
+        layout.prop(unity, "msaa")
+        layout.prop(unity, "pixel_light_count")
         box = layout.box()
         box.label(text="Combined = the frame as linear RGB, alpha 1; passes UnityAlpha, Depth.", icon="INFO")
         box.label(text="The Standard view transform (no look, no dither) reproduces the frame values exactly.")
@@ -222,4 +252,50 @@ class UNITY_PT_camera(bpy.types.Panel):
             box.operator(UNITY_OT_use_standard_view.bl_idname, icon="CHECKMARK")
 
 
-CLASSES = (UNITY_MT_presets, UNITY_UL_passes, UNITY_PT_material, UNITY_PT_material_passes, UNITY_PT_camera)
+class UNITY_PT_light(bpy.types.Panel):
+    """Light Properties › Unity Light: the light as a Unity forward light"""
+
+    bl_idname = "UNITY_PT_light"
+    bl_label = "Unity Light"
+    bl_space_type = "PROPERTIES"
+    bl_region_type = "WINDOW"
+    bl_context = "data"
+
+    @classmethod
+    def poll(cls, context):
+        light = getattr(context, "light", None)
+        return light is not None and hasattr(light, "unity")
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        light = context.light
+        unity = light.unity
+        if light.type == "AREA":
+            layout.label(text="Area lights have no Unity forward counterpart: not drawn", icon="INFO")
+            return
+        layout.prop(unity, "render_mode")
+        layout.prop(unity, "use_blender_values")
+        col = layout.column(align=True)
+        if unity.use_blender_values:
+            derived = derived_light_values(light)
+            col.label(text=f"Intensity {derived['intensity']:.4g}" + (
+                "  (Strength)" if light.type == "SUN" else "  (Power / 4π / π, as glTF → Unity)"))
+            if light.type != "SUN":
+                col.label(text=f"Range {derived['range']:.4g} m" + (
+                    "  (Custom Distance)" if light.use_custom_distance else "  (Unity's default)"))
+            if light.type == "SPOT":
+                col.label(text=f"Spot Angle {derived['spot_angle']:.4g}°  (Spot Size)")
+        else:
+            col.prop(unity, "intensity")
+            if light.type != "SUN":
+                col.prop(unity, "range")
+            if light.type == "SPOT":
+                col.prop(unity, "spot_angle")
+        if light_settings(light)["render_mode"] == "NotImportant":
+            layout.label(text="Not Important lights would be vertex/SH lights: not drawn", icon="INFO")
+
+
+CLASSES = (UNITY_MT_presets, UNITY_UL_passes, UNITY_PT_material, UNITY_PT_material_passes, UNITY_PT_camera,
+           UNITY_PT_light)

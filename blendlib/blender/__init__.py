@@ -1,6 +1,7 @@
 """The Blender layer: the only part of :mod:`blendlib` that touches bpy (always inside functions).
 
-- :mod:`.schema`: the one reader/writer of ``Material.unity`` / ``Scene.unity``;
+- :mod:`.schema`: the one reader/writer of ``Material.unity`` / ``Scene.unity`` / ``Light.unity``;
+  :mod:`.lights`: Blender lights as Unity forward lights (derived values);
   :mod:`.migration`: their schema versions and the migration of older stored values.
 - :mod:`.extract`: a Blender scene → :class:`blendlib.core.scene.DrawScene`.
 - :mod:`.render`: render a scene (viewport or F12 depsgraph), write a Frame into an Image.
@@ -19,14 +20,18 @@ from .extract import (
     world_ambient,
 )
 from .files import material_named, open_blend, scene_named
+from .lights import derived_light_values, unity_light_values
 from .migration import SCHEMA_VERSION
 from .render import apply_border, border_region, draw_scene_final, linear_rgba, render, render_final, write_image
 from .schema import (
+    LIGHT_FIELDS,
     MATERIAL_FIELDS,
     PASS_FIELDS,
     SCENE_FIELDS,
     Field,
+    light_settings,
     material_fields,
+    material_from_values,
     material_values,
     migrate_data,
     migrate_stored,
@@ -36,12 +41,15 @@ from .schema import (
     scene_settings,
     stamp_version,
     unity_props,
+    write_light_settings,
     write_material,
     write_pass,
     write_scene_settings,
 )
 
 __all__ = [
+    "LIGHT_FIELDS", "derived_light_values", "light_settings", "material_from_values", "unity_light_values",
+    "write_light_settings",
     "MATERIAL_FIELDS", "PASS_FIELDS", "SCENE_FIELDS", "SCHEMA_VERSION", "Field", "apply_border", "border_region",
     "build_draw_scene", "draw_scene_final",
     "linear_rgba",

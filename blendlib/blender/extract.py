@@ -13,9 +13,10 @@ from typing import Any
 import numpy as np
 
 from ..core import colorspace
-from ..core.scene import Camera, DrawScene, Light, Mesh, Renderer, SceneError
-from ..core.vocabulary import ColorSpace, Lighting, Material, Pass, Queue, SortMode, Texture, TextureFilter, TextureWrap
-from .schema import material_values, pass_from_values, scene_settings
+from ..core.scene import Camera, DrawScene, ForwardLight, Light, Mesh, Renderer, SceneError
+from ..core.vocabulary import ColorSpace, LightType, Material, SortMode, Texture
+from .lights import forward_light, is_forward_light
+from .schema import material_from_values, material_values, scene_settings
 
 MESH_LIKE = {"MESH", "CURVE", "SURFACE", "META", "FONT"}
 
@@ -96,22 +97,7 @@ class _Extractor:
         if not values["enabled"]:
             color, image = principled_inputs(mat)
             return Material(name=mat.name, color=color, main_tex=texture(image))
-        passes = tuple(pass_from_values(p) for p in values["passes"])
-        return Material(
-            name=mat.name,
-            queue=Queue.parse(values["queue"]),
-            queue_offset=values["queue_offset"],
-            color=tuple(values["color"]),
-            main_tex=texture(values["main_tex"]),
-            main_tex_tiling=tuple(values["main_tex_tiling"]),
-            main_tex_offset=tuple(values["main_tex_offset"]),
-            main_tex_filter=TextureFilter.parse(values["main_tex_filter"]),
-            main_tex_wrap=TextureWrap.parse(values["main_tex_wrap"]),
-            alpha_scale=values["alpha_scale"],
-            cutoff=values["cutoff"],
-            lighting=Lighting.parse(values["lighting"]),
-            passes=passes or (Pass(),),
-        )
+        return material_from_values(mat.name, values, texture(values["main_tex"]))
 
     # -- meshes ----------------------------------------------------------------
     def slot_warnings(self) -> list[str]:
@@ -339,7 +325,7 @@ def build_draw_scene(scene: Any = None, depsgraph: Any = None, *, camera: Camera
 
     ex = _Extractor(warnings)
     renderers: list[Renderer] = []
-    suns: list[tuple[float, str, Any, np.ndarray]] = []
+    forward: list[ForwardLight] = []  # every Sun, Point and Spot light
     visible = render_visible_objects(view_layer) if check_visibility else set()
 
     def add(obj: Any, name: str, matrix: Any, instancer: bool = False) -> None:
@@ -349,9 +335,8 @@ def build_draw_scene(scene: Any = None, depsgraph: Any = None, *, camera: Camera
             warnings.append(f"object {name!r}: its transform is not finite (an infinite scale or location, "
                             f"beyond {MAX_TRANSFORM:g}); not drawn")
             return
-        if obj.type == "LIGHT" and obj.data.type == "SUN":
-            energy = float(obj.data.energy)
-            suns.append((energy * max(float(c) for c in obj.data.color), name, obj, mw))
+        if obj.type == "LIGHT" and is_forward_light(obj.data):
+            forward.append(forward_light(name, obj.data, mw))
         elif obj.type in MESH_LIKE:
             found = ex.renderers(obj, mw, name)
             if instancer:  # e.g. geometry nodes that turn all geometry into instances: no "empty mesh"
@@ -400,15 +385,14 @@ def build_draw_scene(scene: Any = None, depsgraph: Any = None, *, camera: Camera
             add(obj, original.name, obj.matrix_world)
     warnings.extend(ex.slot_warnings())
 
+    # The main light (ForwardBase's): the Sun with the largest intensity × max(colour), ties by
+    # name; every other light is an additional forward light.
     light = None
+    suns = [f for f in forward if f.type is LightType.Directional]
     if suns:
-        best = max(s[0] for s in suns)
-        _, name, obj, mw = min((s for s in suns if s[0] == best), key=lambda s: s[1])
-        axis = mw[:3, :3] @ np.array([0.0, 0.0, 1.0])
-        norm = float(np.linalg.norm(axis))
-        direction = tuple(float(v) for v in (axis / norm if norm > 0 else np.array([0.0, 0.0, 1.0])))
-        light = Light(direction=direction, color=tuple(float(c) for c in obj.data.color),
-                      energy=float(obj.data.energy), name=name)
+        main = min(suns, key=lambda f: (-f.intensity * max(f.color), f.name))
+        light = Light(direction=main.axis, color=main.color, energy=main.intensity, name=main.name)
+        forward.remove(main)
 
     if settings["ambient_from_world"]:
         ambient, ambient_linear = world_ambient(scene.world), True
@@ -427,6 +411,9 @@ def build_draw_scene(scene: Any = None, depsgraph: Any = None, *, camera: Camera
         sort_mode=SortMode.parse(settings["sort_mode"]),
         sort_axis=tuple(settings["sort_axis"]),
         warnings=warnings,
+        lights=tuple(sorted(forward, key=lambda f: f.name)),
+        pixel_light_count=settings["pixel_light_count"],
+        msaa=settings["msaa"],
     )
 
 

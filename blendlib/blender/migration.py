@@ -11,6 +11,13 @@ Versions:
 1. (0.1) ColorMask bits R=1, G=2, B=4, A=8.
 2. ColorMask bits as Unity's ``ColorWriteMask``, A=1, B=2, G=4, R=8
    (:data:`blendlib.core.vocabulary.COLOR_MASK_BITS`); ``schema_version`` stored.
+3. SPEC §12's names appended: per pass ``alpha_to_mask``, ``alpha_test_comp`` and
+   ``light_mode``; per material ``main_tex_mipmaps``, ``main_tex_preserve_coverage``,
+   ``vertex_color``, ``tint_color`` and the filter item ``Trilinear`` (appended, so the stored
+   numbers of Bilinear and Point stay); per scene ``msaa`` and ``pixel_light_count``; the new
+   ``Light.unity`` group. Nothing stored changes meaning: values absent from a version-2 group
+   take defaults that draw as before (ForwardBase passes, GEqual alpha test, no mipmaps, no
+   vertex colour, one sample), so the step only stamps the version.
 
 This module does not import bpy.
 """
@@ -23,7 +30,7 @@ from typing import Any
 from ..core.vocabulary import color_mask_bits
 
 #: The version the writers store and the readers expect.
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 
 #: Name of the stored version in ``Material.unity`` and ``Scene.unity``.
 VERSION_KEY = "schema_version"
@@ -55,8 +62,10 @@ def _unchanged(values: dict[str, Any]) -> dict[str, Any]:
 
 
 #: ``version -> function`` that turns stored values of that version into the next version's.
-MATERIAL_STEPS: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {1: _material_1_to_2}
-SCENE_STEPS: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {1: _unchanged}
+MATERIAL_STEPS: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {1: _material_1_to_2, 2: _unchanged}
+SCENE_STEPS: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {1: _unchanged, 2: _unchanged}
+#: ``Light.unity`` is new in version 3: a group stored without a version holds version-3 values.
+LIGHT_STEPS: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {1: _unchanged, 2: _unchanged}
 
 
 def _copy(value: Any) -> Any:
@@ -92,3 +101,8 @@ def migrate_material(values: Mapping[str, Any] | None) -> dict[str, Any]:
 def migrate_scene(values: Mapping[str, Any] | None) -> dict[str, Any]:
     """Stored ``Scene.unity`` values (any version) → a new dict of the current version."""
     return _migrate(values, SCENE_STEPS, "scene")
+
+
+def migrate_light(values: Mapping[str, Any] | None) -> dict[str, Any]:
+    """Stored ``Light.unity`` values → a new dict of the current version."""
+    return _migrate(values, LIGHT_STEPS, "light")

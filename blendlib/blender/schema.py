@@ -25,12 +25,15 @@ import numpy as np
 
 from ..core.vocabulary import (
     CHANNELS,
+    MSAA_SAMPLES,
     BlendFactor,
     BlendOp,
     ColorSpace,
     CompareFunction,
     Cull,
     Lighting,
+    LightMode,
+    LightRenderMode,
     Material,
     Pass,
     Queue,
@@ -38,11 +41,12 @@ from ..core.vocabulary import (
     StencilOp,
     TextureFilter,
     TextureWrap,
+    VertexColor,
     color_mask_bits,
     color_mask_from_bits,
     pass_from_dict,
 )
-from .migration import SCHEMA_VERSION, VERSION_KEY, migrate_material, migrate_scene, stored_version
+from .migration import SCHEMA_VERSION, VERSION_KEY, migrate_light, migrate_material, migrate_scene, stored_version
 
 
 @dataclass(frozen=True)
@@ -70,6 +74,8 @@ class Field:
     max: float | None = None
     soft_min: float | None = None
     soft_max: float | None = None
+    #: An ``int`` field's allowed values (e.g. MSAA 1, 2, 4, 8); empty: any in [min, max].
+    choices: tuple = ()
 
     def items(self):
         """``(identifier, number)`` pairs of an enum field, in display order."""
@@ -112,6 +118,15 @@ PASS_FIELDS: tuple[Field, ...] = (
           enum=StencilOp),
     Field("stencil_fail", "enum", "Keep", "Fail", "Stencil operation when the stencil test fails", enum=StencilOp),
     Field("stencil_zfail", "enum", "Keep", "ZFail", "Stencil operation when the depth test fails", enum=StencilOp),
+    # Schema version 3 (SPEC §12): appended; absent values take these defaults, which draw as before.
+    Field("alpha_to_mask", "bool", False, "AlphaToMask",
+          "AlphaToMask On: with MSAA the fragment covers a share of its pixel's samples given by its alpha"),
+    Field("alpha_test_comp", "enum", "GEqual", "Alpha Comparison",
+          "Alpha test: a fragment survives when alpha <comparison> _Cutoff (GEqual = clip(a - _Cutoff))",
+          enum=CompareFunction),
+    Field("light_mode", "enum", "ForwardBase", "LightMode",
+          "Tags { \"LightMode\"=... }: Always and ForwardBase draw once, ForwardAdd once per extra per-pixel "
+          "light, Vertex only without forward passes, the others never", enum=LightMode),
 )
 
 
@@ -128,7 +143,8 @@ MATERIAL_FIELDS: tuple[Field, ...] = (
           soft_min=-100.0, soft_max=100.0),
     Field("main_tex_offset", "vector", (0.0, 0.0), "Offset", "_MainTex offset (_MainTex_ST.zw)", size=2,
           soft_min=-10.0, soft_max=10.0),
-    Field("main_tex_filter", "enum", "Bilinear", "Filter", "Sampler filter mode (no mipmaps)", enum=TextureFilter),
+    Field("main_tex_filter", "enum", "Bilinear", "Filter",
+          "Sampler filter mode (Trilinear: between mip levels when mipmaps are on)", enum=TextureFilter),
     Field("main_tex_wrap", "enum", "Repeat", "Wrap", "Sampler wrap mode", enum=TextureWrap),
     Field("alpha_scale", "float", 1.0, "_AlphaScale", "_AlphaScale: multiplies the alpha", min=0.0, max=1.0,
           subtype="FACTOR"),
@@ -137,6 +153,17 @@ MATERIAL_FIELDS: tuple[Field, ...] = (
     Field("lighting", "enum", "Lambert", "Lighting",
           "Lambert: the book's ForwardBase fragment (ambient + main light); Unlit: albedo only", enum=Lighting),
     Field("passes", "passes", (), "Passes", "Passes drawn in order (none = one default pass)"),
+    # Schema version 3 (SPEC §12): appended; absent values take these defaults, which draw as before.
+    Field("main_tex_mipmaps", "bool", False, "Mip Maps",
+          "Sample _MainTex through its mip chain (2x2 box downsampling, as Unity's texture importer)"),
+    Field("main_tex_preserve_coverage", "bool", False, "Preserve Coverage",
+          "Mip Maps Preserve Coverage: scale each mip level's alpha so that its coverage at _Cutoff stays level 0's"),
+    Field("vertex_color", "enum", "Off", "Vertex Color",
+          "How the shader uses the mesh's vertex colour i.color: Multiply (albedo and alpha x i.color: sprites, "
+          "UI) or Particle (2 x i.color x _TintColor x tex)", enum=VertexColor),
+    Field("tint_color", "color", (0.5, 0.5, 0.5, 0.5), "_TintColor",
+          "_TintColor of the particle shaders (sRGB-encoded, like a Unity colour property)", size=4,
+          subtype="COLOR_GAMMA", min=0.0, soft_max=1.0),
 )
 
 
@@ -157,6 +184,30 @@ SCENE_FIELDS: tuple[Field, ...] = (
           enum=SortMode),
     Field("sort_axis", "vector", (0.0, 0.0, 1.0), "Sort Axis", "Axis for the CustomAxis sort mode", size=3,
           soft_min=-1.0, soft_max=1.0, subtype="XYZ"),
+    # Schema version 3 (SPEC §12).
+    Field("msaa", "int", 1, "MSAA", "Anti-aliasing samples per pixel (Unity's Quality setting): 1 (off), 2, 4 or 8",
+          min=1, max=8, choices=MSAA_SAMPLES),
+    Field("pixel_light_count", "int", 4, "Pixel Light Count",
+          "Per renderer, at most this many forward lights (besides the main Sun) are per-pixel and draw the "
+          "ForwardAdd passes (Unity's Quality setting; Important lights always are)", min=0, soft_max=8),
+)
+
+
+#: ``Light.unity`` (SPEC §12): a Blender Point, Spot or Sun light as a Unity forward light. With
+#: ``use_blender_values`` the intensity, range and spot angle follow the Blender light
+#: (:func:`blendlib.blender.lights.derived_light_values`); off, the values stored here.
+LIGHT_FIELDS: tuple[Field, ...] = (
+    Field("use_blender_values", "bool", True, "From Blender Light",
+          "Intensity, range and spot angle follow the Blender light; off: the values below"),
+    Field("intensity", "float", 1.0, "Intensity", "Light.intensity (the light colour is multiplied by it)",
+          min=0.0, soft_max=8.0),
+    Field("range", "float", 10.0, "Range", "Light.range in metres: point and spot lights reach no farther",
+          min=0.0, soft_max=100.0, subtype="DISTANCE"),
+    Field("spot_angle", "float", 30.0, "Spot Angle", "Light.spotAngle: the full cone angle in degrees",
+          min=1.0, max=179.0),
+    Field("render_mode", "enum", "Auto", "Render Mode",
+          "Important: always per-pixel; Not Important: never per-pixel; Auto: per-pixel by importance within "
+          "the Pixel Light Count", enum=LightRenderMode),
 )
 
 
@@ -164,6 +215,7 @@ _BY_NAME = {
     "material": {f.name: f for f in MATERIAL_FIELDS},
     "pass": {f.name: f for f in PASS_FIELDS},
     "scene": {f.name: f for f in SCENE_FIELDS},
+    "light": {f.name: f for f in LIGHT_FIELDS},
 }
 
 
@@ -275,6 +327,29 @@ def scene_settings(scene: Any) -> dict[str, Any]:
     return read_group(_current_source(scene, migrate_scene), SCENE_FIELDS)
 
 
+def light_settings(light: Any) -> dict[str, Any]:
+    """``Light.unity`` of a ``bpy.types.Light`` (the light data) as a dict (defaults where absent)."""
+    return read_group(_current_source(light, migrate_light), LIGHT_FIELDS)
+
+
+def material_from_values(name: str, values: Mapping[str, Any], main_tex: Any = None) -> Material:
+    """The :class:`Material` of :func:`material_values` output (an enabled material): every schema
+    field the dataclass holds, enums parsed; ``main_tex`` the converted texture (or None)."""
+    kwargs: dict[str, Any] = {"name": name, "main_tex": main_tex}
+    for f in MATERIAL_FIELDS:
+        if f.name in ("enabled", "main_tex"):
+            continue
+        value = values[f.name]
+        if f.kind == "passes":
+            value = tuple(pass_from_values(p) for p in value) or (Pass(),)
+        elif f.kind == "enum":
+            value = f.enum.parse(value)
+        elif f.kind in ("color", "vector"):
+            value = tuple(value)
+        kwargs[f.name] = value
+    return Material(**kwargs)
+
+
 def pass_from_values(values: dict[str, Any]) -> Pass:
     """A :class:`Pass` from a dict of :data:`PASS_FIELDS` values (identifiers, set colour mask)."""
     return pass_from_dict({k: (sorted(v) if k == "color_mask" else v) for k, v in values.items()})
@@ -314,6 +389,8 @@ def _encode(f: Field, value: Any, rna: bool) -> Any:
         number = int(value)
         if number != value or (f.min is not None and number < f.min) or (f.max is not None and number > f.max):
             raise ValueError(f"{f.label}: {value!r} is not an integer in the allowed range")
+        if f.choices and number not in f.choices:
+            raise ValueError(f"{f.label}: {value!r} is not one of {', '.join(str(c) for c in f.choices)}")
         return number
     if f.kind == "float":
         return float(value) if rna else _as_float32(float(value))
@@ -422,6 +499,12 @@ def write_scene_settings(scene: Any, **values: Any) -> None:
     _assign(scene, "scene", values)
 
 
+def write_light_settings(light: Any, **values: Any) -> None:
+    """Write ``Light.unity`` of a ``bpy.types.Light`` by :data:`LIGHT_FIELDS` name; fields not given keep
+    their values. ValueError: nothing written."""
+    _assign(light, "light", values)
+
+
 # Versions
 
 
@@ -461,17 +544,23 @@ def migrate_stored(id_block: Any) -> bool:
         return False
     if getattr(id_block, "library", None) is not None:
         return False
-    migrate = migrate_scene if _is_scene(id_block) else migrate_material
+    migrate = {"Scene": migrate_scene, "Light": migrate_light}.get(_rna_base(id_block), migrate_material)
     old = stored.to_dict() if hasattr(stored, "to_dict") else dict(stored)
     _apply_changes(stored, old, migrate(old))
     return True
 
 
-def _is_scene(id_block: Any) -> bool:
+def _rna_base(id_block: Any) -> str | None:
+    """``"Scene"``, ``"Light"`` (any light type: PointLight, SpotLight, ...), ``"Material"`` or None."""
     rna = getattr(id_block, "bl_rna", None)
-    return rna is not None and rna.identifier == "Scene"
+    while rna is not None:
+        if rna.identifier in ("Scene", "Light", "Material"):
+            return rna.identifier
+        rna = rna.base
+    return None
 
 
 def migrate_data(data: Any) -> int:
-    """Migrate every material and scene of ``bpy.data`` (or a like object); returns how many changed."""
-    return sum(migrate_stored(block) for block in (*data.materials, *data.scenes))
+    """Migrate every material, scene and light of ``bpy.data`` (or a like object); returns how many changed."""
+    lights = getattr(data, "lights", ())
+    return sum(migrate_stored(block) for block in (*data.materials, *data.scenes, *lights))

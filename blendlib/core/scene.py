@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .vocabulary import ColorSpace, Material, SortMode, Texture
+from .vocabulary import MSAA_SAMPLES, ColorSpace, LightRenderMode, LightType, Material, SortMode, Texture
 
 
 class SceneError(ValueError):
@@ -157,6 +157,29 @@ class Light:
     name: str = "Sun"
 
 
+@dataclass(frozen=True)
+class ForwardLight:
+    """A Unity forward light other than the main directional one (SPEC §12): another Sun, a Point or
+    a Spot light, with its ``Light.unity`` values (derived from the Blender light by default).
+
+    ``position`` (3,) world-space location; ``axis`` (3,) unit vector, the lamp's local +Z in world
+    space (a directional light shines from ``axis``, a spot along ``-axis``); ``color`` Blender's
+    linear lamp colour (encoded to sRGB before the intensity multiplies it in Gamma mode, as the main
+    light's); ``intensity`` Unity's ``Light.intensity``; ``range`` in scene units (point, spot);
+    ``spot_angle`` the full cone angle in degrees; ``render_mode`` Auto / Important / NotImportant.
+    """
+
+    name: str
+    type: LightType
+    position: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    color: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    intensity: float = 1.0
+    range: float = 10.0
+    spot_angle: float = 30.0
+    render_mode: LightRenderMode = LightRenderMode.Auto
+
+
 @dataclass(frozen=True, eq=False)
 class DrawScene:
     """Everything one frame needs.
@@ -177,6 +200,13 @@ class DrawScene:
     sort_mode: SortMode = SortMode.Default
     sort_axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
     warnings: list[str] = field(default_factory=list)
+    #: Forward lights besides ``light`` (SPEC §12), in a stable order (by name).
+    lights: tuple[ForwardLight, ...] = ()
+    #: Unity's Quality "Pixel Light Count": per renderer, at most this many of ``lights`` are
+    #: per-pixel (draw the ForwardAdd passes), Important ones always.
+    pixel_light_count: int = 4
+    #: Samples per pixel (``Scene.unity.msaa``): 1, 2, 4 or 8.
+    msaa: int = 1
 
 
 #: Refuse frames whose buffers alone would exceed this many pixels (about 1 GB of float32 RGBA).
@@ -227,6 +257,12 @@ def validate_scene(scene: DrawScene, memo: SceneMemo | None = None) -> list[str]
     """
     cam = scene.camera
     warnings: list[str] = []
+    if scene.msaa not in MSAA_SAMPLES:
+        raise SceneError(f"scene: MSAA must be 1, 2, 4 or 8 samples, got {scene.msaa!r}")
+    if not (isinstance(scene.pixel_light_count, (int, np.integer)) and scene.pixel_light_count >= 0):
+        raise SceneError(f"scene: pixel light count must be an integer 0 or more, got {scene.pixel_light_count!r}")
+    for light in scene.lights:
+        _validate_light(light)
     w, h = cam.width, cam.height
     if not (isinstance(w, (int, np.integer)) and isinstance(h, (int, np.integer))) or w < 1 or h < 1:
         raise SceneError(f"camera: resolution must be positive integers, got {w}x{h}")
@@ -247,6 +283,19 @@ def validate_scene(scene: DrawScene, memo: SceneMemo | None = None) -> list[str]
         else:
             warnings += memo.lookup("valid", r, lambda r=r: _validate_renderer(r))
     return warnings
+
+
+def _validate_light(light: ForwardLight) -> None:
+    numbers = np.array([*light.position, *light.axis, *light.color, light.intensity, light.range,
+                        light.spot_angle], dtype=np.float64)
+    if not np.all(np.isfinite(numbers)):
+        raise SceneError(f"light {light.name!r}: its position, direction, colour and values must be finite")
+    if light.intensity < 0 or light.range <= 0 or not 0 < light.spot_angle < 180:
+        raise SceneError(f"light {light.name!r}: intensity must be 0 or more, range more than 0 and the spot "
+                         f"angle between 0 and 180 degrees (got {light.intensity:g}, {light.range:g}, "
+                         f"{light.spot_angle:g})")
+    if float(np.dot(light.axis, light.axis)) == 0.0:
+        raise SceneError(f"light {light.name!r}: its direction is a zero vector")
 
 
 def _validate_renderer(r: Renderer) -> list[str]:

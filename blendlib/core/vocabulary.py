@@ -118,8 +118,12 @@ class StencilOp(_Named):
 
 
 class TextureFilter(_Named):
+    """Sampler filter. ``Trilinear`` is bilinear within two mip levels, blended by the LOD; with
+    mipmaps off it samples like ``Bilinear`` (as Unity's sampler does on a texture without mips)."""
+
     Bilinear = "Bilinear"
     Point = "Point"
+    Trilinear = "Trilinear"  # appended: the numbers Blender stores for the others stay
 
 
 class TextureWrap(_Named):
@@ -130,6 +134,57 @@ class TextureWrap(_Named):
 class Lighting(_Named):
     Lambert = "Lambert"
     Unlit = "Unlit"
+
+
+class VertexColor(_Named):
+    """How the shader uses the vertex colour ``i.color`` (white when the mesh has none):
+    ``Multiply``: albedo and alpha × ``i.color`` (Sprites, UI, fixed-function ``primary``);
+    ``Particle``: ``2 × i.color × _TintColor × tex`` (the legacy particle shaders)."""
+
+    Off = "Off"
+    Multiply = "Multiply"
+    Particle = "Particle"
+
+
+class LightMode(_Named):
+    """A pass's ``Tags { "LightMode"=... }`` (untagged = ``Always``); ``Other`` stands for a name
+    Unity's forward path does not know. Which of them draw: :func:`blendlib.core.drawlist.pass_draws`."""
+
+    Always = "Always"
+    ForwardBase = "ForwardBase"
+    ForwardAdd = "ForwardAdd"
+    Vertex = "Vertex"
+    VertexLM = "VertexLM"
+    VertexLMRGBM = "VertexLMRGBM"
+    ShadowCaster = "ShadowCaster"
+    ShadowCollector = "ShadowCollector"
+    Meta = "Meta"
+    Deferred = "Deferred"
+    PrepassBase = "PrepassBase"
+    PrepassFinal = "PrepassFinal"
+    MotionVectors = "MotionVectors"
+    Other = "Other"
+
+
+class LightType(_Named):
+    """A Unity forward light's type (Blender Sun, Point, Spot)."""
+
+    Directional = "Directional"
+    Point = "Point"
+    Spot = "Spot"
+
+
+class LightRenderMode(_Named):
+    """``Light.renderMode``: Important lights are always per-pixel, NotImportant never; Auto ones
+    fill the Pixel Light Count by importance."""
+
+    Auto = "Auto"
+    Important = "Important"
+    NotImportant = "NotImportant"
+
+
+#: The MSAA sample counts of Unity's Quality settings (Disabled, 2x, 4x, 8x).
+MSAA_SAMPLES = (1, 2, 4, 8)
 
 
 class ColorSpace(_Named):
@@ -234,6 +289,14 @@ class Pass:
     stencil_pass: StencilOp = StencilOp.Keep
     stencil_fail: StencilOp = StencilOp.Keep
     stencil_zfail: StencilOp = StencilOp.Keep
+    #: ``AlphaToMask On``: with MSAA, the fragment covers the share of its pixel's samples its alpha
+    #: gives (docs/pipeline.md); no effect without MSAA.
+    alpha_to_mask: bool = False
+    #: The alpha test's comparison: a fragment survives when ``alpha <comp> _Cutoff`` (the book's
+    #: ``clip(a - _Cutoff)`` is ``GEqual``; legacy ``AlphaTest Greater [_Cutoff]`` is ``Greater``).
+    alpha_test_comp: CompareFunction = CompareFunction.GEqual
+    #: The pass's ``LightMode`` tag: which passes draw (SPEC §11.2).
+    light_mode: LightMode = LightMode.ForwardBase
 
     def __post_init__(self) -> None:
         if self.ztest is CompareFunction.Never:
@@ -258,8 +321,8 @@ def pass_state_commands(p: Pass) -> list[str]:
     """The ShaderLab state commands of a pass, one per item, as the exporter writes them.
 
     Always ``Cull``, ``ZWrite``, ``ZTest`` and ``Blend``; ``BlendOp``, ``ColorMask``,
-    ``Offset`` (shortest float32 text, :func:`float32_text`) and ``Stencil { ... }``
-    (on one line) only where they differ from the defaults.
+    ``AlphaToMask On``, ``Offset`` (shortest float32 text, :func:`float32_text`) and
+    ``Stencil { ... }`` (on one line) only where they differ from the defaults.
     """
     commands = [f"Cull {p.cull}", f"ZWrite {'On' if p.zwrite else 'Off'}", f"ZTest {p.ztest}"]
     if not p.blend:
@@ -275,6 +338,8 @@ def pass_state_commands(p: Pass) -> list[str]:
             commands.append(f"BlendOp {p.blend_op}")
     if p.color_mask != ALL_CHANNELS:
         commands.append(f"ColorMask {color_mask_text(p.color_mask)}")
+    if p.alpha_to_mask:
+        commands.append("AlphaToMask On")
     if p.offset_factor or p.offset_units:
         commands.append(f"Offset {float32_text(p.offset_factor)}, {float32_text(p.offset_units)}")
     if p.stencil:
@@ -288,14 +353,20 @@ def pass_state_commands(p: Pass) -> list[str]:
 def pass_state_text(p: Pass) -> str:
     """A pass's state on one line, e.g. ``Cull Off ZWrite Off ZTest LEqual Blend SrcAlpha OneMinusSrcAlpha``.
 
-    The commands of :func:`pass_state_commands`, then ``clip(a - _Cutoff)`` for an
-    alpha-tested pass (its program's test, not a state command). The panel's pass
+    The commands of :func:`pass_state_commands`, then the alpha test of an alpha-tested pass
+    (:func:`alpha_test_text`: ``clip(a - _Cutoff)``, its program's test, for the book's GEqual). The panel's pass
     preview, the exporter and the draw list all write a pass with this.
     """
     words = pass_state_commands(p)
     if p.alpha_test:
-        words.append("clip(a - _Cutoff)")
+        words.append(alpha_test_text(p.alpha_test_comp))
     return " ".join(words)
+
+
+def alpha_test_text(comp: CompareFunction) -> str:
+    """The alpha test as the state line writes it: the book's ``clip(a - _Cutoff)`` for ``GEqual``,
+    the legacy command (``AlphaTest Greater [_Cutoff]``) for the other comparisons."""
+    return "clip(a - _Cutoff)" if comp is CompareFunction.GEqual else f"AlphaTest {comp} [_Cutoff]"
 
 
 
@@ -346,6 +417,14 @@ class Material:
     cutoff: float = 0.5
     lighting: Lighting = Lighting.Lambert
     passes: tuple[Pass, ...] = field(default_factory=lambda: (Pass(),))
+    #: Sample ``_MainTex`` through its mip chain (2x2 box downsampling, as Unity's importer makes it).
+    main_tex_mipmaps: bool = False
+    #: "Mip Maps Preserve Coverage": each mip level's alpha scaled so that its coverage at
+    #: ``cutoff`` equals level 0's.
+    main_tex_preserve_coverage: bool = False
+    vertex_color: VertexColor = VertexColor.Off
+    #: ``_TintColor`` (COLOR_GAMMA) of the particle shaders (``vertex_color`` Particle).
+    tint_color: tuple[float, float, float, float] = (0.5, 0.5, 0.5, 0.5)
 
     @property
     def render_queue(self) -> int:
@@ -362,6 +441,42 @@ def queue_text(queue: Queue, offset: int) -> str:
     if offset == 0:
         return queue.value
     return f"{queue.value}{offset:+d}"
+
+
+#: What a pass does in the forward rendering path (:func:`pass_draws`).
+ONCE, PER_LIGHT, NEVER = "once", "per light", "never"
+_FORWARD = (LightMode.ForwardBase, LightMode.ForwardAdd)
+_NEVER_REASONS = {
+    LightMode.VertexLM: "VertexLM: drawn only for lightmapped objects in the legacy Vertex Lit path",
+    LightMode.VertexLMRGBM: "VertexLMRGBM: drawn only for lightmapped objects in the legacy Vertex Lit path",
+    LightMode.ShadowCaster: "ShadowCaster: renders shadow maps and the depth texture, not the frame",
+    LightMode.ShadowCollector: "ShadowCollector: collects shadows (legacy), not the frame",
+    LightMode.Meta: "Meta: used only when baking lightmaps",
+    LightMode.Deferred: "Deferred: the deferred path's pass; this renders the forward path",
+    LightMode.PrepassBase: "PrepassBase: the legacy deferred path's pass; this renders the forward path",
+    LightMode.PrepassFinal: "PrepassFinal: the legacy deferred path's pass; this renders the forward path",
+    LightMode.MotionVectors: "MotionVectors: renders the motion-vector texture, not the frame",
+    LightMode.Other: "a LightMode the forward path does not know: never drawn",
+}
+
+
+def pass_draws(p: Pass, passes: tuple[Pass, ...]) -> tuple[str, str]:
+    """How pass ``p`` of a material whose passes are ``passes`` draws in the forward rendering path
+    (Unity manual, "Pass tags" and "Forward Rendering Path"), and why, as ``(how, reason)``:
+    ``ONCE`` (Always, ForwardBase; Vertex when the material has no ForwardBase/ForwardAdd pass),
+    ``PER_LIGHT`` (ForwardAdd: once per additional per-pixel light) or ``NEVER``."""
+    mode = p.light_mode
+    if mode is LightMode.Always:
+        return ONCE, "Always: drawn once"
+    if mode is LightMode.ForwardBase:
+        return ONCE, "ForwardBase: drawn once, with the main directional light"
+    if mode is LightMode.ForwardAdd:
+        return PER_LIGHT, "ForwardAdd: drawn once per additional per-pixel light"
+    if mode is LightMode.Vertex:
+        if any(q.light_mode in _FORWARD for q in passes):
+            return NEVER, "Vertex: the material has forward passes, which draw instead"
+        return ONCE, "Vertex: drawn once (legacy Vertex Lit: the material has no forward passes)"
+    return NEVER, _NEVER_REASONS[mode]
 
 
 def pass_to_dict(p: Pass) -> dict[str, Any]:

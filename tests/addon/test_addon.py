@@ -29,11 +29,11 @@ OPERATORS = {
 }
 TYPES = {
     "UNITY_MT_presets", "UNITY_UL_passes", "UNITY_PT_material", "UNITY_PT_material_passes", "UNITY_PT_camera",
-    "UNITY_UL_sort_inversions", "UNITY_PT_sort_analysis", "UNITY_UL_frame_debugger_draws",
+    "UNITY_PT_light", "UNITY_UL_sort_inversions", "UNITY_PT_sort_analysis", "UNITY_UL_frame_debugger_draws",
     "UNITY_UL_frame_debugger_fragments", "UNITY_PT_frame_debugger", "UNITY_PT_frame_debugger_pixel",
 }
 #: The pointer properties on Blender's types: stored in .blend files (but the window manager's).
-POINTERS = {("Material", "unity"), ("Scene", "unity"), ("Scene", "unity_frame_debugger"),
+POINTERS = {("Material", "unity"), ("Scene", "unity"), ("Light", "unity"), ("Scene", "unity_frame_debugger"),
             ("ViewLayer", "unity_analysis"), ("WindowManager", "unity_sort_results")}
 
 

@@ -42,21 +42,31 @@ ENUM_NUMBERS = {
         "src_blend_alpha": FACTOR, "dst_blend_alpha": FACTOR, "blend_op_alpha": BLEND_OP,
         "stencil_comp": COMPARE,
         "stencil_pass": STENCIL_OP, "stencil_fail": STENCIL_OP, "stencil_zfail": STENCIL_OP,
+        # schema version 3
+        "alpha_test_comp": COMPARE,
+        "light_mode": {"Always": 0, "ForwardBase": 1, "ForwardAdd": 2, "Vertex": 3, "VertexLM": 4, "VertexLMRGBM": 5,
+                       "ShadowCaster": 6, "ShadowCollector": 7, "Meta": 8, "Deferred": 9, "PrepassBase": 10,
+                       "PrepassFinal": 11, "MotionVectors": 12, "Other": 13},
     },
     "material": {
         "queue": {"Background": 0, "Geometry": 1, "AlphaTest": 2, "Transparent": 3, "Overlay": 4},
-        "main_tex_filter": {"Bilinear": 0, "Point": 1},
+        "main_tex_filter": {"Bilinear": 0, "Point": 1, "Trilinear": 2},  # Trilinear appended in version 3
         "main_tex_wrap": {"Repeat": 0, "Clamp": 1},
         "lighting": {"Lambert": 0, "Unlit": 1},
+        "vertex_color": {"Off": 0, "Multiply": 1, "Particle": 2},
     },
     "scene": {
         "color_space": {"Gamma": 0, "Linear": 1},
         "sort_mode": {"Default": 0, "Perspective": 1, "Orthographic": 2, "CustomAxis": 3},
     },
+    "light": {
+        "render_mode": {"Auto": 0, "Important": 1, "NotImportant": 2},
+    },
 }
 #: ColorMask bits since schema version 2 (Unity's ColorWriteMask); version 1 stored R=1, G=2, B=4, A=8.
 COLOR_MASK = {"R": 8, "G": 4, "B": 2, "A": 1}
-FIELDS = {"pass": blender.PASS_FIELDS, "material": blender.MATERIAL_FIELDS, "scene": blender.SCENE_FIELDS}
+FIELDS = {"pass": blender.PASS_FIELDS, "material": blender.MATERIAL_FIELDS, "scene": blender.SCENE_FIELDS,
+          "light": blender.LIGHT_FIELDS}
 
 
 @pytest.fixture
@@ -91,12 +101,12 @@ def test_every_enum_number_is_pinned():
         assert enums == ENUM_NUMBERS[group], group
     assert COLOR_MASK_BITS == COLOR_MASK
     assert [f.name for f in blender.PASS_FIELDS if f.kind == "flags"] == ["color_mask"]
-    assert migration.SCHEMA_VERSION == 2 and migration.VERSION_KEY == "schema_version"
+    assert migration.SCHEMA_VERSION == 3 and migration.VERSION_KEY == "schema_version"
 
 
 def test_registered_properties_store_the_pinned_numbers(registered):
     for group, rna in (("pass", properties.UnityPassSettings), ("material", properties.UnityMaterialSettings),
-                       ("scene", properties.UnitySceneSettings)):
+                       ("scene", properties.UnitySceneSettings), ("light", properties.UnityLightSettings)):
         props = rna.bl_rna.properties
         for name, numbers in ENUM_NUMBERS[group].items():
             assert {i.identifier: i.value for i in props[name].enum_items} == numbers, name
@@ -116,14 +126,14 @@ def test_migration_of_version_1_reverses_the_color_mask_bits():
     v1 = {"enabled": 1, "queue": 3, "passes": [{"color_mask": 1}, {"color_mask": 3}, {"cull": 2}, {"color_mask": 14}]}
     got = migration.migrate_material(v1)
     # v1 R=1 → R=8; R|G=3 → 12; G|B|A=14 → 7; absent stays absent.
-    assert got == {"enabled": 1, "queue": 3, "schema_version": 2,
+    assert got == {"enabled": 1, "queue": 3, "schema_version": 3,
                    "passes": [{"color_mask": 8}, {"color_mask": 12}, {"cull": 2}, {"color_mask": 7}]}
     assert v1["passes"][0] == {"color_mask": 1}, "the input is not changed"
     assert migration.migrate_material(got) == got, "current values are left as they are"
-    assert migration.migrate_material(None) == {"schema_version": 2}
-    assert migration.migrate_scene({"color_space": 1}) == {"color_space": 1, "schema_version": 2}
-    with pytest.raises(ValueError, match="schema version 3"):
-        migration.migrate_material({"schema_version": 3})
+    assert migration.migrate_material(None) == {"schema_version": 3}
+    assert migration.migrate_scene({"color_space": 1}) == {"color_space": 1, "schema_version": 3}
+    with pytest.raises(ValueError, match="schema version 4"):
+        migration.migrate_material({"schema_version": 4})
 
 
 def _write_everything(mat, scene):
@@ -163,8 +173,8 @@ def test_writers_store_the_same_numbers_registered_or_not(registered):
     (a_mat, a_scene, a_values, a_sv), (b_mat, b_scene, b_values, b_sv) = results
     assert a_values == b_values and a_sv == b_sv
     assert a_scene == b_scene == {"color_space": 1, "hdr": True, "clear_color": pytest.approx([0.1, 0.2, 0.3, 0.4]),
-                                  "sort_mode": 3, "sort_axis": [0.0, 1.0, 0.0], "schema_version": 2}
-    assert a_mat["schema_version"] == b_mat["schema_version"] == 2
+                                  "sort_mode": 3, "sort_axis": [0.0, 1.0, 0.0], "schema_version": 3}
+    assert a_mat["schema_version"] == b_mat["schema_version"] == 3
     assert [p["color_mask"] for p in a_mat["passes"]] == [p["color_mask"] for p in b_mat["passes"]] == [9, 15]
     assert a_mat["passes"][0]["stencil_comp"] == b_mat["passes"][0]["stencil_comp"] == 0  # Never
     assert a_mat["queue"] == b_mat["queue"] == 3 and a_mat["main_tex_wrap"] == b_mat["main_tex_wrap"] == 1
@@ -191,9 +201,9 @@ def test_editing_a_property_records_the_current_version(registered):
     assert mat.unity.schema_version == 1  # nothing stored: as a 0.1 file
     item = mat.unity.passes.add()
     item.color_mask = {"R"}
-    assert raw(mat)["schema_version"] == 2 and raw(mat)["passes"][0]["color_mask"] == 8
+    assert raw(mat)["schema_version"] == 3 and raw(mat)["passes"][0]["color_mask"] == 8
     bpy.context.scene.unity.hdr = True
-    assert raw(bpy.context.scene)["schema_version"] == 2
+    assert raw(bpy.context.scene)["schema_version"] == 3
 
 
 def _save_v1_material(path, masks):
@@ -231,7 +241,7 @@ def test_a_v1_file_is_migrated_when_it_loads_registered(tmp_path, registered):
     assert migrate_on_load in bpy.app.handlers.load_post
     bpy.ops.wm.open_mainfile(filepath=str(path), load_ui=False)
     mat = bpy.data.materials["Old"]
-    assert raw(mat)["schema_version"] == 2
+    assert raw(mat)["schema_version"] == 3
     assert [p["color_mask"] for p in raw(mat)["passes"]] == [8, 12, 7, 1, 0]
     assert [set(p.color_mask) for p in mat.unity.passes] == [set(m) for m in MASKS]
     assert [p["color_mask"] for p in blender.material_values(mat)["passes"]] == [frozenset(m) for m in MASKS]
@@ -241,7 +251,7 @@ def test_a_v1_file_is_migrated_when_it_loads_registered(tmp_path, registered):
         bpy.ops.wm.open_mainfile(filepath=str(path), load_ui=False)
         mat = bpy.data.materials["Old"]
         blender.write_material(mat, queue_offset=1)
-        assert raw(mat)["schema_version"] == 2 and [p["color_mask"] for p in raw(mat)["passes"]] == [8, 12, 7, 1, 0]
+        assert raw(mat)["schema_version"] == 3 and [p["color_mask"] for p in raw(mat)["passes"]] == [8, 12, 7, 1, 0]
     finally:
         addon.register()
 
@@ -270,7 +280,7 @@ def test_presets_and_copy_go_through_the_writers(registered):
     mat = bpy.data.materials.new("Preset")
     operators.apply_preset(mat, "Alpha Blend ZWrite")
     queue, passes = preset("Alpha Blend ZWrite")
-    assert raw(mat)["schema_version"] == 2 and raw(mat)["passes"][0]["color_mask"] == 0
+    assert raw(mat)["schema_version"] == 3 and raw(mat)["passes"][0]["color_mask"] == 0
     assert blender.material_from_blender(mat).passes == passes and mat.unity.queue == queue.value
     item = mat.unity.passes.add()
     operators.copy_pass(mat.unity.passes[1], item)
