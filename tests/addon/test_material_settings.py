@@ -58,6 +58,13 @@ PASS_SPEC = {
     "stencil_pass": ("ENUM", "Keep", "ops"),
     "stencil_fail": ("ENUM", "Keep", "ops"),
     "stencil_zfail": ("ENUM", "Keep", "ops"),
+    # SPEC §12
+    "alpha_to_mask": ("BOOLEAN", False, None),
+    "alpha_test_comp": ("ENUM", "GEqual", {"Never", "Less", "Equal", "LEqual", "Greater", "NotEqual", "GEqual",
+                                           "Always"}),
+    "light_mode": ("ENUM", "ForwardBase", {"Always", "ForwardBase", "ForwardAdd", "Vertex", "VertexLM",
+                                           "VertexLMRGBM", "ShadowCaster", "ShadowCollector", "Meta", "Deferred",
+                                           "PrepassBase", "PrepassFinal", "MotionVectors", "Other"}),
 }
 FACTORS = {"One", "Zero", "SrcColor", "SrcAlpha", "DstColor", "DstAlpha", "OneMinusSrcColor", "OneMinusSrcAlpha",
            "OneMinusDstColor", "OneMinusDstAlpha", "SrcAlphaSaturate"}
@@ -93,7 +100,11 @@ def test_spec_properties_and_defaults():
         "color": ("FLOAT", (1, 1, 1, 1), None),
         "main_tex_tiling": ("FLOAT", (1, 1), None),
         "main_tex_offset": ("FLOAT", (0, 0), None),
-        "main_tex_filter": ("ENUM", "Bilinear", {"Bilinear", "Point"}),
+        "main_tex_filter": ("ENUM", "Bilinear", {"Bilinear", "Point", "Trilinear"}),
+        "main_tex_mipmaps": ("BOOLEAN", False, None),
+        "main_tex_preserve_coverage": ("BOOLEAN", False, None),
+        "vertex_color": ("ENUM", "Off", {"Off", "Multiply", "Particle"}),
+        "tint_color": ("FLOAT", (0.5, 0.5, 0.5, 0.5), None),
         "main_tex_wrap": ("ENUM", "Repeat", {"Repeat", "Clamp"}),
         "alpha_scale": ("FLOAT", 1.0, None),
         "cutoff": ("FLOAT", 0.5, None),
@@ -114,9 +125,20 @@ def test_spec_properties_and_defaults():
         "ambient_color": ("FLOAT", (0.2, 0.2, 0.2), None),
         "sort_mode": ("ENUM", "Default", {"Default", "Perspective", "Orthographic", "CustomAxis"}),
         "sort_axis": ("FLOAT", (0, 0, 1), None),
+        "msaa": ("INT", 1, None),
+        "pixel_light_count": ("INT", 4, None),
     })
     for name in ("clear_color", "ambient_color"):
         assert s.bl_rna.properties[name].subtype == "COLOR_GAMMA"
+    assert u.bl_rna.properties["tint_color"].subtype == "COLOR_GAMMA"
+    light = bpy.data.lights.new("L", "SPOT")
+    check_props(light.unity, {
+        "use_blender_values": ("BOOLEAN", True, None),
+        "intensity": ("FLOAT", 1.0, None),
+        "range": ("FLOAT", 10.0, None),
+        "spot_angle": ("FLOAT", 30.0, None),
+        "render_mode": ("ENUM", "Auto", {"Auto", "Important", "NotImportant"}),
+    })
 
 
 def test_properties_survive_save_and_reload(tmp_path):
