@@ -1,4 +1,4 @@
-"""ShaderLab import/export: seed listings, round trips, malformed input, CLI, Blender operators."""
+"""ShaderLab import/export: seed listings, the grammar, malformed input, round trips, the CLI."""
 
 from __future__ import annotations
 
@@ -8,7 +8,6 @@ import re
 import subprocess
 import sys
 from dataclasses import fields, replace
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -38,7 +37,6 @@ from blendlib.formats.shaderlab import (
     parse_queue,
     parse_shaderlab,
 )
-
 from tests.support.shared import REPO, SHARED
 
 SEEDS = SHARED / "seeds"
