@@ -56,6 +56,8 @@ from .tree import CategoryBlock, Property, ShaderBlock, SubShaderBlock, UsePass
 #: UsePass and Fallback chains stop this deep (a shader that uses itself is an error of the file).
 MAX_INDIRECTION = 8
 _LIGHT_MODES = {m.value.lower(): m for m in LightMode if m is not LightMode.Other}
+#: The LightModes of passes that may draw in the forward path (the others are never drawn here).
+_COLOUR_PASSES = (LightMode.Always, LightMode.ForwardBase, LightMode.ForwardAdd, LightMode.Vertex)
 
 
 @dataclass(frozen=True)
@@ -249,7 +251,7 @@ def _pass_infos(ctx: _Context, shader: ShaderBlock, resolved: ResolvedShader, va
             ctx.warnings += shading.warnings
             vertex_color, test, color, scale = shading.vertex_color, shading.alpha_test, shading.color, shading.scale
             lit = shading.lighting is Lighting.Lambert
-            if shading.state_only and fields.get("color_mask", True):
+            if shading.state_only and fields.get("color_mask", True) and light_mode in _COLOUR_PASSES:
                 ctx.warn(block.head, f"pass {name!r} has no program and no colour command: Unity draws its vertex "
                                      "colour (fixed-function primary); imported with _Color")
             if scale != 1.0:
@@ -258,7 +260,9 @@ def _pass_infos(ctx: _Context, shader: ShaderBlock, resolved: ResolvedShader, va
         p = Pass(name=name, light_mode=light_mode, **fields)
         if test is not None and test.comp is not CompareFunction.Always:
             p = replace(p, alpha_test=True, alpha_test_comp=test.comp)
-        if analysis.has_program and analysis.premultiplied:
+        # A PBS surface shader's lighting function premultiplies under alpha:premul (UnityPBSLighting.cginc).
+        premultiplied = analysis.premultiplied or (block.surface is not None and block.surface.premultiplied)
+        if analysis.has_program and premultiplied:
             folded = _fold_premultiplied(p)
             if folded is None:
                 ctx.warn(block.head, f"pass {name!r} premultiplies its colour by alpha, which its Blend "
