@@ -4,6 +4,7 @@ CLI's export from a .blend file, and reading a material through the bridge."""
 from __future__ import annotations
 
 from dataclasses import replace
+from pathlib import Path
 
 import bpy
 import pytest
@@ -22,6 +23,7 @@ from blendlib.core.vocabulary import (
 )
 from blendlib.formats.shaderlab import parse_shaderlab
 from tests.formats.test_shaderlab import GOOD, _run, cleaned
+from tests.support.shared import BUILTIN_SHADERS
 
 
 @pytest.fixture(scope="module")
@@ -41,7 +43,7 @@ def blender():
 
 
 def test_addon_package_registers_the_operators():
-    """addon.register() registers the three ShaderLab operators."""
+    """addon.register() registers the ShaderLab operators and Link Unity Project."""
     registered = hasattr(bpy.types.Material, "unity")
     if not registered:
         addon.register()
@@ -49,6 +51,7 @@ def test_addon_package_registers_the_operators():
         assert hasattr(bpy.types, "UNITY_OT_shaderlab_import")
         assert hasattr(bpy.types, "UNITY_OT_shaderlab_import_clipboard")
         assert hasattr(bpy.types, "UNITY_OT_shaderlab_export")
+        assert hasattr(bpy.types, "UNITY_OT_link_unity_project")
     finally:
         if not registered:
             addon.unregister()
@@ -258,4 +261,95 @@ def test_register_unregister_are_idempotent(blender):
             return FakeRow()
 
     blender.draw_import_export(FakeLayout())
-    assert layout_calls == ["unity.shaderlab_import", "unity.shaderlab_import_clipboard", "unity.shaderlab_export"]
+    assert layout_calls == ["unity.shaderlab_import", "unity.shaderlab_import_clipboard", "unity.shaderlab_export",
+                            "unity.link_unity_project"]
+
+
+# --------------------------------------------------------------------------- .mat files and Unity projects
+
+PROJECT = Path(__file__).resolve().parents[1] / "fixtures" / "unity_project"
+MATERIALS = PROJECT / "Assets" / "Materials"
+needs_corpus = pytest.mark.skipif(not BUILTIN_SHADERS.is_dir(), reason="shared/corpus is not available")
+
+
+@needs_corpus
+def test_operator_imports_a_material_file_with_its_texture(blender):
+    mat = _new_material("Anything")
+    path = MATERIALS / "Standard" / "Fade.mat"
+    assert _call(bpy.ops.unity.shaderlab_import, mat, filepath=str(path),
+                 search_folder=str(BUILTIN_SHADERS)) == {"FINISHED"}
+    u = mat.unity
+    assert u.enabled and u.queue == "Transparent" and u.queue_offset == 0
+    assert tuple(u.color) == pytest.approx((0.8, 0.4, 0.2, 0.6)) and u.cutoff == pytest.approx(0.35)
+    forward = u.passes[0]
+    assert (forward.name, forward.light_mode, forward.src_blend, forward.dst_blend, forward.zwrite) == (
+        "FORWARD", "ForwardBase", "SrcAlpha", "OneMinusSrcAlpha", False)
+    assert [p.light_mode for p in u.passes] == ["ForwardBase", "ForwardAdd", "ShadowCaster", "Deferred", "Meta"]
+    # The texture, its m_Scale/m_Offset and its importer settings (Checker.png.meta: Point, Clamp, no mips).
+    assert u.main_tex is not None and Path(bpy.path.abspath(u.main_tex.filepath)).name == "Checker.png"
+    assert tuple(u.main_tex_tiling) == (2.0, 3.0) and tuple(u.main_tex_offset) == (0.25, 0.5)
+    assert (u.main_tex_filter, u.main_tex_wrap, u.main_tex_mipmaps) == ("Point", "Clamp", False)
+    images = len(bpy.data.images)
+    assert _call(bpy.ops.unity.shaderlab_import, mat, filepath=str(path),
+                 search_folder=str(BUILTIN_SHADERS)) == {"FINISHED"}
+    assert len(bpy.data.images) == images  # the image is reused, not loaded again
+
+
+def test_operator_material_file_errors_change_nothing(blender, tmp_path):
+    mat = _new_material()
+    before = _snapshot(mat)
+    images = len(bpy.data.images)
+    with pytest.raises(RuntimeError, match="not on the search path"):  # Standard without the shader folder
+        _call(bpy.ops.unity.shaderlab_import, mat, filepath=str(MATERIALS / "Standard" / "Fade.mat"))
+    bad = tmp_path / "bad.mat"
+    bad.write_text("--- !u!21 &1\nMaterial:\n  m_Shader: [unclosed\n", encoding="utf-8")
+    with pytest.raises(RuntimeError, match="not valid YAML"):
+        _call(bpy.ops.unity.shaderlab_import, mat, filepath=str(bad))
+    assert _snapshot(mat) == before and len(bpy.data.images) == images
+
+
+@needs_corpus
+def test_link_unity_project_matches_materials_by_name_and_updates_on_a_second_run(blender):
+    from addon.shaderlab.project import link_project
+
+    fade = bpy.data.materials.new("Standard Fade")
+    custom = bpy.data.materials.new("Custom Additive")
+    sprite = bpy.data.materials.new("Sprite")
+    stranger = bpy.data.materials.new("Not In The Project")
+    for mat in (fade, custom, sprite, stranger):
+        mat.use_fake_user = True
+    report = link_project(str(PROJECT), (str(BUILTIN_SHADERS),), [fade, custom, sprite, stranger])
+    assert set(report.linked) == {"Standard Fade", "Custom Additive", "Sprite"}
+    assert report.linked["Custom Additive"] == str(MATERIALS / "Custom.mat")
+    assert report.unmatched == ["Not In The Project"] and not report.failed
+    assert report.unused == 16 - 3
+    assert fade.unity.enabled and fade.unity.queue == "Transparent" and fade.unity.passes[0].src_blend == "SrcAlpha"
+    c = custom.unity
+    assert (c.queue, c.queue_offset, c.passes[0].src_blend, c.passes[0].dst_blend) == ("Transparent", 100, "One",
+                                                                                      "One")
+    assert c.passes[0].stencil and c.passes[0].stencil_ref == 3 and c.passes[0].alpha_test
+    assert sprite.unity.vertex_color == "Multiply" and sprite.unity.main_tex is not None
+    assert not stranger.unity.enabled
+    summary = report.summary()
+    assert summary.startswith("Linked 3 materials from ") and "no .mat for: Not In The Project" in summary
+    # Edited in Blender, linked again: the project's settings come back.
+    c.queue_offset = 7
+    c.passes[0].cull = "Back"
+    again = link_project(str(PROJECT), (str(BUILTIN_SHADERS),), [custom])
+    assert again.linked == {"Custom Additive": str(MATERIALS / "Custom.mat")}
+    assert c.queue_offset == 100 and c.passes[0].cull == "Off"
+
+
+@needs_corpus
+def test_link_unity_project_operator_reports_failures_and_keeps_going(blender):
+    fade = bpy.data.materials.new("Standard Cutout")
+    fade.use_fake_user = True
+    before = fade.unity.enabled
+    # Without the built-in shader folder the Standard materials cannot be imported: reported, unchanged.
+    assert bpy.ops.unity.link_unity_project(directory=str(PROJECT)) == {"FINISHED"}
+    assert fade.unity.enabled == before
+    assert bpy.ops.unity.link_unity_project(directory=str(PROJECT), search_folder=str(BUILTIN_SHADERS)) == {
+        "FINISHED"}
+    assert fade.unity.enabled and fade.unity.queue == "AlphaTest" and fade.unity.passes[0].alpha_test
+    with pytest.raises(RuntimeError, match="not a folder"):
+        bpy.ops.unity.link_unity_project(directory=str(PROJECT / "nope"))
