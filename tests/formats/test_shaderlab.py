@@ -563,7 +563,9 @@ def _roundtrip(material: Material) -> Material:
     text = export_shaderlab(material, "Round/Trip")
     result = parse_shaderlab(text, "roundtrip.shader")
     assert result.name == "Round/Trip"
-    assert result.warnings == (), result.warnings
+    # The only warning: a pass whose LightMode is not one of the forward path's (Other) is never drawn.
+    others = sum(p.light_mode is LightMode.Other for p in material.draw_passes)
+    assert len(result.warnings) == others and all("LightMode 'Other'" in w for w in result.warnings), result.warnings
     return result.material
 
 
@@ -633,6 +635,9 @@ passes_strategy = st.builds(
     stencil_pass=st.sampled_from(list(StencilOp)),
     stencil_fail=st.sampled_from(list(StencilOp)),
     stencil_zfail=st.sampled_from(list(StencilOp)),
+    alpha_to_mask=st.booleans(),
+    alpha_test_comp=st.sampled_from(list(CompareFunction)),
+    light_mode=st.sampled_from(list(LightMode)),
 )
 
 materials_strategy = st.builds(
@@ -662,8 +667,12 @@ def test_canonical_pass_is_a_fixed_point_and_keeps_what_renders(p):
     c = canonical_pass(p)
     assert canonical_pass(c) == c
     keep = [f.name for f in fields(Pass) if not f.name.startswith(("src_blend", "dst_blend", "blend_op",
-                                                                   "separate_alpha", "stencil_", "offset_"))]
+                                                                   "separate_alpha", "stencil_", "offset_",
+                                                                   "alpha_test"))]
     assert all(getattr(c, k) == getattr(p, k) for k in keep)
+    # The alpha test as it renders: Always keeps every fragment (no test), an inactive comparison is not kept.
+    tests = p.alpha_test and p.alpha_test_comp is not CompareFunction.Always
+    assert c.alpha_test is tests and c.alpha_test_comp is (p.alpha_test_comp if tests else CompareFunction.GEqual)
     # Offsets as Blender stores them: the same float32.
     assert np.float32(c.offset_factor) == np.float32(p.offset_factor)
     assert np.float32(c.offset_units) == np.float32(p.offset_units)
@@ -672,6 +681,21 @@ def test_canonical_pass_is_a_fixed_point_and_keeps_what_renders(p):
             p.src_blend, p.dst_blend, p.blend_op, p.alpha_factors)
     if p.stencil:
         assert c == replace(c, **{k: getattr(p, k) for k in pass_to_dict(p) if k.startswith("stencil_")})
+
+
+@pytest.mark.parametrize("comp", list(CompareFunction))
+def test_the_alpha_comparison_and_light_mode_round_trip(comp):
+    """Each comparison is written into the exported CG (GEqual the book's clip(), Never clip(-1), the
+    others 'if (!(alpha OP _Cutoff)) discard;') and read back; Always tests nothing."""
+    p = Pass(name="Cut", alpha_test=True, alpha_test_comp=comp, alpha_to_mask=True, light_mode=LightMode.Vertex)
+    text = export_shaderlab(Material(passes=(p,)), "Round/Trip")
+    assert 'Tags { "LightMode"="Vertex" }' in text and "AlphaToMask On" in text
+    if comp is CompareFunction.Greater:
+        assert "if (!(texColor.a * _Color.a * _AlphaScale > _Cutoff)) discard;" in text
+    (back,) = parse_shaderlab(text).passes
+    assert back == canonical_pass(p)
+    assert back.alpha_test is (comp is not CompareFunction.Always)
+    assert back.alpha_test_comp is (CompareFunction.GEqual if comp is CompareFunction.Always else comp)
 
 
 def test_empty_pass_list_exports_one_default_pass():
@@ -715,7 +739,7 @@ def test_cli_main_errors(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.startswith("error: ") and "missing.shader" in err
     assert cli_main(["shaderlab"]) == 1
-    assert capsys.readouterr().err.startswith("error: no .shader file given")
+    assert capsys.readouterr().err.startswith("error: no .shader or .mat file given")
     with pytest.raises(SystemExit) as usage:  # argparse: usage errors exit 2
         cli_main(["shaderlab", "--bogus"])
     assert usage.value.code == 2

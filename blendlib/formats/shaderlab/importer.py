@@ -450,7 +450,9 @@ def _result(ctx: _Context, imported: _Imported, material_name: str | None, custo
                 break
     else:
         material["lighting"] = Lighting.Unlit
-    tested = [i for i in (drawn or kept) if i.alpha_test is not None and i.pass_.alpha_test]
+    # The passes whose alpha test reads a cutoff (Never and clip(-1) read none).
+    tested = [i for i in (drawn or kept) if i.alpha_test is not None and i.pass_.alpha_test
+              and i.alpha_test.comp is not CompareFunction.Never]
     if tested:
         test = tested[0].alpha_test
         if test.cutoff_property is not None and test.cutoff_property != "_Cutoff":
