@@ -293,3 +293,15 @@ def test_vertex_passes_do_not_draw_beside_forward_passes():
     reasons = {e["name"]: e["reason"] for e in result.to_dict()["passes"]}
     assert reasons["FORWARD_DELTA"].startswith("ForwardAdd: drawn once per additional per-pixel light")
     assert reasons["ShadowCaster"].startswith("ShadowCaster:")
+
+
+def test_docs_unity_shaders_is_the_importers_current_output(tmp_path):
+    """docs/unity-shaders.md is generated from this importer's output (scripts/make_unity_shader_table.py):
+    what it says about each built-in shader is what the import gives today."""
+    from scripts.make_unity_shader_table import main
+    from tests.support.shared import REPO
+
+    out = tmp_path / "unity-shaders.md"
+    assert main(["--corpus", str(BUILTIN_SHADERS), "-o", str(out)]) == 0
+    assert out.read_text(encoding="utf-8") == (REPO / "docs" / "unity-shaders.md").read_text(encoding="utf-8"), (
+        "docs/unity-shaders.md is stale: run python -m scripts.make_unity_shader_table")
