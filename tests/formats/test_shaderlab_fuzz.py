@@ -89,23 +89,29 @@ FRAGMENTS = [
 ]
 
 
-@st.composite
-def mutated(draw) -> str:
-    text = draw(st.sampled_from(CORPUS))
-    for _ in range(draw(st.integers(1, 6))):
+def _mutate(draw, corpus: list[str], fragments: list[str], edits: int, span: int) -> str:
+    """One text of ``corpus`` with 1..``edits`` edits of up to ``span`` characters: deleted,
+    inserted or replaced by one of ``fragments``, or duplicated."""
+    text = draw(st.sampled_from(corpus))
+    for _ in range(draw(st.integers(1, edits))):
         n = len(text)
         i = draw(st.integers(0, n))
-        j = draw(st.integers(i, min(n, i + 40)))
+        j = draw(st.integers(i, min(n, i + span)))
         op = draw(st.sampled_from(["delete", "insert", "replace", "duplicate"]))
         if op == "delete":
             text = text[:i] + text[j:]
         elif op == "insert":
-            text = text[:i] + draw(st.sampled_from(FRAGMENTS)) + text[i:]
+            text = text[:i] + draw(st.sampled_from(fragments)) + text[i:]
         elif op == "replace":
-            text = text[:i] + draw(st.sampled_from(FRAGMENTS)) + text[j:]
+            text = text[:i] + draw(st.sampled_from(fragments)) + text[j:]
         else:
             text = text[:j] + text[i:j] + text[j:]
     return text
+
+
+@st.composite
+def mutated(draw) -> str:
+    return _mutate(draw, CORPUS, FRAGMENTS, 6, 40)
 
 
 def _reject_constant(name: str):
@@ -154,21 +160,7 @@ CUSTOM_SHADER = (PROJECT / "Assets" / "Shaders" / "CustomBlend.shader").read_tex
 
 @st.composite
 def mutated_material(draw) -> str:
-    text = draw(st.sampled_from(MAT_CORPUS))
-    for _ in range(draw(st.integers(1, 5))):
-        n = len(text)
-        i = draw(st.integers(0, n))
-        j = draw(st.integers(i, min(n, i + 30)))
-        op = draw(st.sampled_from(["delete", "insert", "replace", "duplicate"]))
-        if op == "delete":
-            text = text[:i] + text[j:]
-        elif op == "insert":
-            text = text[:i] + draw(st.sampled_from(MAT_FRAGMENTS)) + text[i:]
-        elif op == "replace":
-            text = text[:i] + draw(st.sampled_from(MAT_FRAGMENTS)) + text[j:]
-        else:
-            text = text[:j] + text[i:j] + text[j:]
-    return text
+    return _mutate(draw, MAT_CORPUS, MAT_FRAGMENTS, 5, 30)
 
 
 @settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.too_slow])

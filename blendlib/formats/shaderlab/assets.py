@@ -149,19 +149,22 @@ class AssetSearch:
     def describe(self) -> str:
         return ", ".join(str(f) for f in self.folders) or "no folder"
 
-    def _name_index(self) -> dict[str, str]:
-        if self._names is None:
-            self._names = {}
-            for folder in self.folders:
-                for path in _files(folder, ".shader"):
-                    name = _cached(path, _shader_name)
-                    if name is not None:
-                        self._names.setdefault(name, path)
-        return self._names
+    def _index(self, suffix: str, read) -> dict[str, str]:
+        """``read(path)`` → path for every file of the folders ending with ``suffix`` (the first
+        file wins a key two files share)."""
+        index: dict[str, str] = {}
+        for folder in self.folders:
+            for path in _files(folder, suffix):
+                key = _cached(path, read)
+                if key is not None:
+                    index.setdefault(key, path)
+        return index
 
     def shader_path(self, name: str) -> str | None:
         """The ``.shader`` file of the shader named ``name`` (Unity's old name for a Legacy shader too)."""
-        names = self._name_index()
+        if self._names is None:
+            self._names = self._index(".shader", _shader_name)
+        names = self._names
         for candidate in (name, f"Legacy Shaders/{name}"):
             if candidate in names:
                 return names[candidate]
@@ -171,10 +174,5 @@ class AssetSearch:
     def asset_path(self, guid: str) -> str | None:
         """The asset whose ``.meta`` file carries ``guid`` (the ``.meta`` path without ``.meta``)."""
         if self._guids is None:
-            self._guids = {}
-            for folder in self.folders:
-                for path in _files(folder, ".meta"):
-                    found = _cached(path, _meta_guid)
-                    if found is not None:
-                        self._guids.setdefault(found, path[:-len(".meta")])
+            self._guids = {guid: path[:-len(".meta")] for guid, path in self._index(".meta", _meta_guid).items()}
         return self._guids.get(str(guid).lower())

@@ -190,24 +190,7 @@ class Scanner:
 
     def skip_rest_of_line(self) -> None:
         """Skip to the end of the line, through a ``{ ... }`` block opening on it; stop before ``}``."""
-        assert self._peeked is None
-        i, text = self.pos, self.text
-        while i < len(text):
-            c = text[i]
-            if c in "\r\n" or text.startswith("//", i):
-                break
-            if c == "}":
-                break
-            if c == '"':
-                i = self._skip_string_at(i)
-                continue
-            if c == "{":
-                line, col = self.where(i)
-                self.skip_raw_block(Token("punct", "{", line, col, i + 1), "the ignored command")
-                return
-            j = self._skip_comment_or_program_at(i)
-            i = j if j is not None else i + 1
-        self.pos = i
+        self.skip_line_until(frozenset())
 
     def skip_line_until(self, words: frozenset[str]) -> None:
         """Skip the rest of the line like :meth:`skip_rest_of_line`, but stop before a word of
@@ -225,9 +208,10 @@ class Scanner:
                 line, col = self.where(i)
                 self.skip_raw_block(Token("punct", "{", line, col, i + 1), "the ignored command")
                 return
-            m = _IDENT_RE.match(text, i)
-            if m and m.group().lower() in words and not (i and (text[i - 1].isalnum() or text[i - 1] == "_")):
-                break
+            if words:
+                m = _IDENT_RE.match(text, i)
+                if m and m.group().lower() in words and not (i and (text[i - 1].isalnum() or text[i - 1] == "_")):
+                    break
             j = self._skip_comment_or_program_at(i)
             i = j if j is not None else i + 1
         self.pos = i
