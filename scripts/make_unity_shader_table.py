@@ -69,6 +69,7 @@ NOTES = [
     (r"is drawn with the material's", "texture property ≈"),
     (r"no SubShader", "no SubShader"),
     (r"alpha test keeps alpha >= _Cutoff -", "cutoff - 0.0001"),
+    (r"draws only with the Quality option", "Quality option assumed on"),
 ]
 
 

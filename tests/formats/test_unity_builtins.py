@@ -221,6 +221,48 @@ def test_cutout_diffuse_clips_in_every_generated_pass():
     assert add.alpha_test and not add.zwrite and (add.src_blend, add.dst_blend) == (F.One, F.One)
 
 
+# '#pragma surface surf <model> alpha:fade' in each; 'Tags {"Queue"="Transparent" ...}'.
+TRANSPARENT_SURFACE = {"Alpha-Bumped.shader": "Lambert", "Alpha-BumpSpec.shader": "BlinnPhong",
+                       "Alpha-Diffuse.shader": "Lambert", "Alpha-Glossy.shader": "BlinnPhong",
+                       "Alpha-Parallax.shader": "Lambert", "Alpha-ParallaxSpec.shader": "BlinnPhong"}
+# '#pragma surface surf <model> alphatest:_Cutoff' in each; 'Tags {"Queue"="AlphaTest" ...}'.
+CUTOUT_SURFACE = {"AlphaTest-Bumped.shader": "Lambert", "AlphaTest-BumpSpec.shader": "BlinnPhong",
+                  "AlphaTest-Diffuse.shader": "Lambert", "AlphaTest-Glossy.shader": "BlinnPhong"}
+
+
+@pytest.mark.parametrize("name", sorted(TRANSPARENT_SURFACE))
+def test_every_transparent_surface_shader(name):
+    result = _import(name)
+    assert result.material.queue is Queue.Transparent and result.material.lighting is Lighting.Lambert
+    assert [(p.light_mode, p.zwrite, p.src_blend, p.dst_blend, p.color_mask) for p in result.passes[:2]] == [
+        (LightMode.ForwardBase, False, F.SrcAlpha, F.OneMinusSrcAlpha, RGB),
+        (LightMode.ForwardAdd, False, F.SrcAlpha, F.One, RGB)]
+    approximated = any("lighting model BlinnPhong is drawn as Lambert" in w for w in result.warnings)
+    assert approximated is (TRANSPARENT_SURFACE[name] == "BlinnPhong")
+
+
+@pytest.mark.parametrize("name", sorted(CUTOUT_SURFACE))
+def test_every_cutout_surface_shader(name):
+    result = _import(name)
+    assert result.material.queue is Queue.AlphaTest and result.material.cutoff == 0.5  # '_Cutoff (...) = 0.5'
+    base, add = result.passes[:2]
+    assert base.alpha_test and base.zwrite and not base.blend and base.color_mask == RGB
+    assert add.alpha_test and (add.src_blend, add.dst_blend, add.zwrite) == (F.One, F.One, False)
+
+
+def test_soft_edge_unlit_keeps_the_edges_below_the_cutoff():
+    """'Cull Off'; pass 1 'clip(col.a - _Cutoff)' (alpha >= cutoff, ZWrite On); pass 2
+    'Tags { "RequireOption" = "SoftVegetation" }' 'ZWrite off' 'Blend SrcAlpha OneMinusSrcAlpha'
+    'clip(-(col.a - _Cutoff))' (alpha <= cutoff)."""
+    result = _import("AlphaTest-SoftEdgeUnlit.shader")
+    first, second = result.passes
+    assert first.cull is Cull.Off and first.zwrite and first.alpha_test_comp is CompareFunction.GEqual
+    assert second.cull is Cull.Off and not second.zwrite and second.alpha_test
+    assert second.alpha_test_comp is CompareFunction.LEqual
+    assert (second.src_blend, second.dst_blend) == (F.SrcAlpha, F.OneMinusSrcAlpha)
+    assert any("SoftVegetation" in w for w in result.warnings)
+
+
 def test_cutout_vertexlit_is_fixed_function_with_alpha_to_mask():
     """'Tags { "LightMode" = "Vertex" }' 'Alphatest Greater [_Cutoff]' 'AlphaToMask True' 'ColorMask RGB'
     'Material { Diffuse [_Color] ... }' 'Lighting On' 'Combine texture * primary DOUBLE, texture * primary';

@@ -280,6 +280,10 @@ def _pass_infos(ctx: _Context, shader: ShaderBlock, resolved: ResolvedShader, va
                                      "only; not drawn here")
         elif light_mode_text is not None and light_mode_text.strip().lower() in ctx.disabled:
             excluded = f"disabled by the material (disabledShaderPasses: {light_mode_text})"
+        required = next((v for k, v in block.tags.items() if k.lower() == "requireoption"), None)
+        if required is not None:
+            ctx.warn(block.head, f"pass {name!r} draws only with the Quality option {required} on: assumed on "
+                                 "(Unity's higher default quality levels)")
         if light_mode is LightMode.Other:
             ctx.warn(block.head, f"pass {name!r}: LightMode {light_mode_text!r} is not a pass of the built-in "
                                  "forward path: never drawn")

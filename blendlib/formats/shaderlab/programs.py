@@ -7,7 +7,8 @@ nothing); then, per pass, the branches of ``#if``/``#ifdef`` on the keywords the
 keywords choose them (:func:`active_code`), so ``#ifdef UNITY_UI_ALPHACLIP clip(…)`` clips only with
 that keyword on. :func:`analyze_pass` then reads, per pass (:class:`PassProgram`):
 
-* the alpha test: ``clip(x - _Prop)`` (the book's, ``GEqual`` at ``_Prop``), ``clip(x - 0.001)``
+* the alpha test: ``clip(x - _Prop)`` (the book's, ``GEqual`` at ``_Prop``), ``clip(-(x - _Prop))``
+  and ``clip(_Prop - x)`` (``LEqual``), ``clip(x - 0.001)``
   (a constant cutoff), ``clip(-1)`` (``Never``) and ``if (!(x OP _Prop)) discard;`` (the exporter's
   form of the other comparisons);
 * vertex colours (``i.color``: :class:`~blendlib.core.vocabulary.VertexColor`): the legacy
@@ -33,6 +34,9 @@ from ...core.vocabulary import CompareFunction, VertexColor
 _CG_COMMENT_RE = re.compile(r"//[^\n]*|/\*.*?\*/", re.DOTALL)
 _CLIP_CALL_RE = re.compile(r"\bclip\s*\(")
 _CLIP_PROP_RE = re.compile(r"\bclip\s*\(([^;]*?)-\s*(_[A-Za-z0-9_]+)\s*(\+\s*([0-9.]+)f?\s*)?\)\s*;")
+# clip(-(x - _Prop)) and clip(_Prop - x): the fragment survives when x <= _Prop.
+_CLIP_BELOW_RE = re.compile(r"\bclip\s*\(\s*-\s*\(\s*[^;()]*?-\s*(_[A-Za-z0-9_]+)\s*\)\s*\)\s*;"
+                            r"|\bclip\s*\(\s*(_[A-Za-z0-9_]+)\s*-[^;]*\)\s*;")
 _CLIP_CONST_RE = re.compile(r"\bclip\s*\(([^;]*?)-\s*(\d*\.\d+|\d+\.?)[fh]?\s*\)\s*;")
 _CLIP_NEVER_RE = re.compile(r"\bclip\s*\(\s*-\s*(\d*\.\d+|\d+\.?)[fh]?\s*\)\s*;")
 _DISCARD_TEST_RE = re.compile(
@@ -354,6 +358,9 @@ def analyze_pass(programs: list[str], includes: str, enabled: frozenset[str]) ->
 
 def _alpha_test(code: str) -> AlphaTest | None:
     """The program's alpha test (the first form found, in the order of the module docstring)."""
+    m = _CLIP_BELOW_RE.search(code)
+    if m:
+        return AlphaTest(CompareFunction.LEqual, m.group(1) or m.group(2))
     m = _CLIP_PROP_RE.search(code)
     if m:
         return AlphaTest(CompareFunction.GEqual, m.group(2), offset=float(m.group(4) or 0.0))
