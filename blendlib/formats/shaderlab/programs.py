@@ -145,41 +145,66 @@ _CONDITION_TOKEN_RE = re.compile(r"\s*(defined|\|\||&&|!|\(|\)|[A-Za-z_]\w*|\S)"
 
 
 def _condition(text: str, declared: frozenset[str], on: frozenset[str]) -> bool | None:
-    """The value of a preprocessor condition over declared keywords; None when it names anything else."""
+    """The value of a preprocessor condition over declared keywords; None when it names anything
+    else or is not well formed. Grammar: ``or := and ('||' and)*``, ``and := unary ('&&' unary)*``,
+    ``unary := '!' unary | '(' or ')' | 'defined' ['('] NAME [')'] | NAME``."""
     tokens = _CONDITION_TOKEN_RE.findall(text)
-    python: list[str] = []
-    i = 0
-    while i < len(tokens):
-        tok = tokens[i]
+    pos = 0
+
+    class Undecided(Exception):
+        pass
+
+    def peek() -> str | None:
+        return tokens[pos] if pos < len(tokens) else None
+
+    def take(expected: str | None = None) -> str:
+        nonlocal pos
+        tok = peek()
+        if tok is None or (expected is not None and tok != expected):
+            raise Undecided
+        pos += 1
+        return tok
+
+    def keyword(name: str) -> bool:
+        if name not in declared:
+            raise Undecided
+        return name in on
+
+    def unary() -> bool:
+        tok = take()
+        if tok == "!":
+            return not unary()
+        if tok == "(":
+            value = either()
+            take(")")
+            return value
         if tok == "defined":
-            if tokens[i + 1:i + 2] == ["("] and tokens[i + 3:i + 4] == [")"]:
-                name, i = tokens[i + 2], i + 4
-            elif i + 1 < len(tokens):
-                name, i = tokens[i + 1], i + 2
-            else:
-                return None
-            if name not in declared:
-                return None
-            python.append(str(name in on))
-            continue
-        if tok == "&&":
-            python.append(" and ")
-        elif tok == "||":
-            python.append(" or ")
-        elif tok == "!":
-            python.append(" not ")
-        elif tok in "()":
-            python.append(tok)
-        elif tok in declared:
-            python.append(str(tok in on))
-        else:
-            return None
-        i += 1
-    if not python:
-        return None
+            if peek() == "(":
+                take("(")
+                value = keyword(take())
+                take(")")
+                return value
+            return keyword(take())
+        return keyword(tok)
+
+    def both() -> bool:
+        value = unary()
+        while peek() == "&&":
+            take()
+            value = unary() and value  # evaluated first: an undecidable operand stays undecided
+        return value
+
+    def either() -> bool:
+        value = both()
+        while peek() == "||":
+            take()
+            value = both() or value
+        return value
+
     try:
-        return bool(eval("".join(python), {"__builtins__": {}}))  # noqa: S307 - only True/False/and/or/not/()
-    except SyntaxError:
+        value = either()
+        return value if pos == len(tokens) else None
+    except Undecided:
         return None
 
 
