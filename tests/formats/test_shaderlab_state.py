@@ -132,3 +132,40 @@ def test_bad_values_still_raise_one_positioned_error():
         parse_shaderlab(_shader("ColorMaterial Sometimes"))
     with pytest.raises(ShaderLabError, match="unknown Material command"):
         parse_shaderlab(_shader("Material { Glow (1,1,1,1) }"))
+
+
+def test_use_pass_and_fallback_through_a_search_path(tmp_path):
+    """UsePass names are upper-cased ('Note that internally all pass names are uppercased'); all passes
+    of the name are inserted (2019.4 manual), with their own state; a missing shader or pass, two
+    shaders that use each other and a missing Fallback are warnings, never an error."""
+    from blendlib.formats.shaderlab import parse_shaderlab_file
+
+    (tmp_path / "Other.shader").write_text(
+        'Shader "Lib/Other" { SubShader { ZWrite Off Pass { Name "Add" Blend One One } '
+        'Pass { Name "ADD" Cull Front } Pass { Name "Solo" } } }', encoding="utf-8")
+    (tmp_path / "Loop.shader").write_text('Shader "Lib/Loop" { SubShader { UsePass "User/OWN" Pass { Name "X" } } }',
+                                          encoding="utf-8")
+    user = tmp_path / "sub" / "User.shader"
+    user.parent.mkdir()
+    user.write_text('Shader "User" { SubShader { Cull Off UsePass "Lib/Other/ADD" Pass { Name "Own" } '
+                    'UsePass "Lib/Missing/X" UsePass "Lib/Other/NOPE" UsePass "Lib/Loop/X" } }', encoding="utf-8")
+    result = parse_shaderlab_file(str(user), (str(tmp_path),))
+    add, add2, own, loop = result.passes  # Loop's UsePass back into User is a cycle, left out: one X
+    assert (add.name, add.blend, add.zwrite, add.cull) == ("Add", True, False, Cull.Back)  # its own state
+    assert (add2.name, add2.cull, add2.zwrite) == ("ADD", Cull.Front, False)
+    assert (own.name, own.cull) == ("Own", Cull.Off) and loop.name == "X"
+    w = " ".join(result.warnings)
+    assert "2 passes have that name; all are inserted" in w
+    assert "no shader named 'Lib/Missing'" in w and "has no pass named 'NOPE'" in w
+    (tmp_path / "NoSub.shader").write_text('Shader "NoSub" { Fallback "Lib/Nowhere" }', encoding="utf-8")
+    result = parse_shaderlab_file(str(tmp_path / "NoSub.shader"))
+    assert result.passes == () and any('Fallback "Lib/Nowhere" is not on the search path' in x
+                                       for x in result.warnings)
+
+
+def test_use_pass_of_a_pass_of_the_same_shader():
+    text = ('Shader "Self" { SubShader { Pass { Name "Base" Cull Front } UsePass "Self/BASE" '
+            'UsePass "Self/MISSING" } }')
+    result = parse_shaderlab(text)
+    assert [(p.name, p.cull) for p in result.passes] == [("Base", Cull.Front), ("Base", Cull.Front)]
+    assert any("Self has no pass named 'MISSING'" in w for w in result.warnings)

@@ -125,8 +125,10 @@ class _Context:
     """What one import shares: the warnings, the search path, the material's values and keywords."""
 
     def __init__(self, filename: str, search: AssetSearch, values: MaterialValues | None,
-                 keywords: frozenset[str] | None, disabled: tuple[str, ...]) -> None:
+                 keywords: frozenset[str] | None, disabled: tuple[str, ...], within: tuple[str, ...] = ()) -> None:
         self.filename = filename
+        #: The files being imported around this one (UsePass, Fallback): one of them again is a cycle.
+        self.within = (*within, str(Path(filename).resolve()))
         self.search = search
         self.values = values
         self.keywords = keywords
@@ -221,13 +223,8 @@ def _pass_infos(ctx: _Context, shader: ShaderBlock, resolved: ResolvedShader, va
     keywords = ctx.keywords if ctx.keywords is not None else _default_keywords(shader.properties, values)
     main_texture = _main_texture_name(shader.properties)
     written = len(resolved.passes)
-    out: list[_PassInfo] = []
-    index = -1
-    for item in resolved.items:
-        if isinstance(item, UsePass):
-            out += _use_pass(ctx, item, values, depth)
-            continue
-        index += 1
+    own: list[_PassInfo] = []  # the written passes; then the UsePasses are put in their places
+    for index, item in enumerate(resolved.passes):
         block = item.block
         name = block.name or ("Pass" if written == 1 else f"Pass {index + 1}")
         light_mode, light_mode_text = _light_mode(block.tags)
@@ -287,31 +284,47 @@ def _pass_infos(ctx: _Context, shader: ShaderBlock, resolved: ResolvedShader, va
         if light_mode is LightMode.Other:
             ctx.warn(block.head, f"pass {name!r}: LightMode {light_mode_text!r} is not a pass of the built-in "
                                  "forward path: never drawn")
-        out.append(_PassInfo(p, excluded, light_mode_text if light_mode_text is not None else None,
-                             dict(block.tags), lit, lit_note, color, scale, vertex_color, test, block.head))
+        own.append(_PassInfo(p, excluded, light_mode_text, dict(block.tags), lit, lit_note, color, scale,
+                             vertex_color, test, block.head))
+    out: list[_PassInfo] = []
+    written_infos = iter(own)
+    for item in resolved.items:
+        if isinstance(item, UsePass):
+            out += _use_pass(ctx, item, values, depth, shader.name, own)
+        else:
+            out.append(next(written_infos))
     return out
 
 
-def _use_pass(ctx: _Context, use: UsePass, values: MaterialValues, depth: int) -> list[_PassInfo]:
-    """The passes ``UsePass "Shader/NAME"`` inserts (warned when the shader or pass is not found)."""
+def _use_pass(ctx: _Context, use: UsePass, values: MaterialValues, depth: int, own_name: str,
+              own: list[_PassInfo]) -> list[_PassInfo]:
+    """The passes ``UsePass "Shader/NAME"`` inserts — of this shader (``own_name``: its written
+    passes ``own``) or another on the search path; warned when the shader or pass is not found."""
     shader_name, _, pass_name = use.path.rpartition("/")
+    if shader_name in (own_name, own_name.removeprefix("Legacy Shaders/")):
+        return _named(ctx, use, shader_name, pass_name, own)
     path = ctx.search.shader_path(shader_name) if shader_name else None
     if path is None:
         ctx.warn(use.head, f'UsePass "{use.path}": no shader named {shader_name!r} on the search path '
                            f"({ctx.search.describe()}); not imported")
         return []
-    if depth >= MAX_INDIRECTION:
-        ctx.warn(use.head, f'UsePass "{use.path}": UsePass/Fallback nested more than {MAX_INDIRECTION} deep; '
-                           "not imported")
+    if depth >= MAX_INDIRECTION or str(Path(path).resolve()) in ctx.within:
+        ctx.warn(use.head, f'UsePass "{use.path}": {path} uses itself (or UsePass/Fallback nest more than '
+                           f"{MAX_INDIRECTION} deep); not imported")
         return []
     try:
         other = _import_file(ctx, path, values, depth + 1)
-    except ShaderLabError as exc:
-        ctx.warn(use.head, f'UsePass "{use.path}": {exc}; not imported')
+    except (ShaderLabError, OSError, UnicodeDecodeError) as exc:
+        ctx.warn(use.head, f'UsePass "{use.path}": {path}: {_reason(exc)}; not imported')
         return []
-    found = [info for info in other.passes if info.pass_.name.upper() == pass_name.upper()]
+    return _named(ctx, use, shader_name, pass_name, other.passes)
+
+
+def _named(ctx: _Context, use: UsePass, shader_name: str, pass_name: str, passes: list[_PassInfo]) -> list[_PassInfo]:
+    """The passes of ``passes`` named ``pass_name`` (upper-cased, as Unity names them), placed at ``use``."""
+    found = [info for info in passes if info.pass_.name.upper() == pass_name.upper()]
     if not found:
-        names = ", ".join(repr(i.pass_.name.upper()) for i in other.passes) or "none"
+        names = ", ".join(repr(i.pass_.name.upper()) for i in passes) or "none"
         ctx.warn(use.head, f'UsePass "{use.path}": {shader_name} has no pass named {pass_name!r} (its passes: '
                            f"{names}); not imported")
     elif len(found) > 1:
@@ -320,12 +333,21 @@ def _use_pass(ctx: _Context, use: UsePass, values: MaterialValues, depth: int) -
     return [replace(info, head=use.head) for info in found]
 
 
+def _reason(exc: Exception) -> str:
+    """Why another file did not import, in one line."""
+    if isinstance(exc, ShaderLabError):
+        return str(exc)
+    if isinstance(exc, UnicodeDecodeError):
+        return f"not UTF-8 text ({exc.reason})"
+    return str(getattr(exc, "strerror", None) or exc)
+
+
 def _import_file(ctx: _Context, path: str, values: MaterialValues, depth: int) -> _Imported:
     """Another shader file (UsePass, Fallback) imported with this material's ``values``; its
     warnings are not this file's (positions elsewhere), so they are left out."""
     with open(path, encoding="utf-8-sig") as fh:
         text = fh.read()
-    inner = _Context(path, ctx.search, values, ctx.keywords, tuple(ctx.disabled))
+    inner = _Context(path, ctx.search, values, ctx.keywords, tuple(ctx.disabled), ctx.within)
     return _import(inner, text, depth)
 
 
@@ -351,15 +373,15 @@ def _fallback(ctx: _Context, shader: ShaderBlock, values: MaterialValues, depth:
     """A shader without a SubShader draws with its Fallback's first SubShader (Unity: "if no
     subshader can run, try the fallback shader"), with this material's values."""
     path = ctx.search.shader_path(shader.fallback)
-    if path is None or depth >= MAX_INDIRECTION:
+    if path is None or depth >= MAX_INDIRECTION or str(Path(path).resolve()) in ctx.within:
         ctx.warn(shader.head, f'no SubShader, and the Fallback "{shader.fallback}" is not on the search path '
                               f"({ctx.search.describe()}); the material gets one default pass")
         return None
     try:
         other = _import_file(ctx, path, values, depth + 1)
-    except ShaderLabError as exc:
-        ctx.warn(shader.head, f'no SubShader, and the Fallback "{shader.fallback}" does not import ({exc}); '
-                              "the material gets one default pass")
+    except (ShaderLabError, OSError, UnicodeDecodeError) as exc:
+        ctx.warn(shader.head, f'no SubShader, and the Fallback "{shader.fallback}" does not import ({path}: '
+                              f"{_reason(exc)}); the material gets one default pass")
         return None
     ctx.warn(shader.head, f'no SubShader: drawn with the Fallback "{shader.fallback}" ({path}), as Unity does')
     return _Imported(shader, other.resolved, [replace(i, head=shader.head) for i in other.passes], other.tags,
