@@ -7,6 +7,7 @@ function records what it was asked to draw.
 from __future__ import annotations
 
 import math
+import threading
 from types import SimpleNamespace
 
 import bpy
@@ -71,6 +72,16 @@ def test_free_view_reduced_then_full_and_equal_to_render_view():
     scene = scene_with_cubes()
     redraws = []
     session = viewport.ViewportSession(lambda: redraws.append(1))
+    # the worker waits for the test's first draw to return, so "nothing ready yet" cannot race
+    # with a fast first frame; the scheduler's own renderer still draws every frame
+    first_draw_returned = threading.Event()
+    own_render = session.scheduler._render
+
+    def gated_render(scene, **kwargs):
+        assert first_draw_returned.wait(WAIT)
+        return own_render(scene, **kwargs)
+
+    session.scheduler._render = gated_render
     drawn, fake = Drawn(), FakeEngine()
     depsgraph = bpy.context.evaluated_depsgraph_get()
     view, proj = look_at((3, -7, 2), (0, 0, 0), (0, 0, 1)), perspective(50, 200 / 150, 0.1, 100)
@@ -78,6 +89,7 @@ def test_free_view_reduced_then_full_and_equal_to_render_view():
     try:
         session.update(depsgraph)
         assert session.draw(fake, ctx, depsgraph, draw=drawn) is False  # submitted; nothing ready yet
+        first_draw_returned.set()
         assert session.scheduler.wait_idle(WAIT)
         assert len(redraws) == 2  # reduced frame, then full: a redraw after each
         assert session.draw(fake, ctx, depsgraph, draw=drawn) is True
@@ -112,6 +124,7 @@ def test_free_view_reduced_then_full_and_equal_to_render_view():
         moved = render_view(scene, look_at((-3, -7, 2), (0, 0, 0), (0, 0, 1)), proj, 200, 150)
         np.testing.assert_array_equal(drawn.calls[-1][0], viewport.display_pixels(moved))
     finally:
+        first_draw_returned.set()
         session.close()
     assert fake.stats == []
 
