@@ -6,7 +6,7 @@ import json
 
 import numpy as np
 
-from blendlib.formats import images
+from blendlib.formats import heatmap, images
 from tests.support.blender_fixtures import REPO, one_line_error, run_cli
 
 TWO = REPO / "blend_files" / "two_transparent.blend"
@@ -56,7 +56,8 @@ def test_heat_maps_with_a_legend(tmp_path):
     reference, error, overdraw = images.load(ref), images.load(err), images.load(od)
     h, w = reference.shape[:2]
     assert error.shape[0] > h and error.shape[1] == w  # the legend strip below the map
-    assert overdraw.shape[1] == 2 * w + 2 and overdraw.shape[0] == error.shape[0]
+    # the panels' names in a caption strip above them, one legend below
+    assert overdraw.shape[1] == 2 * w + 2 and overdraw.shape[0] == error.shape[0] + heatmap.CAPTION_HEIGHT
     legend = error[h:]
     assert legend[..., 0].max() == 1.0 and len(np.unique(legend[..., :3].reshape(-1, 3), axis=0)) > 20
 
