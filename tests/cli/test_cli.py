@@ -55,7 +55,13 @@ def test_render_png_npy_exr_and_depth(blends, tmp_path):
     covered = d < 1.0
     assert covered[15, 20] and not covered[0, 0]  # the cube is in the middle, the corners are cleared
     assert run_cli("render", str(blends["good"]), "-o", str(png)).returncode == 0
-    np.testing.assert_array_equal(images.load(png), color)  # LDR: the PNG holds the stored 8-bit values
+    # LDR: the PNG holds the stored 8-bit values with alpha 255, what F12 shows (the Combined pass
+    # is opaque); --alpha keeps the frame's own alpha, which .npy and .exr always keep
+    shown = images.load(png)
+    np.testing.assert_array_equal(shown[..., :3], color[..., :3])
+    assert (shown[..., 3] == 1).all() and color[0, 0, 3] == 0  # the cleared corners are transparent
+    assert run_cli("render", str(blends["good"]), "-o", str(png), "--alpha").returncode == 0
+    np.testing.assert_array_equal(images.load(png), color)
     assert run_cli("render", str(blends["good"]), "-o", str(exr)).returncode == 0
     np.testing.assert_array_equal(images.load(exr), color)
 
