@@ -16,7 +16,7 @@ import pytest
 
 import blendlib.blender  # noqa: F401
 from blendlib import testing
-from blendlib.formats import images
+from blendlib.formats import heatmap, images
 from blendlib.testing import assert_frame_matches
 
 pytest_plugins = ["pytester"]
@@ -47,13 +47,15 @@ def test_steps_tolerance_and_heat_map(tmp_path, ext):
     assert_frame_matches(off, golden, max_steps=1)
     with pytest.raises(AssertionError) as info:
         assert_frame_matches(off, golden, max_steps=0)
-    diff = tmp_path / "g.diff.png"
+    # one heat map per golden: g.png's is g.diff.png (the golden's stem), g.npy's g.npy.diff.png
+    diff = tmp_path / ("g.diff.png" if ext == ".png" else f"g{ext}.diff.png")
     message = str(info.value)
     assert str(golden) in message and f"heat map: {diff}" in message
     assert "1 of 48 pixels" in message and "x=3, y=2" in message
     heat = images.load(diff)
-    others = np.delete(heat.reshape(-1, 4), 2 * 8 + 3, 0)
-    assert heat.shape == (6, 8, 4) and heat[2, 3, 0] > 0 and (others[:, :3] == 0).all()
+    others = np.delete(heat[:6].reshape(-1, 4), 2 * 8 + 3, 0)
+    assert heat.shape == (6 + heatmap.LEGEND_HEIGHT, 8, 4)  # the map, then its legend
+    assert heat[2, 3, 0] > 0 and (others[:, :3] == 0).all()
     off[0, 0, 0] += 3 / 255
     with pytest.raises(AssertionError, match="1 of 48 pixels .* up to 3 step.*x=0, y=0"):
         assert_frame_matches(off, golden, max_steps=1)
