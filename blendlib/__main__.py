@@ -9,9 +9,9 @@ import sys
 from .cli import interrupts
 
 if __name__ == "__main__":
-    interrupts.install()
+    interrupts.install()  # records a signal from now on; main() acts on it
     try:
-        from .cli import interrupted_line, main
+        from .cli import main
         from .runtime.allocator import keep_freed_memory
 
         keep_freed_memory()  # this process is the command line's own (runtime/allocator.py)

@@ -38,10 +38,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 def interrupted_line(exc: interrupts.Interrupted) -> str:
     """The one line an interruption prints: which signal, and what was written before it."""
-    from . import outputs
-
     what = "interrupted" if exc.signum == signal.SIGINT else f"interrupted ({exc})"
-    return f"error: {what}; {exc.detail or outputs.summary()}"
+    return f"error: {what}; {exc.detail or interrupts.written_summary()}"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -58,9 +56,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _main(argv: list[str] | None) -> int:
-    from . import outputs
-
-    outputs.WRITTEN.clear()
+    interrupts.WRITTEN.clear()
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -68,17 +64,21 @@ def _main(argv: list[str] | None) -> int:
         parser.print_help()
         return 2
     try:
-        return args.func(args)
+        with interrupts.interruptible():
+            return args.func(args)
     except CliError as exc:
+        interrupts.check()  # an error that the interruption caused is the interruption
         print(f"error: {exc}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:  # the handlers could not be installed (not the main thread)
-        print(f"error: interrupted; {outputs.summary()}", file=sys.stderr)
+        print(f"error: interrupted; {interrupts.written_summary()}", file=sys.stderr)
         return 130
     except MemoryError:
+        interrupts.check()
         print("error: out of memory (lower the resolution or the resolution percentage)", file=sys.stderr)
         return 1
     except Exception as exc:  # noqa: BLE001 - one line for the user; UNITY_PASSES_DEBUG=1 for the traceback
+        interrupts.check()  # e.g. an import broken into by the signal: report the signal
         if os.environ.get("UNITY_PASSES_DEBUG"):
             raise
         text = " ".join(str(exc).split()) or "no details"

@@ -8,7 +8,8 @@
   the analysis' maps) written as one commit (:func:`blendlib.formats.atomic.write_group`):
   all or none, an existing file replaced only by its complete successor, never broken into by
   Ctrl+C or SIGTERM (:func:`blendlib.cli.interrupts.deferred`);
-- :func:`summary`: what this run has written, for the line an interruption prints.
+and records what they wrote (:data:`blendlib.cli.interrupts.WRITTEN`, for the line an
+interruption prints).
 """
 
 from __future__ import annotations
@@ -24,9 +25,6 @@ from ..formats import images
 from ..formats.atomic import write_group
 from . import interrupts
 from .errors import CliError
-
-#: Every file this run committed, in order.
-WRITTEN: list[Path] = []
 
 
 def _folder(path: Path) -> Path:
@@ -120,7 +118,7 @@ def commit(items: Sequence[tuple[Path, np.ndarray]], *, create_folders: bool = F
             raise CliError(str(exc)) from None
         except OSError as exc:
             raise CliError(f"{exc.filename}: cannot write ({exc.strerror})") from None
-        WRITTEN.extend(written)
+        interrupts.WRITTEN.extend(written)
     return written
 
 
@@ -131,18 +129,9 @@ def commit_text(path: Path, text: str) -> Path:
             write_group([(path, text)], before_commit=_unless_interrupted)
         except OSError as exc:
             raise CliError(f"{exc.filename}: cannot write ({exc.strerror})") from None
-        WRITTEN.append(path)
+        interrupts.WRITTEN.append(path)
     return path
 
 
 def _unless_interrupted() -> None:
     interrupts.check()
-
-
-def summary() -> str:
-    """What this run has written: ``nothing written`` or the files' count and the last one."""
-    if not WRITTEN:
-        return "nothing written"
-    if len(WRITTEN) == 1:
-        return f"wrote {str(WRITTEN[0])!r} only"
-    return f"wrote {len(WRITTEN)} files (the last {str(WRITTEN[-1])!r}) and nothing after them"

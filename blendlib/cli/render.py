@@ -108,6 +108,7 @@ class Series:
         self.args, self.scene, self.named, self.series = args, scene, named, series
         self.written: list[tuple[int, Path]] = []
         self.skipped = 0
+        self.last_done: int | None = None  # the last frame written or skipped
         self.warned: set[str] = set()
 
     def run(self, frames, set_frame: bool) -> None:
@@ -117,8 +118,9 @@ class Series:
                 try:
                     self.frame(number, set_frame, bar, done)
                 except interrupts.Interrupted as exc:
-                    if self.series:
-                        exc.detail = self.detail(len(frames), number)
+                    if self.series:  # the frame being done, or the next one if it was done
+                        rest = frames[done:] if self.last_done != number else frames[done + 1:]
+                        exc.detail = self.detail(len(frames), rest[0] if len(rest) else None)
                     raise
 
     def frame(self, number: int, set_frame: bool, bar: Progress, done: int) -> None:
@@ -130,8 +132,10 @@ class Series:
         if self.series:
             targets = [Path(os.path.abspath(t)) for t in targets]
         if self.args.skip_existing and written_together(targets):
-            bar.write(f"Skipped: '{targets[0]}'")
-            self.skipped += 1
+            with interrupts.deferred():  # the line and the count agree with the error line's
+                bar.write(f"Skipped: '{targets[0]}'")
+                self.skipped += 1
+                self.last_done = number
             bar.set(done + 1)
             return
         scale = 1.0 if self.series else 100.0
@@ -157,13 +161,15 @@ class Series:
         if targets[0].suffix.lower() == ".png" and not self.args.alpha:
             color = color[..., :3]  # alpha 255: what F12 shows (the Combined pass is opaque)
         arrays = [color, frame.depth][:len(targets)]
-        outputs.commit(list(zip(targets, arrays, strict=True)), create_folders=self.series)
-        for target in targets:
-            bar.write(f"Saved: '{target}'" if self.series else str(target))
-            self.written.append((number, target))
+        with interrupts.deferred():  # committed, printed and counted, or none of them
+            outputs.commit(list(zip(targets, arrays, strict=True)), create_folders=self.series)
+            for target in targets:
+                bar.write(f"Saved: '{target}'" if self.series else str(target))
+                self.written.append((number, target))
+            self.last_done = number
         bar.set((done + 1) * scale)
 
-    def detail(self, total: int, interrupted_at: int) -> str:
+    def detail(self, total: int, first_not_done: int | None) -> str:
         """What an interrupted series wrote, for the error line."""
         frames = sorted({n for n, _ in self.written})
         text = "nothing written" if not frames else (
@@ -171,4 +177,4 @@ class Series:
             f"the last file {str(self.written[-1][1])!r})")
         if self.skipped:
             text += f", {self.skipped} skipped as already written"
-        return f"{text}; frame {interrupted_at} and later not written"
+        return text if first_not_done is None else f"{text}; frame {first_not_done} and later not written"
