@@ -41,16 +41,7 @@ def check_target(path: Path, option: str, kinds: Sequence[str], *, create_folder
         if option == "-o" and set(kinds) == set(images.FORMATS):
             raise CliError(f"{path}: unsupported image type {ext or '(none)'!r} (use one of {', '.join(kinds)})")
         raise CliError(f"{path}: {option} writes a {' or '.join(kinds)} file")
-    if path.is_dir():
-        raise CliError(f"{path}: is a directory; {option} needs a file name")
-    if path.exists() or path.is_symlink():
-        try:
-            st = os.stat(path)
-        except OSError as exc:
-            raise CliError(f"{path}: cannot write ({exc.strerror})") from None
-        if stat.S_ISREG(st.st_mode) and (not os.access(path, os.W_OK) or not st.st_mode & 0o222):
-            raise CliError(f"{path}: the file is read-only; {option} does not replace it "
-                           "(make it writable or choose another name)")
+    _check_existing(path, option)
     folder = _folder(path)
     if not folder.is_dir():
         if not create_folder:
@@ -64,6 +55,20 @@ def check_target(path: Path, option: str, kinds: Sequence[str], *, create_folder
         folder = existing
     if not os.access(folder, os.W_OK):
         raise CliError(f"{path}: output directory {str(folder)!r} is not writable")
+
+
+def _check_existing(path: Path, option: str) -> None:
+    """An existing ``path`` must be a file this user may replace (not a folder, not read-only)."""
+    if path.is_dir():
+        raise CliError(f"{path}: is a directory; {option} needs a file name")
+    if path.exists() or path.is_symlink():
+        try:
+            st = os.stat(path)
+        except OSError as exc:
+            raise CliError(f"{path}: cannot write ({exc.strerror})") from None
+        if stat.S_ISREG(st.st_mode) and (not os.access(path, os.W_OK) or not st.st_mode & 0o222):
+            raise CliError(f"{path}: the file is read-only; {option} does not replace it "
+                           "(make it writable or choose another name)")
 
 
 def _key(path: Path) -> str:
@@ -85,18 +90,23 @@ def check_distinct(paths: dict[str, Path]) -> None:
 
 
 def check_frame_targets(blend: Path, patterns: dict[str, Path], frames: Iterable[int], expand) -> None:
-    """No two outputs of any frames, nor an output and the .blend file, are one file.
+    """No two outputs of any frames, nor an output and the .blend file, are one file, and no
+    frame's output is a folder or a read-only file (:func:`check_target` checked the pattern).
 
     ``patterns``: option → output path (with its ``#`` run); ``expand(path, frame)`` gives a
-    frame's file. One CliError naming both, before anything is rendered."""
+    frame's file. One CliError naming the file, before anything is rendered."""
     frames = list(frames)
     seen: dict[str, str] = {_key(blend): "FILE.blend"}
     folders = {option: os.path.realpath(_folder(p)) for option, p in patterns.items()}
     for option, pattern in patterns.items():
         for number in frames:
             path = expand(pattern, number)
-            key = _key(path) if os.path.lexists(path) else os.path.join(folders[option], path.name)
             what = option if len(frames) == 1 else f"{option} of frame {number}"
+            if os.path.lexists(path):
+                _check_existing(path, what)
+                key = _key(path)
+            else:
+                key = os.path.join(folders[option], path.name)
             if key in seen:
                 raise CliError(f"{path}: {what} is the same file as {seen[key]}; choose another output")
             seen[key] = what

@@ -279,3 +279,21 @@ def test_one_sigint_mid_render_cancels_promptly_and_writes_nothing(blends, tmp_p
     assert got == ["error: interrupted; nothing written"], stderr
     assert stdout == "" and os.listdir(tmp_path) == []
     assert waited < 30  # promptly: not after the whole render
+
+
+# --------------------------------------------------------------------------- a damaged file
+
+
+DAMAGED = REPO / "tests" / "fixtures" / "damaged" / "loader_crash.blend"
+
+
+def test_a_file_that_crashes_blenders_loader_is_named(tmp_path):
+    """tests/fixtures/damaged/loader_crash.blend: a saved scene with one pointer of its mesh redirected
+    to another block; Blender's own loader dies of a segmentation fault reading it. Before, the CLI
+    ended with status 139 and nothing on stderr (stderr is silenced while Blender loads)."""
+    out = tmp_path / "o.png"
+    proc = run_cli("render", str(DAMAGED), "-o", str(out))
+    assert proc.returncode != 0
+    assert lines(proc) == [f"error: {DAMAGED}: Blender crashed while reading this file (Segmentation fault); "
+                           "is the file damaged?"], proc.stderr
+    assert os.listdir(tmp_path) == [] and proc.stdout == ""
