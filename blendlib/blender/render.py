@@ -11,6 +11,7 @@ evaluation instead; :func:`blendlib.render_view` always shows the viewport's.
 
 from __future__ import annotations
 
+import contextlib
 import operator
 from collections.abc import Callable
 from typing import Any
@@ -131,8 +132,8 @@ def render_final(scene: Any = None, progress: Callable[[float], None] | None = N
     modifiers evaluate with their viewport settings there. This runs ``bpy.ops.render.render``
     with a capture engine instead, so modifier render levels and render visibility apply
     exactly as for F12 and ``blender -b -E UNITY_PASSES``. The scene's render engine is set
-    for the call and restored; no image is written (Blender's "Render Result" is left as a
-    render that wrote no pixels leaves it). ``frame``: the frame to set first (the
+    for the call and restored; no image is written, and the user's "Render Result" keeps its
+    renders (:func:`_render_result_kept`). ``frame``: the frame to set first (the
     scene's current frame is restored afterwards); ``until_draw``: stop after that draw call
     (docs/framedebugger.md). A Render Region (``use_border``) gives what F12 writes: the region only with
     Crop, else the full size with only the region filled. Raises like :func:`render`.
@@ -157,7 +158,7 @@ def render_final(scene: Any = None, progress: Callable[[float], None] | None = N
     _capture.update(progress=progress, should_cancel=should_cancel, until_draw=until_draw, job=_job)
     scene.render.engine = engine.bl_idname
     try:
-        with bpy.context.temp_override(scene=scene):
+        with bpy.context.temp_override(scene=scene), _render_result_kept():
             if frame is not None:
                 scene.frame_set(frame)
             try:
@@ -181,6 +182,35 @@ def render_final(scene: Any = None, progress: Callable[[float], None] | None = N
     if not isinstance(result, pipeline.Frame):  # a _job's result (draw_scene_final): not an image
         return result
     return apply_border(result, region, bool(scene.render.use_crop_to_border))
+
+
+#: The Render Result slot the capture renders into when the user has a Render Result.
+CAPTURE_SLOT = "Unity Passes (capture)"
+
+
+@contextlib.contextmanager
+def _render_result_kept():
+    """Blender's render operator renders into the active slot of the "Render Result" image
+    (created by the first render). The capture draws no pixels there: without a Render Result
+    before, the one the operator creates is removed again; with one, the capture renders into
+    a slot of its own (:data:`CAPTURE_SLOT`, made once, reused after) and the user's active slot,
+    with their last F12 render, is made active again."""
+    import bpy
+
+    results = [image for image in bpy.data.images if image.type == "RENDER_RESULT"]
+    slots = results[0].render_slots if results else None
+    active = slots.active_index if slots is not None else None
+    if slots is not None:
+        slot = next((x for x in slots if x.name == CAPTURE_SLOT), None) or slots.new(name=CAPTURE_SLOT)
+        slots.active = slot
+    try:
+        yield
+    finally:
+        if slots is None:
+            for image in [i for i in bpy.data.images if i.type == "RENDER_RESULT"]:
+                bpy.data.images.remove(image)
+        else:
+            slots.active_index = active
 
 
 def border_region(scene: Any, width: int, height: int) -> tuple[int, int, int, int] | None:
