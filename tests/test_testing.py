@@ -170,3 +170,57 @@ def test_plugin_through_pytester(blender_started, pytester):
     result = pytester.runpytest("-p", "blendlib.testing", "-q")
     result.assert_outcomes(passed=2)
     assert not diff.exists()
+
+
+USER_TEST_IN_A_FOLDER = """
+import numpy as np
+from blendlib.testing import assert_frame_matches
+
+def test_png(unity_render):
+    assert_frame_matches(unity_render("scenes/cube.blend"), "goldens/glass.png", max_steps=0)
+
+def test_npy(unity_render):
+    assert_frame_matches(unity_render("scenes/cube.blend"), "goldens/glass.npy", max_steps=0)
+"""
+
+
+def test_goldens_of_one_stem_keep_their_heat_maps_and_resolve_from_the_test_file(blender_started, pytester, capfd):
+    """Goldens resolve like scenes, from the test file's folder (before: from the working directory,
+    so a run from another folder looked for them elsewhere); glass.png and glass.npy each keep
+    their heat map (before, both wrote glass.diff.png and the passing one deleted it); opening a
+    file saved with the add-on's engine prints nothing (before: "ERROR Engine 'UNITY_PASSES' not
+    available" in the user's test output)."""
+    folder = pytester.path / "suite"
+    (folder / "scenes").mkdir(parents=True)
+    exec(MAKE_SCENE.format(root=str(ROOT), path=str(folder / "scenes" / "cube.blend")), {})
+    import addon
+
+    addon.register()
+    bpy.data.scenes[0].render.engine = "UNITY_PASSES"
+    bpy.ops.wm.save_as_mainfile(filepath=str(folder / "scenes" / "cube.blend"))
+    addon.unregister()
+    (folder / "test_user.py").write_text(USER_TEST_IN_A_FOLDER)
+    capfd.readouterr()
+
+    result = pytester.runpytest("-p", "blendlib.testing", "-q", "-s", "--unity-update-goldens", "suite")
+    result.assert_outcomes(passed=2)
+    goldens = folder / "goldens"
+    assert sorted(p.name for p in goldens.iterdir()) == ["glass.npy", "glass.png"]
+    assert not (pytester.path / "goldens").exists()
+    assert "not available" not in capfd.readouterr().err
+
+    frame = images.load(goldens / "glass.png")
+    changed = frame.copy()
+    changed[3:5, 3:5, :3] = 1.0 - changed[3:5, 3:5, :3]
+    images.save(goldens / "glass.png", changed)
+    np.save(goldens / "glass.npy", np.load(goldens / "glass.npy") + np.float32(0.5))
+    result = pytester.runpytest("-p", "blendlib.testing", "-q", "suite")
+    result.assert_outcomes(failed=2)
+    result.stdout.fnmatch_lines(["*heat map: suite/goldens/glass.diff.png*"])
+    result.stdout.fnmatch_lines(["*heat map: suite/goldens/glass.npy.diff.png*"])
+    assert (goldens / "glass.diff.png").exists() and (goldens / "glass.npy.diff.png").exists()
+
+    images.save(goldens / "glass.png", frame)  # the PNG golden passes again: only its own map goes
+    result = pytester.runpytest("-p", "blendlib.testing", "-q", "suite")
+    result.assert_outcomes(passed=1, failed=1)
+    assert not (goldens / "glass.diff.png").exists() and (goldens / "glass.npy.diff.png").exists()
