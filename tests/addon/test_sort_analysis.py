@@ -124,7 +124,7 @@ def test_f12_writes_the_analysis_passes(tmp_path):
     np.testing.assert_array_equal(planes[f"{layer}.UnitySortError.X"], result.error)
     np.testing.assert_array_equal(planes[f"{layer}.UnityOverdraw.X"], result.overdraw[..., 0].astype(np.float32))
     np.testing.assert_array_equal(planes[f"{layer}.UnityOverdraw.Y"], result.overdraw[..., 1].astype(np.float32))
-    assert sorted(n for n in planes if ".UnityOverdraw." in n) == [f"{layer}.UnityOverdraw.X", f"{layer}.UnityOverdraw.Y"]
+    assert sorted(n for n in planes if ".UnityOverdraw." in n) == [f"{layer}.UnityOverdraw.{c}" for c in "XY"]
     from dataclasses import replace
 
     want = blender.linear_rgba(replace(result.frame, color=result.reference))
