@@ -48,13 +48,13 @@ def run(args: argparse.Namespace) -> int:
             raise CliError(f"--{option} goes with --export")
     try:
         if args.file == "-":
-            result = shaderlab.parse_shaderlab(sys.stdin.read(), filename="<stdin>")
+            result = shaderlab.parse_shaderlab(sys.stdin.buffer.read().decode("utf-8-sig"), filename="<stdin>")
         else:
             result = shaderlab.parse_shaderlab_file(args.file)
     except shaderlab.ShaderLabError as exc:
         raise CliError(str(exc)) from None
     except UnicodeDecodeError as exc:
-        raise CliError(f"{args.file}: not UTF-8 text ({exc.reason})") from None
+        raise CliError(f"{'<stdin>' if args.file == '-' else args.file}: not UTF-8 text ({exc.reason})") from None
     except OSError as exc:
         raise CliError(f"{exc.filename or args.file}: {exc.strerror or exc}") from None
     sys.stdout.write(result.to_json() + "\n")
