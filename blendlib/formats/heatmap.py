@@ -44,14 +44,18 @@ def _number(x: float) -> str:
 
 def tick_values(peak: float, room: int, integer: bool = False) -> list[float]:
     """Round values from 0 to ``peak`` for a bar ``room`` pixels long: a step of 1, 2 or 5 × 10^k
-    (at least 1 for ``integer`` counts) leaving about 60 pixels between ticks; ``peak`` itself
-    is the last tick."""
+    (at least 1 for ``integer`` counts) leaving about 60 pixels between ticks, and at least one
+    tick between 0 and ``peak``; ``peak`` itself is the last tick."""
     if not (peak > 0 and math.isfinite(peak)):
         return [0.0]
     wanted = max(1, room // 60)
     raw = peak / wanted
     magnitude = 10.0 ** math.floor(math.log10(raw))
-    step = next(m * magnitude for m in (1, 2, 5, 10) if m * magnitude >= raw)
+    nice = [m * magnitude for m in (0.5, 1, 2, 5, 10)]
+    k = next(i for i, v in enumerate(nice) if v >= raw)
+    if nice[k] * 2 > peak and k > 0:  # at least one tick between 0 and the peak
+        k -= 1
+    step = nice[k]
     if integer:
         step = max(1.0, round(step))
     ticks = [k * step for k in range(int(peak / step) + 1)]
@@ -90,16 +94,23 @@ def _legend(width: int, peak: float, label: str, integer: bool = False) -> np.nd
     draw = ImageDraw.Draw(image)
     font = _font()
     white = (255, 255, 255, 255)
-    right_edge = -1  # numbers are written left to right and never overlap
-    for k, (t, x) in enumerate(zip(ticks, xs, strict=True)):
+    spans = []  # (left, right, text) of each tick's number, centred under its tick, kept inside the strip
+    for t, x in zip(ticks, xs, strict=True):
         text = _number(t)
         box = draw.textbbox((0, 0), text, font=font)
         w = box[2] - box[0]
-        left = min(max(x - w // 2, 0), width - w)
-        if left <= right_edge + 4 and k != len(ticks) - 1:
-            continue
+        left = min(max(x - w // 2, 0), max(width - w, 0))
+        spans.append((left, left + w, text))
+    # 0 and the peak always; a number between them only where it overlaps neither its left
+    # neighbour written nor the peak's
+    shown = [spans[0]]
+    for span in spans[1:-1]:
+        if span[0] > shown[-1][1] + 6 and span[1] + 6 < spans[-1][0]:
+            shown.append(span)
+    if len(spans) > 1:
+        shown.append(spans[-1])
+    for left, _, text in shown:
         draw.text((left, 18), text, fill=white, font=font)
-        right_edge = left + w
     box = draw.textbbox((0, 0), label, font=font)
     draw.text((max((width - (box[2] - box[0])) // 2, 0), 32), label, fill=white, font=font)
     return np.asarray(image, np.float32) / 255.0

@@ -36,6 +36,12 @@ def test_json_and_exact_arrays(tmp_path):
     assert summary["differing"] == int(np.count_nonzero(error > 1)) > 0
     assert summary["max_error"] == float(error.max()) and np.all(error == np.round(error))
     assert abs(summary["mean_error"] - float(error.mean(dtype=np.float64))) < 1e-9
+    assert summary["error_unit"] == "8-bit steps"  # an LDR frame
+    # docs/json.md lists every field of the object (error_unit was missing)
+    doc = (REPO / "docs" / "json.md").read_text().split("## `python -m blendlib analyze", 1)[1]
+    documented = {name for row in doc.splitlines() if row.startswith("| `") for name in
+                  (part.strip(" `") for part in row.split("|")[1].split(","))}
+    assert set(summary) <= documented, set(summary) - documented
     [inv] = summary["inversions"]
     assert (inv["front"], inv["behind"], inv["front_slot"], inv["behind_slot"]) == ("Near Right", "Far Right", 0, 0)
     assert inv["pixels"] == summary["differing"]  # every inverted pixel differs here, and nothing else
