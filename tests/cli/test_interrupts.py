@@ -76,7 +76,7 @@ def test_sigint_while_python_imports_prints_one_line(blends, tmp_path):
     wait_until(proc, mapped(proc, "numpy/core/_multiarray_umath"), "numpy is imported")
     proc.send_signal(signal.SIGINT)
     status, out, err = finish(proc)
-    assert status == 130, err
+    assert status == 130, (status, err)
     only_line(err, "error: interrupted; nothing written")
     assert out == "" and os.listdir(tmp_path) == []
 
@@ -95,7 +95,7 @@ def test_sigint_during_import_bpy_ends_cleanly(blends, tmp_path, command):
     wait_until(proc, mapped(proc, "bpy/__init__.so"), "import bpy")
     proc.send_signal(signal.SIGINT)
     status, out, err = finish(proc)
-    assert status == 130, err
+    assert status == 130, (status, err)
     only_line(err, "error: interrupted; nothing written")
     assert out == "" and os.listdir(tmp_path) == []
 
@@ -105,7 +105,7 @@ def test_sigterm_is_handled_as_ctrl_c(blends, tmp_path):
     wait_until(proc, mapped(proc, "bpy/__init__.so"), "import bpy")
     proc.send_signal(signal.SIGTERM)
     status, out, err = finish(proc)
-    assert status == 128 + signal.SIGTERM, err  # not -15: the process ends by itself, with its line
+    assert status == 128 + signal.SIGTERM, (status, err)  # not -15: the process ends by itself, with its line
     only_line(err, "error: interrupted (SIGTERM); nothing written")
     assert out == ""
 
@@ -121,7 +121,7 @@ def test_the_first_sigint_while_the_file_loads_is_not_lost(blends, tmp_path, com
     wait_until(proc, reading(proc, heavy), "Blender reads the .blend file")
     proc.send_signal(signal.SIGINT)
     status, out, err = finish(proc)
-    assert status == 130, err
+    assert status == 130, (status, err)
     only_line(err, "error: interrupted; nothing written")
     assert out == "" and os.listdir(tmp_path) == []
 
@@ -149,13 +149,14 @@ def test_sigint_while_the_depth_is_written_keeps_both_old_files(blends, tmp_path
     args += (["-o", str(tmp_path / "out_#.png"), "--depth", str(tmp_path / "depth_#.npy"), "--frames", "1-1"]
              if frames else ["-o", str(tmp_path / "out_1.png"), "--depth", str(tmp_path / "depth_1.npy")])
     proc = start(*args)
-    wait_until(proc, appears(tmp_path, ".depth_1.npy."), "the depth is being written")
+    wait_until(proc, appears(tmp_path, ".depth_1.npy."), "the depth is being written", poll=0)  # ~20 ms
     proc.send_signal(signal.SIGINT)
     status, out, err = finish(proc)
-    assert status == 130, err
-    only_line(err, "error: interrupted; nothing written" + ("; frame 1 and later not written" if frames else ""))
     assert sorted(os.listdir(tmp_path)) == ["depth_1.npy", "out_1.png"]  # no temporary file left
-    assert ((tmp_path / "out_1.png").read_bytes(), (tmp_path / "depth_1.npy").read_bytes()) == before
+    assert (tmp_path / "out_1.png").read_bytes() == before[0], "the colour image was replaced"
+    assert (tmp_path / "depth_1.npy").read_bytes() == before[1], "the depth was replaced"
+    assert status == 130, (status, err)
+    only_line(err, "error: interrupted; nothing written" + ("; frame 1 and later not written" if frames else ""))
 
 
 def test_sigterm_between_frames_says_what_was_written_and_leaves_no_part_file(blends, tmp_path):
@@ -166,7 +167,7 @@ def test_sigterm_between_frames_says_what_was_written_and_leaves_no_part_file(bl
     saved = [proc.stdout.readline() for _ in range(4)]  # two frames: colour and depth each
     proc.send_signal(signal.SIGTERM)
     status, out, err = finish(proc)
-    assert status == 143, err
+    assert status == 143, (status, err)
     lines = saved + out.splitlines(keepends=True)
     written = sorted(int(line.split("_")[-1][:2]) for line in lines if line.startswith("Saved:") and "f_" in line)
     n = len(written)
@@ -187,7 +188,7 @@ def test_a_second_sigint_right_after_the_first_changes_nothing(blends, tmp_path)
     time.sleep(0.05)
     proc.send_signal(signal.SIGINT)
     status, out, err = finish(proc)
-    assert status == 130, err
+    assert status == 130, (status, err)
     lines = stderr_lines(err)
     assert len(lines) == 1 and lines[0].startswith("error: interrupted; ") and "frames written" in lines[0], err
     assert not [n for n in os.listdir(tmp_path) if n.endswith(".part")]

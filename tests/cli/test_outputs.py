@@ -119,7 +119,7 @@ def test_a_frame_output_that_is_a_directory_is_refused_before_rendering(blends, 
     """Before: the render ran, then '[Errno 21] Is a directory: '.dd_5.png.vtltkvb0.part''."""
     (tmp_path / "dd_5.png").mkdir()
     for extra in ([], ["--skip-existing"]):  # --skip-existing skipped a directory
-        proc = run_cli("render", str(blends["good"]), "-o", str(tmp_path / "dd_#.png"), "--frames", "5", *extra)
+        proc = run_cli("render", str(blends["good"]), "-o", str(tmp_path / "dd_#.png"), "--frames", "5-5", *extra)
         one_line_error(proc, f"{tmp_path / 'dd_5.png'}: is a directory")
         assert ".part" not in proc.stderr and proc.stdout == ""
     assert os.listdir(tmp_path) == ["dd_5.png"] and os.listdir(tmp_path / "dd_5.png") == []
@@ -132,18 +132,21 @@ def test_analyze_checks_its_outputs_before_the_analysis(blends, tmp_path, capsys
     early_error(capsys, ["analyze", blends["good"], "--overdraw", tmp_path / "no" / "od.npy"], "does not exist")
 
 
-def test_a_full_disk_names_the_users_file(blends, tmp_path):
-    """A write cut short (here by a file-size limit, as a full disk cuts it): before, numpy's '4147200
-    requested and 47072 written' or 'No space left on device' without a file name."""
-    out = tmp_path / "big.npy"
+@pytest.mark.parametrize("frames", [False, True])
+def test_a_full_disk_names_the_users_file(blends, tmp_path, frames):
+    """A write cut short (here by a file-size limit, as a full disk cuts it): before, --frames said
+    numpy's '4147200 requested and 47072 written' or 'No space left on device' without a file name."""
+    out = tmp_path / ("big_#.npy" if frames else "big.npy")
+    extra = ["--frames", "1-1"] if frames else []
 
     def limit():
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the limit fails instead of killing
         resource.setrlimit(resource.RLIMIT_FSIZE, (10_000, 10_000))
 
-    proc = subprocess.run([sys.executable, "-m", "blendlib", "render", str(blends["good"]), "-o", str(out)],
+    proc = subprocess.run([sys.executable, "-m", "blendlib", "render", str(blends["good"]), "-o", str(out), *extra],
                           cwd=REPO, capture_output=True, text=True, timeout=300, preexec_fn=limit)
-    one_line_error(proc, f"{out}: cannot write (")
+    one_line_error(proc, f"{tmp_path / 'big_1.npy' if frames else out}: cannot write (")
+    assert "is the disk full?" in proc.stderr
     assert ".part" not in proc.stderr and os.listdir(tmp_path) == []
 
 

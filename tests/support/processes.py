@@ -30,8 +30,10 @@ def start(*args: str, cwd: Path = REPO) -> subprocess.Popen:
                             stderr=subprocess.PIPE, text=True)
 
 
-def wait_until(proc: subprocess.Popen, moment: Callable[[], bool], what: str, timeout: float = 120.0) -> None:
-    """Poll ``moment()`` until it is true; AssertionError if the process ends first or the time runs out."""
+def wait_until(proc: subprocess.Popen, moment: Callable[[], bool], what: str, timeout: float = 120.0,
+               poll: float = POLL) -> None:
+    """Poll ``moment()`` every ``poll`` seconds (0: without pause, for a moment that lasts a few
+    milliseconds) until it is true; AssertionError if the process ends first or the time runs out."""
     deadline = time.monotonic() + timeout
     while not moment():
         if proc.poll() is not None:
@@ -41,7 +43,7 @@ def wait_until(proc: subprocess.Popen, moment: Callable[[], bool], what: str, ti
             proc.kill()
             proc.communicate()
             raise AssertionError(f"{what} did not happen within {timeout} s")
-        time.sleep(POLL)
+        time.sleep(poll)
 
 
 def maps(proc: subprocess.Popen) -> str:
