@@ -17,17 +17,9 @@ import time
 import numpy as np
 import pytest
 
-from tests.support.blender_fixtures import REPO, run_cli
+from tests.support.blender_fixtures import REPO, build_blends, run_cli
 
 MAKE = r"""
-import sys, math, bpy
-sys.path.insert(0, ".")
-from tests.support.blender_fixtures import empty_scene, add_cube, add_mesh, unlit_material
-folder = sys.argv[1]
-
-def save(kind):
-    bpy.ops.wm.save_as_mainfile(filepath=f"{folder}/{kind}.blend")
-
 scene = empty_scene(40, 30)
 add_cube("Cube", 2.0)
 save("good")
@@ -68,10 +60,7 @@ BLENDS = ("good", "camscale0", "zerosize", "pano", "nearfar", "nanvertex", "infs
 
 @pytest.fixture(scope="module")
 def blends(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("bad_blends")
-    proc = run_cli(str(folder), code=MAKE)
-    assert proc.returncode == 0, proc.stderr
-    return {kind: folder / f"{kind}.blend" for kind in BLENDS}
+    return build_blends(tmp_path_factory.mktemp("bad_blends"), MAKE, BLENDS)
 
 
 def sha(path) -> str:

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from blendlib.formats import images
-from tests.support.blender_fixtures import one_line_error, run_cli
+from tests.support.blender_fixtures import blends_per_kind, one_line_error, run_cli
 
 MAKE = r"""
 import sys, math, bpy
@@ -33,14 +33,7 @@ bpy.ops.wm.save_as_mainfile(filepath=path)
 
 @pytest.fixture(scope="module")
 def blends(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("blends")
-    out = {}
-    for kind in ("good", "nocam", "huge", "anim"):
-        path = folder / f"{kind}.blend"
-        proc = run_cli(kind, str(path), code=MAKE)
-        assert proc.returncode == 0, proc.stderr
-        out[kind] = path
-    return out
+    return blends_per_kind(tmp_path_factory.mktemp("blends"), MAKE, ("good", "nocam", "huge", "anim"))
 
 
 def test_render_png_npy_exr_and_depth(blends, tmp_path):

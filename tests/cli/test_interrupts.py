@@ -14,19 +14,11 @@ import time
 import numpy as np
 import pytest
 
-from tests.support.blender_fixtures import run_cli
-from tests.support.processes import appears, finish, mapped, reading, start, stderr_lines, wait_until
+from tests.support.blender_fixtures import build_blends
+from tests.support.processes import appears, finish, mapped, reading, signal_at, start, stderr_lines
 
 MAKE = r"""
-import sys, bpy
-sys.path.insert(0, ".")
-from tests.support.blender_fixtures import empty_scene, add_cube, unlit_material
 from blendlib.core.vocabulary import preset
-folder = sys.argv[1]
-
-def save(kind):
-    bpy.ops.wm.save_as_mainfile(filepath=f"{folder}/{kind}.blend")
-
 scene = empty_scene(40, 30)
 queue, passes = preset("Alpha Blend")
 glass = unlit_material("Glass", (0.2, 0.6, 1.0, 0.5), queue=queue, passes=passes)
@@ -55,15 +47,21 @@ KINDS = ("good", "big", "frames", "heavy")
 
 @pytest.fixture(scope="module")
 def blends(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("interrupt_blends")
-    proc = run_cli(str(folder), code=MAKE)
-    assert proc.returncode == 0, proc.stderr
-    return {kind: folder / f"{kind}.blend" for kind in KINDS}
+    return build_blends(tmp_path_factory.mktemp("interrupt_blends"), MAKE, KINDS)
 
 
 def only_line(err: str, line: str) -> None:
     assert stderr_lines(err) == [line], err
     assert "Traceback" not in err
+
+
+def ended_writing_nothing(result: tuple[int, str, str], folder, status: int = 130,
+                          line: str = "error: interrupted; nothing written") -> None:
+    """The command ended by itself with ``status`` and its one ``line``; no output, no file."""
+    got, out, err = result
+    assert got == status, (got, err)
+    only_line(err, line)
+    assert out == "" and os.listdir(folder) == []
 
 
 # --------------------------------------------------------------------------- before the work
@@ -73,12 +71,7 @@ def test_sigint_while_python_imports_prints_one_line(blends, tmp_path):
     """numpy mapped: the package is importing (before, python -m blendlib imported numpy before its
     __main__ installed any handling, and a Ctrl+C printed a KeyboardInterrupt traceback)."""
     proc = start("render", str(blends["good"]), "-o", str(tmp_path / "o.png"))
-    wait_until(proc, mapped(proc, "numpy/core/_multiarray_umath"), "numpy is imported")
-    proc.send_signal(signal.SIGINT)
-    status, out, err = finish(proc)
-    assert status == 130, (status, err)
-    only_line(err, "error: interrupted; nothing written")
-    assert out == "" and os.listdir(tmp_path) == []
+    ended_writing_nothing(signal_at(proc, mapped(proc, "numpy/core/_multiarray_umath"), "numpy is imported"), tmp_path)
 
 
 @pytest.mark.parametrize("command", ["analyze", "drawlist", "shaderlab", "frames"])
@@ -92,22 +85,14 @@ def test_sigint_during_import_bpy_ends_cleanly(blends, tmp_path, command):
             "shaderlab": ["shaderlab", "--export", good, "--material", "Glass", "-o", str(tmp_path / "g.shader")],
             "frames": ["render", good, "-o", str(tmp_path / "f_#.png"), "--frames", "1-3"]}[command]
     proc = start(*args)
-    wait_until(proc, mapped(proc, "bpy/__init__.so"), "import bpy")
-    proc.send_signal(signal.SIGINT)
-    status, out, err = finish(proc)
-    assert status == 130, (status, err)
-    only_line(err, "error: interrupted; nothing written")
-    assert out == "" and os.listdir(tmp_path) == []
+    ended_writing_nothing(signal_at(proc, mapped(proc, "bpy/__init__.so"), "import bpy"), tmp_path)
 
 
 def test_sigterm_is_handled_as_ctrl_c(blends, tmp_path):
     proc = start("pixel", str(blends["good"]), "3", "4")
-    wait_until(proc, mapped(proc, "bpy/__init__.so"), "import bpy")
-    proc.send_signal(signal.SIGTERM)
-    status, out, err = finish(proc)
-    assert status == 128 + signal.SIGTERM, (status, err)  # not -15: the process ends by itself, with its line
-    only_line(err, "error: interrupted (SIGTERM); nothing written")
-    assert out == ""
+    result = signal_at(proc, mapped(proc, "bpy/__init__.so"), "import bpy", signal.SIGTERM)
+    # not -15: the process ends by itself, with its line
+    ended_writing_nothing(result, tmp_path, 128 + signal.SIGTERM, "error: interrupted (SIGTERM); nothing written")
 
 
 @pytest.mark.parametrize("command", ["frames", "drawlist"])
@@ -118,12 +103,7 @@ def test_the_first_sigint_while_the_file_loads_is_not_lost(blends, tmp_path, com
     args = (["render", str(heavy), "-o", str(tmp_path / "f_##.png"), "--frames", "1-20"] if command == "frames"
             else ["drawlist", str(heavy)])
     proc = start(*args)
-    wait_until(proc, reading(proc, heavy), "Blender reads the .blend file")
-    proc.send_signal(signal.SIGINT)
-    status, out, err = finish(proc)
-    assert status == 130, (status, err)
-    only_line(err, "error: interrupted; nothing written")
-    assert out == "" and os.listdir(tmp_path) == []
+    ended_writing_nothing(signal_at(proc, reading(proc, heavy), "Blender reads the .blend file"), tmp_path)
 
 
 # --------------------------------------------------------------------------- while writing
@@ -149,9 +129,8 @@ def test_sigint_while_the_depth_is_written_keeps_both_old_files(blends, tmp_path
     args += (["-o", str(tmp_path / "out_#.png"), "--depth", str(tmp_path / "depth_#.npy"), "--frames", "1-1"]
              if frames else ["-o", str(tmp_path / "out_1.png"), "--depth", str(tmp_path / "depth_1.npy")])
     proc = start(*args)
-    wait_until(proc, appears(tmp_path, ".depth_1.npy."), "the depth is being written", poll=0)  # ~20 ms
-    proc.send_signal(signal.SIGINT)
-    status, out, err = finish(proc)
+    status, out, err = signal_at(proc, appears(tmp_path, ".depth_1.npy."), "the depth is being written",
+                                 poll=0)  # a write of some 20 ms
     assert sorted(os.listdir(tmp_path)) == ["depth_1.npy", "out_1.png"]  # no temporary file left
     assert (tmp_path / "out_1.png").read_bytes() == before[0], "the colour image was replaced"
     assert (tmp_path / "depth_1.npy").read_bytes() == before[1], "the depth was replaced"

@@ -18,19 +18,12 @@ import pytest
 
 from blendlib.cli import main
 from tests.cli.test_cli import MAKE
-from tests.support.blender_fixtures import REPO, one_line_error, run_cli
+from tests.support.blender_fixtures import REPO, blends_per_kind, one_line_error, run_cli
 
 
 @pytest.fixture(scope="module")
 def blends(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("output_blends")
-    out = {}
-    for kind in ("good", "anim"):
-        path = folder / f"{kind}.blend"
-        proc = run_cli(kind, str(path), code=MAKE)
-        assert proc.returncode == 0, proc.stderr
-        out[kind] = path
-    return out
+    return blends_per_kind(tmp_path_factory.mktemp("output_blends"), MAKE, ("good", "anim"))
 
 
 def early_error(capsys, args: list[str], gist: str) -> None:

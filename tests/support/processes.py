@@ -11,6 +11,7 @@ Linux only (``/proc``).
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -93,3 +94,11 @@ def finish(proc: subprocess.Popen, timeout: float = 120.0) -> tuple[int, str, st
 
 def stderr_lines(text: str) -> list[str]:
     return [x for x in text.splitlines() if x.strip()]
+
+
+def signal_at(proc: subprocess.Popen, moment: Callable[[], bool], what: str, signum: int = signal.SIGINT,
+              poll: float = POLL) -> tuple[int, str, str]:
+    """Wait for ``moment``, send ``signum``, wait for the end: (exit status, stdout, stderr)."""
+    wait_until(proc, moment, what, poll=poll)
+    proc.send_signal(signum)
+    return finish(proc)
