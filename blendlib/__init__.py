@@ -12,14 +12,32 @@ This namespace is the library's face for callers outside it (the add-on among th
 scene and result types, the errors a render raises (:class:`SceneError`,
 :class:`RenderCancelled`) and the observer hooks (:class:`FrameObserver`), each defined once
 in :mod:`blendlib.core`.
+
+The types are imported on first use (PEP 562): ``python -m blendlib`` imports this package
+before its ``__main__`` runs, and the command line must install its Ctrl+C/SIGTERM handling
+(:mod:`blendlib.cli.interrupts`) before the heavy imports (numpy, then bpy), or a Ctrl+C in
+that window prints a traceback.
 """
 
 from __future__ import annotations
 
-from .core.pipeline import render_scene
-from .core.records import Frame, FrameObserver, RenderCancelled
-from .core.scene import Camera, DrawScene, Light, Mesh, Renderer, SceneError
-from .core.vocabulary import Material, Pass, Texture
+import importlib
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from .core.pipeline import render_scene
+    from .core.records import Frame, FrameObserver, RenderCancelled
+    from .core.scene import Camera, DrawScene, Light, Mesh, Renderer, SceneError
+    from .core.vocabulary import Material, Pass, Texture
+
+#: Name → the module (relative to this package) that defines it.
+_LAZY = {
+    "render_scene": "core.pipeline",
+    "Frame": "core.records", "FrameObserver": "core.records", "RenderCancelled": "core.records",
+    "Camera": "core.scene", "DrawScene": "core.scene", "Light": "core.scene", "Mesh": "core.scene",
+    "Renderer": "core.scene", "SceneError": "core.scene",
+    "Material": "core.vocabulary", "Pass": "core.vocabulary", "Texture": "core.vocabulary",
+}
 
 __all__ = [
     "Camera", "DrawScene", "Frame", "FrameObserver", "Light", "Material", "Mesh", "Pass", "RenderCancelled",
@@ -28,12 +46,29 @@ __all__ = [
 ]
 
 
+def __getattr__(name: str):
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value  # later lookups are plain attribute reads
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))
+
+
 def render(scene=None, **kwargs) -> Frame:
-    """Render a ``bpy.types.Scene`` (default: the context scene) with the Unity pipeline.
+    """Render a ``bpy.types.Scene`` (default: the context scene; or a scene's name) with the Unity
+    pipeline, as F12 renders it: Blender's render-mode evaluation (modifier render levels,
+    render visibility, the Render Region). ``depsgraph=``: that evaluation instead, e.g.
+    ``bpy.context.evaluated_depsgraph_get()`` for what the viewport shows.
 
     Returns a :class:`Frame` whose ``color`` (H, W, 4) float32 holds the stored frame
     values and ``depth`` (H, W) float32 the window depth; row 0 is the top.
-    ``until_draw=K``: the frame after draw call K (1-based; 0 = the cleared frame).
+    ``until_draw=K``: the frame after draw call K (an integer, 1-based; 0 = the cleared frame;
+    beyond the last draw call is an error).
     """
     from . import blender
 
@@ -59,6 +94,7 @@ def analyze(scene=None, *, advice: bool = True, max_advice: int = 5, **kwargs):
     ``max_advice`` largest inversion pairs (:mod:`blendlib.explain.advice`). Other keyword
     arguments go to :func:`blendlib.explain.sorted_reference.analyze` (``progress``,
     ``should_cancel``, ``workers``)."""
+    from .core.scene import DrawScene
     from .explain.advice import analyze_and_advise
 
     if not isinstance(scene, DrawScene):
@@ -71,7 +107,8 @@ def analyze(scene=None, *, advice: bool = True, max_advice: int = 5, **kwargs):
 def draw_list(scene=None, **kwargs):
     """The draw calls of a ``bpy.types.Scene`` (default: the context scene) in order, each a
     :class:`blendlib.explain.framedebug.DrawStats` (``.call``, ``.triangles``, ``.fragments``,
-    ``.written``; ``.to_json()`` gives the JSON item of docs/json.md). Costs one render."""
+    ``.written``; ``.to_json()`` gives the JSON item of docs/json.md). Costs one render. The
+    scene is evaluated as F12 renders it (see :func:`render`; ``depsgraph=`` for another)."""
     from .blender import framedebug
 
     return framedebug.draw_list(scene, **kwargs)
@@ -80,7 +117,8 @@ def draw_list(scene=None, **kwargs):
 def pixel_history(scene, x: int, y: int, **kwargs):
     """The history of pixel (``x`` from the left, ``y`` from the top) of a ``bpy.types.Scene``
     (None: the context scene): a :class:`blendlib.explain.framedebug.PixelHistory` of every
-    fragment rasterised there (``.to_json()`` gives the JSON object of docs/json.md). Costs one render."""
+    fragment rasterised there (``.to_json()`` gives the JSON object of docs/json.md). Costs one render.
+    The scene is evaluated as F12 renders it (see :func:`render`; ``depsgraph=`` for another)."""
     from .blender import framedebug
 
     return framedebug.pixel_history(scene, x, y, **kwargs)

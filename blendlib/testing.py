@@ -5,17 +5,21 @@ gives every test:
 
 - the ``unity_render`` fixture: a callable ``unity_render(path, scene=None, frame=None) -> Frame``
   that opens a .blend file and renders it as F12 does (``blendlib.blender.render_final``);
-  a relative path that does not exist from the working directory is taken from the test file's
-  folder;
 - :func:`assert_frame_matches` (also a fixture of that name):
   ``assert_frame_matches(frame, golden, max_steps=1)``;
 - the option ``pytest --unity-update-goldens``: every golden the run asks for is (re)written and
   nothing is compared.
 
+A relative path, of a scene or of a golden alike, is taken from the running test file's folder
+when it exists there, else from the working directory when it exists there, else (a golden not
+written yet) from the test file's folder; outside a test, from the working directory.
+
 The golden's extension picks its format: ``.png`` holds the frame's 8-bit stored values;
 ``.npy`` and ``.exr`` hold exact float32 values. ``max_steps`` counts 8-bit steps (1/255 for float
-goldens and HDR frames). On failure a heat map of the difference is written beside the golden as
-``<golden stem>.diff.png`` and named in the message; it is removed when the frame matches again.
+goldens and HDR frames). On failure a heat map of the difference (with its legend below) is
+written beside the golden and named in the message: ``<golden stem>.diff.png`` for a ``.png``
+golden, ``<golden name>.diff.png`` for the others (``glass.npy.diff.png``), so goldens of one
+stem keep their own; it is removed when the frame matches again.
 
 Example (``tests/test_my_shaders.py``)::
 
@@ -36,12 +40,14 @@ from typing import Any
 import numpy as np
 import pytest
 
-from .formats import images
+from .formats import heatmap, images
 
 __all__ = ["assert_frame_matches", "frame_values", "update_goldens"]
 
 #: Set by ``--unity-update-goldens`` (or by scripts): :func:`assert_frame_matches` writes goldens.
 _UPDATE = {"goldens": False}
+#: The folder of the test file running now (set by the plugin's hooks), where relative paths start.
+_RUNNING: dict[str, Path] = {}
 
 STEP = 1.0 / 255.0
 
@@ -61,8 +67,31 @@ def frame_values(frame: Any) -> np.ndarray:
     return color
 
 
+def resolve(path: str | os.PathLike, base: Path | None = None) -> Path:
+    """A scene's or golden's path as the plugin takes it (module docstring): absolute as it is;
+    relative from ``base`` (default: the running test file's folder) when it exists there, else
+    from the working directory when it exists there, else from ``base``."""
+    path = Path(path)
+    base = base if base is not None else _RUNNING.get("folder")
+    if path.is_absolute() or base is None:
+        return path
+    if (base / path).exists() or not path.exists():
+        return base / path
+    return path
+
+
+def _shown(path: Path) -> str:
+    """``path`` for a message: relative to the working directory when inside it."""
+    try:
+        return str(path.resolve().relative_to(Path.cwd().resolve()))
+    except ValueError:
+        return str(path)
+
+
 def _diff_path(golden: Path) -> Path:
-    return golden.with_name(f"{golden.stem}.diff.png")
+    """Where the heat map of a failing comparison with ``golden`` goes (one per golden)."""
+    name = golden.stem if golden.suffix.lower() == ".png" else golden.name
+    return golden.with_name(f"{name}.diff.png")
 
 
 def _steps(got: np.ndarray, want: np.ndarray, png: bool) -> np.ndarray:
@@ -85,7 +114,7 @@ def assert_frame_matches(frame: Any, golden: str | os.PathLike, max_steps: float
     Raises AssertionError naming the golden, how many pixels differ and by how much, and the heat
     map written beside the golden; a missing golden fails with how to create it.
     """
-    golden = Path(golden)
+    golden = resolve(golden)
     fmt = images.file_format(golden)  # ImageIOError for an unknown extension
     got = frame_values(frame)
     diff_path = _diff_path(golden)
@@ -95,13 +124,13 @@ def assert_frame_matches(frame: Any, golden: str | os.PathLike, max_steps: float
         diff_path.unlink(missing_ok=True)
         return
     if not golden.exists():
-        raise AssertionError(f"golden image {golden} does not exist: run pytest --unity-update-goldens to "
+        raise AssertionError(f"golden image {_shown(golden)} does not exist: run pytest --unity-update-goldens to "
                              "write it from this frame, then look at it and commit it")
     want = images.load(golden)
     if want.ndim == 2:
         want = want[..., None]
     if want.shape[:2] != got.shape[:2]:
-        raise AssertionError(f"frame is {got.shape[1]}x{got.shape[0]} but golden {golden} is "
+        raise AssertionError(f"frame is {got.shape[1]}x{got.shape[0]} but golden {_shown(golden)} is "
                              f"{want.shape[1]}x{want.shape[0]} (rewrite it with pytest --unity-update-goldens)")
     channels = min(want.shape[2], got.shape[2])
     steps = _steps(got[..., :channels], want[..., :channels], png=fmt == ".png")
@@ -109,14 +138,15 @@ def assert_frame_matches(frame: Any, golden: str | os.PathLike, max_steps: float
     if not bad.any():
         diff_path.unlink(missing_ok=True)
         return
-    images.save(diff_path, images.heat_map(np.where(np.isfinite(steps), steps, 255.0)))
+    images.save(diff_path, heatmap.heat_image(np.where(np.isfinite(steps), steps, 255.0), "difference in 8-bit steps",
+                                              floor=0.1))
     worst = float(steps.max())
     worst_text = "inf" if not np.isfinite(worst) else f"{worst:.6g}"
     y, x = np.unravel_index(int(np.argmax(np.where(np.isfinite(steps), steps, np.inf))), steps.shape)
     raise AssertionError(
-        f"frame differs from golden {golden}: {int(bad.sum())} of {bad.size} pixels "
+        f"frame differs from golden {_shown(golden)}: {int(bad.sum())} of {bad.size} pixels "
         f"({bad.mean():.3%}) by more than {max_steps:g} step(s), up to {worst_text} step(s) "
-        f"(first worst at x={x}, y={y} from the top); heat map: {diff_path}")
+        f"(first worst at x={x}, y={y} from the top); heat map: {_shown(diff_path)}")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -135,6 +165,15 @@ def pytest_configure(config: pytest.Config) -> None:
         update_goldens(True)
 
 
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtest_setup(item: pytest.Item) -> None:
+    _RUNNING["folder"] = Path(str(item.path)).parent
+
+
+def pytest_runtest_teardown(item: pytest.Item, nextitem: pytest.Item | None) -> None:
+    _RUNNING.pop("folder", None)
+
+
 def pytest_unconfigure(config: pytest.Config) -> None:
     if config.getoption("unity_update_goldens", default=False):
         update_goldens(False)
@@ -145,8 +184,10 @@ def _render_file(path: Path, scene: str | None, frame: int | None):
     from .core.scene import SceneError
 
     if not path.exists():
-        raise FileNotFoundError(f"{path}: no such .blend file")
-    blender.open_blend(path)
+        raise FileNotFoundError(f"{_shown(path)}: no such .blend file")
+    # quiet: Blender's loading messages (e.g. "Engine 'UNITY_PASSES' not available" for a file
+    # saved with the add-on's engine) are not the user's test output; a failure still raises.
+    blender.open_blend(path, quiet=True)
     target = blender.scene_named(scene, where=path)
     try:
         return blender.render_final(target, frame=frame)
@@ -161,10 +202,7 @@ def unity_render(request: pytest.FixtureRequest) -> Callable[..., Any]:
     base = Path(str(request.path)).parent
 
     def render(path: str | os.PathLike, scene: str | None = None, frame: int | None = None):
-        path = Path(path)
-        if not path.is_absolute() and not path.exists() and (base / path).exists():
-            path = base / path
-        return _render_file(path, scene, frame)
+        return _render_file(resolve(path, base), scene, frame)
 
     return render
 

@@ -57,6 +57,7 @@ def new_file(name: str, *, distance: float = 10.0, clear=CLEAR, color_space="Gam
     if ADDON:
         scene.render.engine = "UNITY_PASSES"
     scene.view_settings.view_transform = "Standard"
+    scene.render.dither_intensity = 0.0  # F12 and its saved 8-bit images hold Unity's stored values
     scenekit.add_camera(scene, (0.0, -distance, 0.0), rotation=(math.pi / 2, 0.0, 0.0), clip=(0.5, 50.0), lens=50.0)
     # the unit direction, from which the saved scenes were built (to_track_quat differs in the last bit otherwise)
     scenekit.add_sun(scene, energy=sun_energy, rotation=scenekit.pointing(Vector(sun_dir).normalized(), "Z"),
@@ -514,6 +515,7 @@ def build_gamma_linear():
     scenekit.set_resolution(linear, *RES)
     linear.render.engine = gamma.render.engine
     linear.view_settings.view_transform = "Standard"
+    linear.render.dither_intensity = 0.0
     linear.world = gamma.world
     linear.camera = gamma.camera
     linear.collection.children.link(stack)

@@ -191,6 +191,20 @@ def test_scene_file_unchanged_since_goldens(file):
         "run `.venv/bin/python -m tests.support.goldens` on purpose and commit tests/golden/")
 
 
+def test_f12_of_every_example_shows_unitys_stored_values():
+    """README: open an example and press F12. Its 8-bit display and saved images hold Unity's
+    stored values only under the Standard view transform, no look and dither 0 (the files
+    shipped with dither 1.0: noise of up to a step on every pixel)."""
+    import bpy
+
+    for path in mg.blend_files():
+        bpy.ops.wm.open_mainfile(filepath=str(path), load_ui=False)
+        for scene in bpy.data.scenes:
+            view = scene.view_settings
+            assert (view.view_transform, view.look, scene.render.dither_intensity) == ("Standard", "None", 0.0), \
+                f"{path.name}: scene {scene.name!r}"
+
+
 #: Golden tolerance: the renderer is bit-exact by design (integer coverage, float64 in a fixed
 #: order, exact colour conversions), so the frame must equal the golden codes. The only slack is
 #: for a different libm/CPU: at most 1 code, on at most 0.1 % of pixels (58 of 57 600). A real

@@ -16,7 +16,7 @@ import pytest
 
 import blendlib.blender  # noqa: F401
 from blendlib import testing
-from blendlib.formats import images
+from blendlib.formats import heatmap, images
 from blendlib.testing import assert_frame_matches
 
 pytest_plugins = ["pytester"]
@@ -47,13 +47,15 @@ def test_steps_tolerance_and_heat_map(tmp_path, ext):
     assert_frame_matches(off, golden, max_steps=1)
     with pytest.raises(AssertionError) as info:
         assert_frame_matches(off, golden, max_steps=0)
-    diff = tmp_path / "g.diff.png"
+    # one heat map per golden: g.png's is g.diff.png (the golden's stem), g.npy's g.npy.diff.png
+    diff = tmp_path / ("g.diff.png" if ext == ".png" else f"g{ext}.diff.png")
     message = str(info.value)
     assert str(golden) in message and f"heat map: {diff}" in message
     assert "1 of 48 pixels" in message and "x=3, y=2" in message
     heat = images.load(diff)
-    others = np.delete(heat.reshape(-1, 4), 2 * 8 + 3, 0)
-    assert heat.shape == (6, 8, 4) and heat[2, 3, 0] > 0 and (others[:, :3] == 0).all()
+    others = np.delete(heat[:6].reshape(-1, 4), 2 * 8 + 3, 0)
+    assert heat.shape == (6 + heatmap.LEGEND_HEIGHT, 8, 4)  # the map, then its legend
+    assert heat[2, 3, 0] > 0 and (others[:, :3] == 0).all()
     off[0, 0, 0] += 3 / 255
     with pytest.raises(AssertionError, match="1 of 48 pixels .* up to 3 step.*x=0, y=0"):
         assert_frame_matches(off, golden, max_steps=1)
@@ -168,3 +170,58 @@ def test_plugin_through_pytester(blender_started, pytester):
     result = pytester.runpytest("-p", "blendlib.testing", "-q")
     result.assert_outcomes(passed=2)
     assert not diff.exists()
+
+
+USER_TEST_IN_A_FOLDER = """
+import numpy as np
+from blendlib.testing import assert_frame_matches
+
+def test_png(unity_render):
+    assert_frame_matches(unity_render("scenes/cube.blend"), "goldens/glass.png", max_steps=0)
+
+def test_npy(unity_render):
+    assert_frame_matches(unity_render("scenes/cube.blend"), "goldens/glass.npy", max_steps=0)
+"""
+
+
+def test_goldens_of_one_stem_keep_their_heat_maps_and_resolve_from_the_test_file(blender_started, pytester, capfd):
+    """Goldens resolve like scenes, from the test file's folder (before: from the working directory,
+    so a run from another folder looked for them elsewhere); glass.png and glass.npy each keep
+    their heat map (before, both wrote glass.diff.png and the passing one deleted it); opening a
+    file saved with the add-on's engine prints nothing (before: "ERROR Engine 'UNITY_PASSES' not
+    available" in the user's test output)."""
+    folder = pytester.path / "suite"
+    (folder / "scenes").mkdir(parents=True)
+    exec(MAKE_SCENE.format(root=str(ROOT), path=str(folder / "scenes" / "cube.blend")), {})
+    import addon
+
+    addon.register()
+    bpy.data.scenes[0].render.engine = "UNITY_PASSES"
+    bpy.ops.wm.save_as_mainfile(filepath=str(folder / "scenes" / "cube.blend"))
+    addon.unregister()
+    (folder / "test_user.py").write_text(USER_TEST_IN_A_FOLDER)
+    capfd.readouterr()
+
+    result = pytester.runpytest("-p", "blendlib.testing", "-q", "-s", "--unity-update-goldens", "suite")
+    result.assert_outcomes(passed=2)
+    goldens = folder / "goldens"
+    assert sorted(p.name for p in goldens.iterdir()) == ["glass.npy", "glass.png"]
+    assert not (pytester.path / "goldens").exists()
+    shown = capfd.readouterr()
+    assert "not available" not in shown.out + shown.err  # Blender's reports go to stdout here
+
+    frame = images.load(goldens / "glass.png")
+    changed = frame.copy()
+    changed[3:5, 3:5, :3] = 1.0 - changed[3:5, 3:5, :3]
+    images.save(goldens / "glass.png", changed)
+    np.save(goldens / "glass.npy", np.load(goldens / "glass.npy") + np.float32(0.5))
+    result = pytester.runpytest("-p", "blendlib.testing", "-q", "suite")
+    result.assert_outcomes(failed=2)
+    result.stdout.fnmatch_lines(["*heat map: suite/goldens/glass.diff.png*"])
+    result.stdout.fnmatch_lines(["*heat map: suite/goldens/glass.npy.diff.png*"])
+    assert (goldens / "glass.diff.png").exists() and (goldens / "glass.npy.diff.png").exists()
+
+    images.save(goldens / "glass.png", frame)  # the PNG golden passes again: only its own map goes
+    result = pytester.runpytest("-p", "blendlib.testing", "-q", "suite")
+    result.assert_outcomes(passed=1, failed=1)
+    assert not (goldens / "glass.diff.png").exists() and (goldens / "glass.npy.diff.png").exists()

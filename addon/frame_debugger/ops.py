@@ -15,7 +15,7 @@ from functools import partial
 import bpy
 from bpy.props import IntProperty
 
-from blendlib.blender import build_draw_scene
+from blendlib.blender import draw_scene_final
 from blendlib.blender import framedebug as bfd
 from blendlib.explain import framedebug as fd
 
@@ -111,7 +111,7 @@ class UNITY_OT_frame_debugger_capture(JobOperator, bpy.types.Operator):
         return context.scene is not None and hasattr(context.scene, "unity_frame_debugger")
 
     def _draw_scene(self, context):
-        return self.read_scene(partial(build_draw_scene, context.scene))
+        return self.read_scene(partial(draw_scene_final, context.scene))
 
     def execute(self, context):
         draw = self._draw_scene(context)
@@ -148,7 +148,7 @@ class UNITY_OT_frame_debugger_pixel(JobOperator, bpy.types.Operator):
         cap = current_capture(context.scene)
         if cap is not None:
             return cap.scene  # the captured frame, so the history matches what is shown
-        return self.read_scene(partial(build_draw_scene, context.scene))
+        return self.read_scene(partial(draw_scene_final, context.scene))
 
     def _coordinates(self, context) -> tuple[int, int]:
         settings = context.scene.unity_frame_debugger

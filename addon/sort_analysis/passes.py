@@ -14,16 +14,15 @@ from .properties import ERROR_PASS, OVERDRAW_PASS, REFERENCE_PASS
 
 def render_passes() -> tuple[tuple[str, int, str, str], ...]:
     """(name, channels, channel ids, type) of the analysis passes of the render result."""
-    return ((REFERENCE_PASS, 4, "RGBA", "COLOR"), (ERROR_PASS, 1, "X", "VALUE"), (OVERDRAW_PASS, 3, "XYZ", "VECTOR"))
+    return ((REFERENCE_PASS, 4, "RGBA", "COLOR"), (ERROR_PASS, 1, "X", "VALUE"), (OVERDRAW_PASS, 2, "XY", "VECTOR"))
 
 
 def result_arrays(analysis) -> dict[str, np.ndarray]:
     """Pass name → (H*W, channels) float32, bottom row first, of an
     :class:`~blendlib.explain.sorted_reference.Analysis`: the reference as linear RGBA with its
-    alpha (like Combined), the error, the overdraw counts (X rasterised, Y written, Z 0)."""
+    alpha (like Combined), the error, the overdraw counts (X rasterised, Y written: two channels,
+    no third one to misread)."""
     reference = blender.linear_rgba(replace(analysis.frame, color=analysis.reference))
-    h, w = reference.shape[:2]
-    overdraw = np.zeros((h, w, 3), np.float32)
-    overdraw[..., :2] = analysis.overdraw
+    overdraw = analysis.overdraw.astype(np.float32)
     return {REFERENCE_PASS: bottom_first(reference), ERROR_PASS: bottom_first(analysis.error),
             OVERDRAW_PASS: bottom_first(overdraw)}

@@ -4,7 +4,8 @@
   :mod:`.lights`: Blender lights as Unity forward lights (derived values);
   :mod:`.migration`: their schema versions and the migration of older stored values.
 - :mod:`.extract`: a Blender scene → :class:`blendlib.core.scene.DrawScene`.
-- :mod:`.render`: render a scene (viewport or F12 depsgraph), write a Frame into an Image.
+- :mod:`.render`: render a scene (as F12 does, or through a given depsgraph; the rule is in its
+  docstring), write a Frame into an Image.
 - :mod:`.files`: open .blend files, find scenes.
 """
 
@@ -19,10 +20,19 @@ from .extract import (
     render_visible_objects,
     world_ambient,
 )
-from .files import material_named, open_blend, scene_named
+from .files import material_named, open_blend, scene_arg, scene_named
 from .lights import derived_light_values, unity_light_values
 from .migration import SCHEMA_VERSION
-from .render import apply_border, border_region, draw_scene_final, linear_rgba, render, render_final, write_image
+from .render import (
+    apply_border,
+    border_region,
+    draw_scene,
+    draw_scene_final,
+    linear_rgba,
+    render,
+    render_final,
+    write_image,
+)
 from .schema import (
     LIGHT_FIELDS,
     MATERIAL_FIELDS,
@@ -51,7 +61,7 @@ __all__ = [
     "LIGHT_FIELDS", "derived_light_values", "light_settings", "material_from_values", "unity_light_values",
     "write_light_settings",
     "MATERIAL_FIELDS", "PASS_FIELDS", "SCENE_FIELDS", "SCHEMA_VERSION", "Field", "apply_border", "border_region",
-    "build_draw_scene", "draw_scene_final",
+    "build_draw_scene", "draw_scene", "draw_scene_final", "scene_arg",
     "linear_rgba",
     "material_fields", "material_from_blender", "material_named", "material_values", "mesh_arrays",
     "migrate_data", "migrate_stored", "open_blend", "pass_from_values", "principled_inputs", "read_group",

@@ -13,8 +13,7 @@ import numpy as np
 
 from ..core.records import Frame
 from ..explain import framedebug as fd
-from .extract import build_draw_scene
-from .render import write_image
+from .render import draw_scene, write_image
 
 #: The image the frame debugger shows its frames in.
 IMAGE_NAME = "Unity Frame Debugger"
@@ -24,23 +23,24 @@ BUFFERS = ("COLOR", "ALPHA", "DEPTH", "STENCIL")
 HIGHLIGHT = np.array([1.0, 0.0, 1.0], dtype=np.float32)
 
 
-def capture(scene: Any = None, *, progress: Callable[[float], None] | None = None,
+def capture(scene: Any = None, *, depsgraph: Any = None, progress: Callable[[float], None] | None = None,
             should_cancel: Callable[[], bool] | None = None, memory: int = fd.SNAPSHOT_MEMORY) -> fd.FrameCapture:
-    """Render ``scene`` (default: the context scene) once, keeping draw statistics and snapshots.
+    """Render ``scene`` (default: the context scene) once as F12 evaluates it (or as ``depsgraph``
+    does, :func:`blendlib.blender.render.draw_scene`), keeping draw statistics and snapshots.
 
     Raises :class:`SceneError` (no camera, bad input) or :class:`RenderCancelled`."""
-    return fd.FrameCapture.capture(build_draw_scene(scene), progress=progress, should_cancel=should_cancel,
+    return fd.FrameCapture.capture(draw_scene(scene, depsgraph), progress=progress, should_cancel=should_cancel,
                                    memory=memory)
 
 
-def draw_list(scene: Any = None, **kwargs) -> list[fd.DrawStats]:
+def draw_list(scene: Any = None, *, depsgraph: Any = None, **kwargs) -> list[fd.DrawStats]:
     """The draw calls of a Blender scene with their statistics; see :func:`blendlib.draw_list`."""
-    return fd.draw_list(build_draw_scene(scene), **kwargs)
+    return fd.draw_list(draw_scene(scene, depsgraph), **kwargs)
 
 
-def pixel_history(scene: Any, x: int, y: int, **kwargs) -> fd.PixelHistory:
+def pixel_history(scene: Any, x: int, y: int, *, depsgraph: Any = None, **kwargs) -> fd.PixelHistory:
     """The history of pixel (x from the left, y from the top); see :func:`blendlib.pixel_history`."""
-    return fd.pixel_history(build_draw_scene(scene), x, y, **kwargs)
+    return fd.pixel_history(draw_scene(scene, depsgraph), x, y, **kwargs)
 
 
 def buffer_rgba(frame: Frame, buffer: str, mask: np.ndarray | None = None) -> tuple[np.ndarray, bool]:

@@ -1,19 +1,28 @@
 """Rendering a Blender scene with the Unity pipeline, and writing a Frame back as a Blender image.
 
-:func:`render` evaluates with the viewport depsgraph; :func:`render_final` renders as F12
-does, through Blender's render-mode depsgraph (a capture engine keeps the Frame in memory).
+The rule of the Python API: what renders or explains a scene's frame — :func:`render`,
+:func:`draw_scene` (the frame debugger's draw list, pixel history and Capture), the analysis —
+sees what F12 renders: Blender's render-mode evaluation (modifier render levels, render
+visibility), through :func:`render_final` (a capture engine run by Blender's render
+operator keeps the Frame in memory). Given a ``depsgraph`` (e.g. the viewport's,
+``bpy.context.evaluated_depsgraph_get()``, what the Rendered viewport shows) they use that
+evaluation instead; :func:`blendlib.render_view` always shows the viewport's.
 """
 
 from __future__ import annotations
 
+import contextlib
+import operator
 from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
 from ..core import colorspace, pipeline
+from ..core.drawlist import draw_calls
 from ..core.scene import SceneError
 from .extract import build_draw_scene
+from .files import scene_arg
 from .pixels import bottom_first
 
 
@@ -21,12 +30,46 @@ def render(scene: Any = None, depsgraph: Any = None, progress: Callable[[float],
            should_cancel: Callable[[], bool] | None = None, until_draw: int | None = None) -> pipeline.Frame:
     """Render a Blender scene with the Unity pipeline; see :func:`blendlib.render`.
 
-    ``until_draw`` K: the frame after draw call K (docs/framedebugger.md; 0 = the cleared frame).
+    ``scene``: a ``bpy.types.Scene``, its name, or None (the context scene). ``depsgraph`` None:
+    the frame F12 renders (:func:`render_final`, Render Region included); a depsgraph: that
+    evaluation of the scene, the whole frame. ``until_draw`` K: the frame after draw call K
+    (docs/framedebugger.md; 0 = the cleared frame; an integer up to the number of draw calls).
     The Frame's ``warnings`` hold the extraction warnings followed by the core's.
     Raises :class:`SceneError` (no camera, bad input) or :class:`pipeline.RenderCancelled`.
     """
+    if depsgraph is None:
+        return render_final(scene, progress=progress, should_cancel=should_cancel, until_draw=until_draw)
+    return _render_evaluated(scene_arg(scene), depsgraph, progress, should_cancel, until_draw)
+
+
+def checked_until_draw(until_draw: Any, calls: int | None = None) -> int | None:
+    """``until_draw`` as an int: None stays None; an integer from 0 to ``calls`` (the frame's
+    number of draw calls, when known). TypeError for a non-integer (1.5 is not draw 1),
+    SceneError for a number out of range."""
+    if until_draw is None:
+        return None
+    if isinstance(until_draw, bool):
+        raise TypeError("until_draw must be an integer, got a bool")
+    try:
+        k = operator.index(until_draw)
+    except TypeError:
+        raise TypeError(f"until_draw must be an integer, got {until_draw!r}") from None
+    if k < 0:
+        raise SceneError(f"until_draw must be 0 or more (got {k})")
+    if calls is not None and k > calls:
+        raise SceneError(f"until_draw {k} is beyond the last draw call: the frame has {calls} "
+                         f"(0 = the cleared frame, {calls} = the whole frame)")
+    return k
+
+
+def _render_evaluated(scene: Any, depsgraph: Any, progress: Callable[[float], None] | None,
+                      should_cancel: Callable[[], bool] | None, until_draw: Any) -> pipeline.Frame:
+    """The frame of ``scene`` as ``depsgraph`` evaluates it (the capture engine's, or a caller's)."""
     draw = build_draw_scene(scene, depsgraph)
-    frame = pipeline.render_scene(draw, progress=progress, should_cancel=should_cancel, until_draw=until_draw)
+    calls = draw_calls(draw)
+    until_draw = checked_until_draw(until_draw, len(calls))
+    frame = pipeline.render_scene(draw, progress=progress, should_cancel=should_cancel, until_draw=until_draw,
+                                  calls=calls)
     extra = [w for w in draw.warnings if w not in frame.warnings]
     frame.warnings[:0] = extra
     frame.warnings[:] = one_warning_per_cause(frame.warnings)
@@ -70,9 +113,8 @@ def _capture_engine_class() -> Any:
                 if job is not None:  # e.g. build the draw scene only (draw_scene_final)
                     _capture["frame"] = job(depsgraph)
                     return
-                _capture["frame"] = render(depsgraph.scene, depsgraph, progress=_capture.get("progress"),
-                                           should_cancel=_capture.get("should_cancel"),
-                                           until_draw=_capture.get("until_draw"))
+                _capture["frame"] = _render_evaluated(depsgraph.scene, depsgraph, _capture.get("progress"),
+                                                      _capture.get("should_cancel"), _capture.get("until_draw"))
             except Exception as exc:  # noqa: BLE001 - handed back to render_final's caller
                 _capture["error"] = exc
 
@@ -90,7 +132,8 @@ def render_final(scene: Any = None, progress: Callable[[float], None] | None = N
     modifiers evaluate with their viewport settings there. This runs ``bpy.ops.render.render``
     with a capture engine instead, so modifier render levels and render visibility apply
     exactly as for F12 and ``blender -b -E UNITY_PASSES``. The scene's render engine is set
-    for the call and restored; no image is written. ``frame``: the frame to set first (the
+    for the call and restored; no image is written, and the user's "Render Result" keeps its
+    renders (:func:`_render_result_kept`). ``frame``: the frame to set first (the
     scene's current frame is restored afterwards); ``until_draw``: stop after that draw call
     (docs/framedebugger.md). A Render Region (``use_border``) gives what F12 writes: the region only with
     Crop, else the full size with only the region filled. Raises like :func:`render`.
@@ -99,7 +142,7 @@ def render_final(scene: Any = None, progress: Callable[[float], None] | None = N
 
     from .extract import render_size
 
-    scene = scene or bpy.context.scene
+    scene = scene_arg(scene)
     if scene.camera is None:  # checked here: the operator would fail with its own wording
         raise SceneError(f"scene {scene.name!r} has no camera")
     width, height = render_size(scene)
@@ -111,12 +154,11 @@ def render_final(scene: Any = None, progress: Callable[[float], None] | None = N
     previous = scene.render.engine
     previous_frame = (scene.frame_current, scene.frame_subframe)
     _capture.clear()
-    if until_draw is not None and int(until_draw) < 0:
-        raise SceneError(f"until_draw must be 0 or more (got {until_draw})")
+    checked_until_draw(until_draw)  # a non-integer or a negative number before Blender renders
     _capture.update(progress=progress, should_cancel=should_cancel, until_draw=until_draw, job=_job)
     scene.render.engine = engine.bl_idname
     try:
-        with bpy.context.temp_override(scene=scene):
+        with bpy.context.temp_override(scene=scene), _render_result_kept():
             if frame is not None:
                 scene.frame_set(frame)
             try:
@@ -140,6 +182,35 @@ def render_final(scene: Any = None, progress: Callable[[float], None] | None = N
     if not isinstance(result, pipeline.Frame):  # a _job's result (draw_scene_final): not an image
         return result
     return apply_border(result, region, bool(scene.render.use_crop_to_border))
+
+
+#: The Render Result slot the capture renders into when the user has a Render Result.
+CAPTURE_SLOT = "Unity Passes (capture)"
+
+
+@contextlib.contextmanager
+def _render_result_kept():
+    """Blender's render operator renders into the active slot of the "Render Result" image
+    (created by the first render). The capture draws no pixels there: without a Render Result
+    before, the one the operator creates is removed again; with one, the capture renders into
+    a slot of its own (:data:`CAPTURE_SLOT`, made once, reused after) and the user's active slot,
+    with their last F12 render, is made active again."""
+    import bpy
+
+    results = [image for image in bpy.data.images if image.type == "RENDER_RESULT"]
+    slots = results[0].render_slots if results else None
+    active = slots.active_index if slots is not None else None
+    if slots is not None:
+        slot = next((x for x in slots if x.name == CAPTURE_SLOT), None) or slots.new(name=CAPTURE_SLOT)
+        slots.active = slot
+    try:
+        yield
+    finally:
+        if slots is None:
+            for image in [i for i in bpy.data.images if i.type == "RENDER_RESULT"]:
+                bpy.data.images.remove(image)
+        else:
+            slots.active_index = active
 
 
 def border_region(scene: Any, width: int, height: int) -> tuple[int, int, int, int] | None:
@@ -187,6 +258,14 @@ def draw_scene_final(scene: Any = None, frame: int | None = None) -> Any:
     from .extract import build_draw_scene as build
 
     return render_final(scene, frame=frame, _job=lambda depsgraph: build(depsgraph.scene, depsgraph))
+
+
+def draw_scene(scene: Any = None, depsgraph: Any = None) -> Any:
+    """The :class:`DrawScene` the tools that explain a frame see (module docstring): F12's
+    (:func:`draw_scene_final`) without ``depsgraph``, else that evaluation's."""
+    if depsgraph is None:
+        return draw_scene_final(scene)
+    return build_draw_scene(scene_arg(scene), depsgraph)
 
 
 def linear_rgba(frame: pipeline.Frame, encoded: bool | None = None, opaque: bool = False) -> np.ndarray:

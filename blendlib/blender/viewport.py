@@ -31,6 +31,8 @@ PLACEHOLDER_CAMERA = Camera(view_matrix=np.eye(4), projection=np.eye(4), width=1
 
 def as_matrix(m: Any, name: str) -> np.ndarray:
     """A 4x4 float64 array of a ``mathutils.Matrix`` or anything numpy accepts; SceneError otherwise."""
+    if not hasattr(m, "row") and np.iscomplexobj(m):  # float64 would drop the imaginary parts unsaid
+        raise SceneError(f"{name}: must be a real 4x4 matrix, got complex values")
     try:
         arr = np.array([list(row) for row in m], dtype=np.float64) if hasattr(m, "row") else \
             np.asarray(m, dtype=np.float64)
@@ -39,6 +41,23 @@ def as_matrix(m: Any, name: str) -> np.ndarray:
     if arr.shape != (4, 4) or not np.all(np.isfinite(arr)):
         raise SceneError(f"{name}: must be a finite 4x4 matrix, got shape {arr.shape}")
     return arr
+
+
+def determinant4(m: np.ndarray) -> float:
+    """The determinant of a 4x4 matrix by its 2x2 minors (no LAPACK call, see
+    :func:`blendlib.core.scene.affine_inverse`)."""
+    a = [[float(x) for x in row] for row in np.asarray(m, np.float64)]
+    s0, s1, s2 = (a[0][0] * a[1][k] - a[1][0] * a[0][k] for k in (1, 2, 3))
+    s3 = a[0][1] * a[1][2] - a[1][1] * a[0][2]
+    s4 = a[0][1] * a[1][3] - a[1][1] * a[0][3]
+    s5 = a[0][2] * a[1][3] - a[1][2] * a[0][3]
+    c5 = a[2][2] * a[3][3] - a[3][2] * a[2][3]
+    c4 = a[2][1] * a[3][3] - a[3][1] * a[2][3]
+    c3 = a[2][1] * a[3][2] - a[3][1] * a[2][2]
+    c2 = a[2][0] * a[3][3] - a[3][0] * a[2][3]
+    c1 = a[2][0] * a[3][2] - a[3][0] * a[2][2]
+    c0 = a[2][0] * a[3][1] - a[3][0] * a[2][1]
+    return s0 * c5 - s1 * c4 + s2 * c3 + s3 * c2 - s4 * c1 + s5 * c0
 
 
 def is_orthographic(projection: np.ndarray) -> bool:
@@ -62,6 +81,9 @@ def camera_from_matrices(view_matrix: Any, projection_matrix: Any, width: int, h
         affine_inverse(view)  # no LAPACK here: see affine_inverse
     except np.linalg.LinAlgError:
         raise SceneError("view_matrix is singular") from None
+    if determinant4(proj) == 0.0:  # e.g. all zero: every vertex lands on one point, nothing is drawn
+        raise SceneError("projection_matrix is singular (all zero, or rows that depend on each other): "
+                         "a view through it shows nothing")
     return Camera(view_matrix=view, projection=proj, width=int(width), height=int(height),
                   orthographic=is_orthographic(proj))
 
@@ -84,14 +106,17 @@ def extract_template(scene: Any = None, depsgraph: Any = None, previous: DrawSce
 def render_view(scene: Any, view_matrix: Any, projection_matrix: Any, width: int, height: int, *,
                 depsgraph: Any = None, progress: Callable[[float], None] | None = None,
                 should_cancel: Callable[[], bool] | None = None) -> Frame:
-    """Render ``scene`` (a ``bpy.types.Scene``; None: the context scene) through a view's 4x4 matrices.
+    """Render ``scene`` (a ``bpy.types.Scene``, its name; None: the context scene) through a view's
+    4x4 matrices (real and finite; a singular projection is an error).
 
     Returns the :class:`Frame` a camera with those matrices would give at ``width`` x ``height``
     (see :func:`camera_from_matrices`), with objects and modifiers as the viewport shows them.
     The scene needs no camera, and its camera, resolution and frame are left unchanged.
     """
+    from .files import scene_arg
+
     camera = camera_from_matrices(view_matrix, projection_matrix, width, height)
-    draw = dataclasses.replace(extract_template(scene, depsgraph), camera=camera)
+    draw = dataclasses.replace(extract_template(scene_arg(scene), depsgraph), camera=camera)
     frame = pipeline.render_scene(draw, progress=progress, should_cancel=should_cancel)
     frame.warnings[:0] = [w for w in draw.warnings if w not in frame.warnings]
     return frame

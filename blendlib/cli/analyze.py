@@ -10,15 +10,8 @@ from pathlib import Path
 import numpy as np
 
 from ..formats import heatmap, images
-from .common import (
-    CliError,
-    add_scene_arguments,
-    check_blend,
-    check_distinct,
-    check_output,
-    load_draw_scene,
-    warn,
-)
+from . import outputs
+from .common import CliError, add_scene_arguments, check_blend, load_draw_scene, warn
 
 EPILOG_ANALYZE = """\
 examples:
@@ -52,13 +45,8 @@ def add_parser(sub) -> None:
     r.set_defaults(func=run)
 
 
-def _check_map_output(path: Path, option: str) -> None:
-    if path.suffix.lower() not in (".png", ".npy"):
-        raise CliError(f"{path}: {option} writes a .png or .npy file")
-    check_output(path.with_suffix(".npy"), option)
-
-
-def outputs(result, reference: Path | None, error: Path | None, overdraw: Path | None) -> list[tuple[Path, object]]:
+def output_arrays(result, reference: Path | None, error: Path | None,
+                  overdraw: Path | None) -> list[tuple[Path, object]]:
     """(path, array) of every requested output, in order."""
     todo = []
     if reference is not None:
@@ -74,21 +62,9 @@ def outputs(result, reference: Path | None, error: Path | None, overdraw: Path |
             todo.append((overdraw, result.overdraw))
         else:
             todo.append((overdraw, heatmap.heat_panels([(result.overdraw[..., 0], "rasterised"),
-                                                        (result.overdraw[..., 1], "written")], "fragments per pixel")))
+                                                        (result.overdraw[..., 1], "written")], "fragments per pixel",
+                                                       integer=True)))
     return todo
-
-
-def write_all(todo: list[tuple[Path, object]]) -> None:
-    """Write every output or none: a failure removes what was already written."""
-    done: list[Path] = []
-    try:
-        for path, array in todo:
-            images.save(path, array)
-            done.append(path)
-    except (images.ImageIOError, OSError) as exc:
-        for path in done:
-            path.unlink(missing_ok=True)
-        raise CliError(str(exc)) from None
 
 
 def text_summary(summary: dict) -> str:
@@ -110,15 +86,15 @@ def run(args: argparse.Namespace) -> int:
     error = Path(args.error) if args.error else None
     overdraw = Path(args.overdraw) if args.overdraw else None
     if reference is not None:
-        check_output(reference, "-o")
+        outputs.check_target(reference, "--reference", images.FORMATS)
     if error is not None:
-        _check_map_output(error, "--error")
+        outputs.check_target(error, "--error", (".png", ".npy"))
     if overdraw is not None:
-        _check_map_output(overdraw, "--overdraw")
+        outputs.check_target(overdraw, "--overdraw", (".png", ".npy"))
     if args.advice < 0:
         raise CliError("--advice must be 0 or more")
     named = {"--reference": reference, "--error": error, "--overdraw": overdraw}
-    check_distinct({"FILE.blend": blend, **{k: v for k, v in named.items() if v is not None}})
+    outputs.check_distinct({"FILE.blend": blend, **{k: v for k, v in named.items() if v is not None}})
     from ..core.records import RenderCancelled
     from ..core.scene import SceneError
     from ..explain.advice import analyze_and_advise
@@ -132,8 +108,8 @@ def run(args: argparse.Namespace) -> int:
         raise CliError("render cancelled") from None
     for warning in dict.fromkeys(w for w in result.frame.warnings if w not in draw.warnings):
         warn(warning)
-    todo = outputs(result, reference, error, overdraw)
-    write_all(todo)
+    todo = output_arrays(result, reference, error, overdraw)
+    outputs.commit(todo)  # every output or none
     summary = result.summary()
     if args.json:
         print(json.dumps(summary, indent=1, allow_nan=False, default=_plain))

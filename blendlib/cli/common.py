@@ -1,51 +1,22 @@
-"""Helpers shared by the subcommands: the one-line error, warnings, file checks, Blender's chatter."""
+"""Helpers shared by the subcommands: the one-line error, warnings, file checks, loading a scene."""
 
 from __future__ import annotations
 
 import argparse
-import contextlib
 import importlib.util
-import os
-import sys
 from pathlib import Path
 
+from ..blender.files import redirected_output as redirect_fds
 from ..formats import images
-from ..formats.atomic import write_atomic
+from . import interrupts
+from .errors import CliError, warn
+from .frames import MAX_FRAME
+from .outputs import check_distinct, check_target, commit_text
 
-
-class CliError(Exception):
-    """A one-line error for the user."""
-
-
-def warn(message: str) -> None:
-    print(f"warning: {message}", file=sys.stderr)
-
-
-@contextlib.contextmanager
-def redirect_fds(target: int | None):
-    """Blender prints file-loading chatter on stdout/stderr at the C level. ``target`` None: silence
-    both (errors come back as exceptions); else send stdout to that fd (keep stdout for results)."""
-    sys.stdout.flush()
-    sys.stderr.flush()
-    fds = (1, 2) if target is None else (1,)
-    try:
-        saved = [os.dup(fd) for fd in fds]
-    except OSError:
-        yield
-        return
-    sink = os.open(os.devnull, os.O_WRONLY) if target is None else target
-    try:
-        for fd in fds:
-            os.dup2(sink, fd)
-        yield
-    finally:
-        sys.stdout.flush()
-        sys.stderr.flush()
-        for fd, old in zip(fds, saved, strict=True):
-            os.dup2(old, fd)
-            os.close(old)
-        if target is None:
-            os.close(sink)
+__all__ = [
+    "CliError", "MAX_FRAME", "add_scene_arguments", "check_blend", "check_distinct", "check_output", "checked_frame",
+    "frame_number", "load_draw_scene", "open_scene", "redirect_fds", "require_bpy", "warn", "write_text_atomic",
+]
 
 
 def check_blend(path: Path) -> None:
@@ -64,34 +35,31 @@ def check_blend(path: Path) -> None:
 
 
 def check_output(path: Path, option: str) -> None:
-    try:
-        images.file_format(path) if option == "-o" else None
-    except images.ImageIOError as exc:
-        raise CliError(str(exc)) from None
-    if option != "-o" and path.suffix.lower() != ".npy":
-        raise CliError(f"{path}: {option} writes a .npy file")
-    if path.is_dir():
-        raise CliError(f"{path}: is a directory; {option} needs a file name")
-    folder = path.parent if str(path.parent) else Path(".")
-    if not folder.is_dir():
-        raise CliError(f"{path}: output directory {str(folder)!r} does not exist")
-    if not os.access(folder, os.W_OK):
-        raise CliError(f"{path}: output directory {str(folder)!r} is not writable")
+    """``-o`` (an image: .png, .exr or .npy) or another option's .npy output, checked before any
+    work (:func:`blendlib.cli.outputs.check_target`)."""
+    check_target(path, option, images.FORMATS if option == "-o" else (".npy",))
 
 
 def require_bpy() -> None:
+    """Import bpy (a one-line error when it is not installed); a Ctrl+C meanwhile is acted on
+    after the import (:func:`blendlib.cli.interrupts.deferred`)."""
     if importlib.util.find_spec("bpy") is None:
         raise CliError("the bpy module is not installed (pip install bpy==5.0.1, or run bash scripts/setup.sh)")
+    with interrupts.deferred():
+        import bpy  # noqa: F401 - loading Blender takes about a second
 
 
 def open_scene(blend: Path, scene_name: str | None):
-    """Open ``blend`` (Blender's loading chatter silenced) and return the named or active scene."""
+    """Open ``blend`` (Blender's loading chatter silenced; a crash of Blender's loader prints one
+    line naming the file) and return the named or active scene."""
     from .. import blender
     from ..core.scene import SceneError
 
-    with redirect_fds(None):
+    require_bpy()
+    crash = f"error: {blend}: Blender crashed while reading this file ({{fault}}); is the file damaged?"
+    with interrupts.deferred():
         try:
-            blender.open_blend(blend)
+            blender.open_blend(blend, quiet=True, crash=crash)
         except SceneError as exc:
             raise CliError(str(exc)) from None
     try:
@@ -101,15 +69,8 @@ def open_scene(blend: Path, scene_name: str | None):
 
 
 def write_text_atomic(path: Path, text: str) -> None:
-    """Write a text output atomically; one-line error naming the user's path."""
-    try:
-        write_atomic(path, text)
-    except OSError as exc:
-        raise CliError(f"{path}: cannot write ({exc.strerror or exc})") from None
-
-
-#: Blender's frame range (MAXFRAME); frame_set clamps to it.
-MAX_FRAME = 1048574
+    """Write a text output as one commit (:func:`blendlib.cli.outputs.commit_text`)."""
+    commit_text(path, text)
 
 
 def frame_number(text: str) -> int:
@@ -145,26 +106,15 @@ def load_draw_scene(args: argparse.Namespace):
     blend = Path(args.file)
     check_blend(blend)
     frame = checked_frame(args.frame)
-    require_bpy()
     from .. import blender
     from ..core.scene import SceneError
 
     scene = open_scene(blend, args.scene)
     try:
-        with redirect_fds(2):
+        with interrupts.deferred(), redirect_fds(2):
             draw = blender.draw_scene_final(scene, frame=frame)
     except SceneError as exc:
         raise CliError(str(exc)) from None
     for warning in draw.warnings:
         warn(warning)
     return draw
-
-
-def check_distinct(paths: dict[str, Path]) -> None:
-    """One-line error when two of the named files (inputs and outputs) are the same file."""
-    seen: dict[Path, str] = {}
-    for option, path in paths.items():
-        key = path.resolve()
-        if key in seen:
-            raise CliError(f"{path}: {option} is the same file as {seen[key]}; choose another output")
-        seen[key] = option

@@ -7,7 +7,8 @@ import math
 from pathlib import Path
 
 from ..formats import images
-from .common import CliError, check_output, warn
+from . import outputs
+from .common import CliError, warn
 
 EPILOG_COMPARE = """\
 prints max and mean absolute difference, PSNR (peak 1.0) and the share of differing pixels;
@@ -36,21 +37,25 @@ def add_parser(sub) -> None:
                        epilog=EPILOG_COMPARE, formatter_class=argparse.RawDescriptionHelpFormatter)
     c.add_argument("a", metavar="A", help="first image (.png, .exr or .npy)")
     c.add_argument("b", metavar="B", help="second image (.png, .exr or .npy)")
-    c.add_argument("--diff", metavar="OUT.png", help="write a heat map of the per-pixel difference")
+    c.add_argument("--diff", metavar="OUT.png", help="write a heat map of the per-pixel difference (legend below)")
     c.add_argument("--tolerance", type=tolerance_value, default=0.0,
                    help="a pixel counts as differing when a channel differs by more than this (default 0)")
     c.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    diff = Path(args.diff) if args.diff else None
+    if diff is not None:  # before reading the images: a bad output is an error at once
+        outputs.check_target(diff, "--diff", images.FORMATS)
+        outputs.check_distinct({"A": Path(args.a), "B": Path(args.b), "--diff": diff})
     try:
         a = images.load(args.a)
         b = images.load(args.b)
-        if args.diff:
-            check_output(Path(args.diff), "-o")
-        result = images.compare(a, b, diff_path=args.diff, tolerance=args.tolerance)
+        result = images.compare(a, b, tolerance=args.tolerance)
     except images.ImageIOError as exc:
         raise CliError(str(exc)) from None
+    if diff is not None:
+        outputs.commit([(diff, images.heat_map(result.per_pixel))])
     if a.ndim == 3 and b.ndim == 3 and a.shape[2] != b.shape[2]:
         warn(f"channel counts differ ({a.shape[2]} vs {b.shape[2]}); compared the first {result.channels}")
     for line in result.lines():

@@ -62,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
     search = tuple(args.search)
     try:
         if args.file == "-":
-            result = shaderlab.parse_shaderlab(sys.stdin.read(), filename="<stdin>",
+            result = shaderlab.parse_shaderlab(sys.stdin.buffer.read().decode("utf-8-sig"), filename="<stdin>",
                                                search=shaderlab.AssetSearch([Path.cwd(), *search]))
         elif args.file.lower().endswith(".mat"):
             result = shaderlab.import_material_file(args.file, search)
@@ -71,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
     except shaderlab.ShaderLabError as exc:
         raise CliError(str(exc)) from None
     except UnicodeDecodeError as exc:
-        raise CliError(f"{args.file}: not UTF-8 text ({exc.reason})") from None
+        raise CliError(f"{'<stdin>' if args.file == '-' else args.file}: not UTF-8 text ({exc.reason})") from None
     except OSError as exc:
         raise CliError(f"{exc.filename or args.file}: {exc.strerror or exc}") from None
     sys.stdout.write(result.to_json() + "\n")

@@ -82,6 +82,11 @@ class DrawStats:
     fragments: int
     written: int
 
+    def __repr__(self) -> str:  # the call's renderer holds the whole mesh: name it instead
+        c = self.call
+        return (f"DrawStats(call={c.index}, object={c.renderer.name!r}, slot={c.renderer.slot}, pass={c.pass_index}, "
+                f"queue={c.queue}, triangles={self.triangles}, fragments={self.fragments}, written={self.written})")
+
     def to_json(self) -> dict:
         """The ``drawlist --json`` item (docs/json.md)."""
         out = _call_json(self.call)

@@ -112,6 +112,11 @@ class Analysis:
                 return inv.pixels
         return 0
 
+    def __repr__(self) -> str:  # the images are megabytes of numbers: their size and the summary
+        h, w = self.error.shape[:2]
+        return (f"Analysis({w}x{h}, differing={self.differing}, max_error={float(self.error.max(initial=0)):g}, "
+                f"inversions={len(self.inversions)}, advice={len(self.advice)})")
+
     def summary(self) -> dict:
         """The JSON summary of docs/json.md (``advice`` included)."""
         return {

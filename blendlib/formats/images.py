@@ -15,8 +15,13 @@ Arrays here are ``(H, W, C)`` with row 0 the *top* of the image (as a
 Pillow and OpenEXR are imported only here, and only when a PNG or EXR file is read or written:
 ``import blendlib`` and the Blender add-on work without them (they are the ``files`` extra).
 
-Every writer goes through :func:`save`, which writes a temporary file next to the
-target and renames it, so an error never leaves a half-written file.
+Every writer goes through :func:`save` (one file) or :func:`save_all` (the files of one frame,
+committed together), which write temporary files next to the targets and rename them
+(:mod:`blendlib.formats.atomic`), so an error never leaves a half-written file.
+
+Memory: writing needs little beyond the array written. ``.npy`` and a float32 (H, W, 4) ``.exr``
+are written from the array itself; a ``.png`` needs its 8-bit copy (4 bytes a pixel, a quarter
+of a float32 RGBA frame), converted in blocks of :data:`PNG_BLOCK_PIXELS` pixels.
 """
 
 from __future__ import annotations
@@ -29,16 +34,20 @@ import os
 import sys
 import tempfile
 import warnings
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, BinaryIO
 
 import numpy as np
 
-from .atomic import write_atomic
-from .heatmap import colour_map
+from .atomic import write_group
+from .heatmap import heat_image
 
 FORMATS = (".png", ".exr", ".npy")
+
+#: A PNG's 8-bit values are computed this many pixels at a time (float64 temporaries of 8 MB).
+PNG_BLOCK_PIXELS = 1 << 18
 
 
 class ImageIOError(ValueError):
@@ -94,21 +103,41 @@ def as_rgba(array: np.ndarray) -> np.ndarray:
     return out
 
 
-def save(path: str | os.PathLike, color: np.ndarray) -> Path:
-    """Write ``color`` (H, W, C) to ``path`` by its extension, atomically (temp file + rename)."""
-    path = Path(path)
+def encoder(path: str | os.PathLike, color: np.ndarray) -> Callable[[BinaryIO], None]:
+    """A function writing ``color`` (H, W, C) into an open binary file in the format of ``path``'s
+    extension (the work happens when it is called). ImageIOError for an unknown extension."""
     ext = file_format(path)
+    if ext == ".npy":
+        array = np.asarray(color)
+        return lambda fh: np.save(fh, array, allow_pickle=False)
+    if ext == ".png":
+        return _png_writer(color)
+    return _exr_writer(color)
+
+
+def _check_folder(path: Path) -> None:
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():
         raise ImageIOError(f"{path}: output directory {str(folder)!r} does not exist")
-    if ext == ".npy":
-        array = np.asarray(color)
-        write_atomic(path, lambda fh: np.save(fh, array, allow_pickle=False))
-    elif ext == ".png":
-        write_atomic(path, _png_writer(color))
-    else:
-        write_atomic(path, _exr_writer(color))
-    return path
+
+
+def save(path: str | os.PathLike, color: np.ndarray) -> Path:
+    """Write ``color`` (H, W, C) to ``path`` by its extension, atomically (temp file + rename).
+
+    Raises ImageIOError (unknown extension, missing folder) or OSError naming ``path``."""
+    return save_all([(path, color)])[0]
+
+
+def save_all(items: Sequence[tuple[str | os.PathLike, np.ndarray]],
+             before_commit: Callable[[], None] | None = None) -> list[Path]:
+    """Write every ``(path, array)`` as one commit (:func:`blendlib.formats.atomic.write_group`):
+    all of them or, on an error or when ``before_commit()`` raises, none; an existing file is
+    replaced only by its complete successor."""
+    paths = [Path(p) for p, _ in items]
+    writers = [encoder(p, a) for p, (_, a) in zip(paths, items, strict=True)]
+    for p in paths:
+        _check_folder(p)
+    return write_group(list(zip(paths, writers, strict=True)), before_commit=before_commit)
 
 
 def load(path: str | os.PathLike) -> np.ndarray:
@@ -166,14 +195,28 @@ def to_uint8(color: np.ndarray) -> np.ndarray:
     return np.floor(np.clip(v, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
 
 
-def _png_writer(color: np.ndarray):
-    """A writer of the 8-bit RGBA PNG of ``color`` (H, W, C) floats in [0, 1] (or uint8 RGBA)."""
+def _png_writer(color: np.ndarray) -> Callable[[BinaryIO], None]:
+    """A writer of the 8-bit RGBA PNG of ``color`` (H, W, C) floats in [0, 1] (or uint8 RGBA).
+
+    C = 3 (or 1) has alpha 255 (opaque). The 8-bit copy is made when the writer runs, block by
+    block, and Pillow's image shares its memory (no second copy)."""
     a = np.asarray(color)
-    q = a if a.dtype == np.uint8 and a.ndim == 3 and a.shape[2] == 4 else to_uint8(as_rgba(a))
     image_module = _library("PIL.Image", "PNG")
-    image = image_module.fromarray(np.ascontiguousarray(q), "RGBA")
+    if a.ndim == 2:
+        a = a[..., None]
+    if a.ndim != 3 or a.shape[2] not in (1, 2, 3, 4):
+        raise ImageIOError(f"expected an (H, W[, 1..4]) image array, got shape {a.shape}")
 
     def write(fh: BinaryIO) -> None:
+        h, w = a.shape[:2]
+        if a.dtype == np.uint8 and a.shape[2] == 4:
+            q = np.ascontiguousarray(a)
+        else:
+            q = np.empty((h, w, 4), np.uint8)
+            rows = max(1, PNG_BLOCK_PIXELS // max(w, 1))
+            for r in range(0, h, rows):
+                q[r:r + rows] = to_uint8(as_rgba(a[r:r + rows]))
+        image = image_module.frombuffer("RGBA", (w, h), q, "raw", "RGBA", 0, 1)
         image.save(fh, format="PNG", compress_level=6)
 
     return write
@@ -260,16 +303,19 @@ def _read_png(path: Path) -> np.ndarray:
 # ---------------------------------------------------------------------------
 
 
-def _exr_writer(color: np.ndarray):
-    """A writer of ``color`` (H, W, C) as ZIP-compressed 32-bit float RGBA OpenEXR (exact values)."""
-    rgba = as_rgba(color)
+def _exr_writer(color: np.ndarray) -> Callable[[BinaryIO], None]:
+    """A writer of ``color`` (H, W, C) as ZIP-compressed 32-bit float RGBA OpenEXR (exact values).
+
+    A C-contiguous float32 (H, W, 4) array is handed to OpenEXR as it is (one "RGBA" slice, no
+    copy); other arrays are converted to one first."""
     exr = _library("OpenEXR", "EXR")
-    channels = {name: np.ascontiguousarray(rgba[..., c]) for c, name in enumerate("RGBA")}
-    header = {"compression": exr.ZIP_COMPRESSION, "type": exr.scanlineimage}
-    file = exr.File(header, channels)
 
     def write(fh: BinaryIO) -> None:
-        file.write(fh)
+        a = np.asarray(color)
+        rgba = a if (a.dtype == np.float32 and a.ndim == 3 and a.shape[2] == 4 and a.flags.c_contiguous) \
+            else as_rgba(a)
+        header = {"compression": exr.ZIP_COMPRESSION, "type": exr.scanlineimage}
+        exr.File(header, {"RGBA": rgba}).write(fh)
 
     return write
 
@@ -389,6 +435,8 @@ class Comparison:
     differing: float  # share of pixels with any channel differing by more than the tolerance
     shape: tuple[int, ...]
     channels: int
+    #: (H, W) float64: per pixel the largest channel difference (inf where one value is NaN).
+    per_pixel: np.ndarray | None = field(default=None, repr=False)
 
     def lines(self) -> list[str]:
         psnr = "inf" if math.isinf(self.psnr) else f"{self.psnr:.2f} dB"
@@ -402,18 +450,22 @@ class Comparison:
 
 
 def heat_map(diff: np.ndarray) -> np.ndarray:
-    """Per-pixel difference (H, W) → RGBA heat map: black (equal) → red → yellow → white (largest)."""
+    """Per-pixel difference (H, W) → RGBA heat map, black (equal) → red → yellow → white (largest,
+    or not finite), with its legend below: (H + legend, W, 4) float32."""
     d = np.asarray(diff, np.float64)
-    return colour_map(d, float(d.max()) if d.size else 0.0, floor=0.1)  # any difference is visible
+    finite = d[np.isfinite(d)]
+    peak = float(finite.max()) if finite.size else 0.0
+    # any difference is visible (floor); a NaN/inf difference shows as the largest
+    return heat_image(np.where(np.isfinite(d), d, peak), "largest channel difference", peak=peak, floor=0.1)
 
 
 def compare(a: np.ndarray, b: np.ndarray, diff_path: str | os.PathLike | None = None,
             tolerance: float = 0.0) -> Comparison:
     """Compare two images (H, W[, C]) over their common channels.
 
-    Returns max and mean absolute difference, PSNR (peak 1.0; ``inf`` when equal) and the
-    share of pixels where some channel differs by more than ``tolerance``. ``diff_path``: also
-    write a heat-map image (:func:`heat_map`) of the per-pixel largest difference.
+    Returns max and mean absolute difference, PSNR (peak 1.0; ``inf`` when equal), the share of
+    pixels where some channel differs by more than ``tolerance`` and the per-pixel largest
+    difference. ``diff_path``: also write its heat map (:func:`heat_map`).
     """
     a = np.asarray(a, np.float64)
     b = np.asarray(b, np.float64)
@@ -434,5 +486,5 @@ def compare(a: np.ndarray, b: np.ndarray, diff_path: str | os.PathLike | None = 
     psnr = math.inf if mse == 0 else (10.0 * math.log10(1.0 / mse) if math.isfinite(mse) else 0.0)
     differing = float((per_pixel > tolerance).mean()) if per_pixel.size else 0.0
     if diff_path is not None:
-        save(diff_path, heat_map(np.where(np.isfinite(per_pixel), per_pixel, 1.0)))
-    return Comparison(max_abs, mean_abs, psnr, differing, a.shape[:2], c)
+        save(diff_path, heat_map(per_pixel))
+    return Comparison(max_abs, mean_abs, psnr, differing, a.shape[:2], c, per_pixel)

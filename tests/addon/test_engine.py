@@ -65,7 +65,8 @@ def test_engine_write_still_equals_blendlib_render(tmp_path, color_space, hdr):
 
 def test_render_final_uses_modifier_render_levels_like_f12(tmp_path):
     """A Subdivision modifier at viewport level 0 and render level 3: render_final (and so the
-    CLI) sees the render-level mesh exactly as F12 does; render() sees the viewport one."""
+    CLI and render()) sees the render-level mesh exactly as F12 does; render() given the
+    viewport's depsgraph sees the viewport one."""
     scene = glass_scene()
     glass = bpy.data.objects["Glass"]
     mod = glass.modifiers.new("Subdivision", "SUBSURF")
@@ -76,7 +77,7 @@ def test_render_final_uses_modifier_render_levels_like_f12(tmp_path):
     assert bpy.ops.render.render(write_still=True) == {"FINISHED"}
     f12 = images.to_uint8(images.load(tmp_path / "f12.png")[..., :3])
     final = blender.render_final(scene)
-    viewport = render(scene)
+    viewport = render(scene, depsgraph=bpy.context.evaluated_depsgraph_get())
     assert scene.render.engine == "UNITY_PASSES"  # restored after render_final
     np.testing.assert_array_equal(images.to_uint8(final.color[..., :3]), f12)
     changed = np.any(final.color != viewport.color, axis=2).sum()

@@ -124,6 +124,7 @@ def test_f12_writes_the_analysis_passes(tmp_path):
     np.testing.assert_array_equal(planes[f"{layer}.UnitySortError.X"], result.error)
     np.testing.assert_array_equal(planes[f"{layer}.UnityOverdraw.X"], result.overdraw[..., 0].astype(np.float32))
     np.testing.assert_array_equal(planes[f"{layer}.UnityOverdraw.Y"], result.overdraw[..., 1].astype(np.float32))
+    assert sorted(n for n in planes if ".UnityOverdraw." in n) == [f"{layer}.UnityOverdraw.{c}" for c in "XY"]
     from dataclasses import replace
 
     want = blender.linear_rgba(replace(result.frame, color=result.reference))
@@ -134,6 +135,40 @@ def test_f12_writes_the_analysis_passes(tmp_path):
     scene.render.filepath = str(tmp_path / "plain.exr")
     assert bpy.ops.render.render(write_still=True) == {"FINISHED"}
     assert not any("UnitySort" in name for name in exr_planes(tmp_path / "plain.exr"))
+
+
+@pytest.mark.parametrize("crop", [True, False])
+def test_the_analysis_passes_of_a_render_region(tmp_path, crop):
+    """A Render Region: the analysis runs on the whole frame and each pass hands over the region's
+    part, cropped (Crop to Render Region) or placed in the full-size image by Blender, the rest 0."""
+    scene = inverted_scene()
+    scene.view_layers[0].unity_analysis.use_passes = True
+    r = scene.render
+    r.use_border, r.use_crop_to_border = True, crop
+    r.border_min_x, r.border_max_x, r.border_min_y, r.border_max_y = 0.3, 0.8, 0.1, 0.6
+    settings = r.image_settings
+    settings.media_type = "MULTI_LAYER_IMAGE"
+    settings.file_format = "OPEN_EXR_MULTILAYER"
+    settings.color_depth = "32"
+    r.filepath = str(tmp_path / "region.exr")
+    assert bpy.ops.render.render(write_still=True) == {"FINISHED"}
+    planes = exr_planes(tmp_path / "region.exr")
+    layer = scene.view_layers[0].name
+    result = analyze(blender.build_draw_scene(scene))
+    x0, x1, y0, y1 = blender.border_region(scene, 40, 30)
+    assert (x0, x1, y0, y1) == (12, 32, 3, 18)
+    rows, cols = slice(30 - y1, 30 - y0), slice(x0, x1)  # row 0 is the top; the region's y from the bottom
+    expected = {"UnitySortError.X": result.error, "UnityOverdraw.X": result.overdraw[..., 0].astype(np.float32),
+                "UnityOverdraw.Y": result.overdraw[..., 1].astype(np.float32)}
+    assert result.error[rows, cols].max() > 0  # the region holds part of the inverted overlap
+    for name, full in expected.items():
+        got = planes[f"{layer}.{name}"]
+        if crop:
+            np.testing.assert_array_equal(got, full[rows, cols], err_msg=name)
+        else:
+            want = np.zeros_like(full)
+            want[rows, cols] = full[rows, cols]
+            np.testing.assert_array_equal(got, want, err_msg=name)
 
 
 def test_analyze_and_apply_advice_operators():

@@ -91,6 +91,7 @@ def test_free_view_without_camera_and_scene_unchanged():
     with pytest.raises(SceneError, match="no camera"):
         blender.render(scene)
     frame_before, res_before = scene.frame_current, (scene.render.resolution_x, scene.render.resolution_y)
+    bpy.context.view_layer.update()  # the new objects' matrix_world, before the snapshot
     before = snapshot()
     view = Matrix([list(r) for r in look_at((4, -6, 3), (0, 0, 0), (0, 0, 1))])
     got = render_view(scene, view, perspective(45, 64 / 40, 0.1, 50), 64, 40)

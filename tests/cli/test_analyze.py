@@ -6,7 +6,7 @@ import json
 
 import numpy as np
 
-from blendlib.formats import images
+from blendlib.formats import heatmap, images
 from tests.support.blender_fixtures import REPO, one_line_error, run_cli
 
 TWO = REPO / "blend_files" / "two_transparent.blend"
@@ -36,6 +36,12 @@ def test_json_and_exact_arrays(tmp_path):
     assert summary["differing"] == int(np.count_nonzero(error > 1)) > 0
     assert summary["max_error"] == float(error.max()) and np.all(error == np.round(error))
     assert abs(summary["mean_error"] - float(error.mean(dtype=np.float64))) < 1e-9
+    assert summary["error_unit"] == "8-bit steps"  # an LDR frame
+    # docs/json.md lists every field of the object (error_unit was missing)
+    doc = (REPO / "docs" / "json.md").read_text().split("## `python -m blendlib analyze", 1)[1]
+    documented = {name for row in doc.splitlines() if row.startswith("| `") for name in
+                  (part.strip(" `") for part in row.split("|")[1].split(","))}
+    assert set(summary) <= documented, set(summary) - documented
     [inv] = summary["inversions"]
     assert (inv["front"], inv["behind"], inv["front_slot"], inv["behind_slot"]) == ("Near Right", "Far Right", 0, 0)
     assert inv["pixels"] == summary["differing"]  # every inverted pixel differs here, and nothing else
@@ -56,7 +62,8 @@ def test_heat_maps_with_a_legend(tmp_path):
     reference, error, overdraw = images.load(ref), images.load(err), images.load(od)
     h, w = reference.shape[:2]
     assert error.shape[0] > h and error.shape[1] == w  # the legend strip below the map
-    assert overdraw.shape[1] == 2 * w + 2 and overdraw.shape[0] == error.shape[0]
+    # the panels' names in a caption strip above them, one legend below
+    assert overdraw.shape[1] == 2 * w + 2 and overdraw.shape[0] == error.shape[0] + heatmap.CAPTION_HEIGHT
     legend = error[h:]
     assert legend[..., 0].max() == 1.0 and len(np.unique(legend[..., :3].reshape(-1, 3), axis=0)) > 20
 

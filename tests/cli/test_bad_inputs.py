@@ -17,17 +17,9 @@ import time
 import numpy as np
 import pytest
 
-from tests.support.blender_fixtures import REPO, run_cli
+from tests.support.blender_fixtures import REPO, build_blends, run_cli
 
 MAKE = r"""
-import sys, math, bpy
-sys.path.insert(0, ".")
-from tests.support.blender_fixtures import empty_scene, add_cube, add_mesh, unlit_material
-folder = sys.argv[1]
-
-def save(kind):
-    bpy.ops.wm.save_as_mainfile(filepath=f"{folder}/{kind}.blend")
-
 scene = empty_scene(40, 30)
 add_cube("Cube", 2.0)
 save("good")
@@ -68,10 +60,7 @@ BLENDS = ("good", "camscale0", "zerosize", "pano", "nearfar", "nanvertex", "infs
 
 @pytest.fixture(scope="module")
 def blends(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("bad_blends")
-    proc = run_cli(str(folder), code=MAKE)
-    assert proc.returncode == 0, proc.stderr
-    return {kind: folder / f"{kind}.blend" for kind in BLENDS}
+    return build_blends(tmp_path_factory.mktemp("bad_blends"), MAKE, BLENDS)
 
 
 def sha(path) -> str:
@@ -279,3 +268,57 @@ def test_one_sigint_mid_render_cancels_promptly_and_writes_nothing(blends, tmp_p
     assert got == ["error: interrupted; nothing written"], stderr
     assert stdout == "" and os.listdir(tmp_path) == []
     assert waited < 30  # promptly: not after the whole render
+
+
+# --------------------------------------------------------------------------- a damaged file
+
+
+DAMAGED = REPO / "tests" / "fixtures" / "damaged" / "loader_crash.blend"
+
+
+def test_a_file_that_crashes_blenders_loader_is_named(tmp_path):
+    """tests/fixtures/damaged/loader_crash.blend: a saved scene with one pointer of its mesh redirected
+    to another block; Blender's own loader dies of a segmentation fault reading it. Before, the CLI
+    ended with status 139 and nothing on stderr (stderr is silenced while Blender loads)."""
+    out = tmp_path / "o.png"
+    proc = run_cli("render", str(DAMAGED), "-o", str(out))
+    assert proc.returncode != 0
+    assert lines(proc) == [f"error: {DAMAGED}: Blender crashed while reading this file (Segmentation fault); "
+                           "is the file damaged?"], proc.stderr
+    assert os.listdir(tmp_path) == [] and proc.stdout == ""
+
+
+# --------------------------------------------------------------------------- ShaderLab input
+
+
+def test_shaderlab_error_lines_shorten_a_huge_token():
+    """Before, a 10 MB bad token made a 10 MB error line."""
+    text = 'Shader "x" { SubShader { Pass { Blend ' + "A" * 200_000 + " One } } }"
+    proc = subprocess.run([sys.executable, "-m", "blendlib", "shaderlab", "-"], input=text, cwd=REPO,
+                          capture_output=True, text=True, timeout=120)
+    one_error(proc, "<stdin>:1:39: unknown blend factor 'AAAAAAAAAA")
+    assert "…(200002 characters)" in proc.stderr and len(proc.stderr) < 400
+
+
+def test_shaderlab_standard_input_must_be_utf8_as_a_file_must(tmp_path):
+    """Before, ``shaderlab -`` accepted bytes that are not UTF-8 (a file with them is refused)."""
+    data = b'Shader "x\xff" { SubShader { Pass { } } }'
+    (tmp_path / "bad.shader").write_bytes(data)
+    one_error(run_cli("shaderlab", str(tmp_path / "bad.shader")), "bad.shader: not UTF-8 text")
+    proc = subprocess.run([sys.executable, "-m", "blendlib", "shaderlab", "-"], input=data, cwd=REPO,
+                          capture_output=True, timeout=120)
+    assert proc.returncode == 1 and proc.stdout == b""
+    assert proc.stderr.decode().splitlines() == ["error: <stdin>: not UTF-8 text (invalid start byte)"]
+
+
+def test_a_stencil_value_from_a_property_is_imported_with_a_warning():
+    """Ref [_StencilRef] takes the property's default; before, the binding was dropped without a
+    word (a material's own value is not applied, and an export writes the number)."""
+    from blendlib.formats.shaderlab import parse_shaderlab
+
+    result = parse_shaderlab('Shader "S" { Properties { _StencilRef ("r", Int) = 3 } '
+                             "SubShader { Pass { Stencil { Ref [_StencilRef] Comp Always Pass Replace } } } }")
+    assert result.material.passes[0].stencil_ref == 3
+    assert [w for w in result.warnings if "_StencilRef" in w] == [  # at the property name
+        "1:90: Stencil Ref [_StencilRef]: imported as the property's default 3; a material's own value is not "
+        "applied and an export writes this number"]

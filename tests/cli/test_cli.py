@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from blendlib.formats import images
-from tests.support.blender_fixtures import one_line_error, run_cli
+from tests.support.blender_fixtures import blends_per_kind, one_line_error, run_cli
 
 MAKE = r"""
 import sys, math, bpy
@@ -33,14 +33,7 @@ bpy.ops.wm.save_as_mainfile(filepath=path)
 
 @pytest.fixture(scope="module")
 def blends(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("blends")
-    out = {}
-    for kind in ("good", "nocam", "huge", "anim"):
-        path = folder / f"{kind}.blend"
-        proc = run_cli(kind, str(path), code=MAKE)
-        assert proc.returncode == 0, proc.stderr
-        out[kind] = path
-    return out
+    return blends_per_kind(tmp_path_factory.mktemp("blends"), MAKE, ("good", "nocam", "huge", "anim"))
 
 
 def test_render_png_npy_exr_and_depth(blends, tmp_path):
@@ -55,7 +48,13 @@ def test_render_png_npy_exr_and_depth(blends, tmp_path):
     covered = d < 1.0
     assert covered[15, 20] and not covered[0, 0]  # the cube is in the middle, the corners are cleared
     assert run_cli("render", str(blends["good"]), "-o", str(png)).returncode == 0
-    np.testing.assert_array_equal(images.load(png), color)  # LDR: the PNG holds the stored 8-bit values
+    # LDR: the PNG holds the stored 8-bit values with alpha 255, what F12 shows (the Combined pass
+    # is opaque); --alpha keeps the frame's own alpha, which .npy and .exr always keep
+    shown = images.load(png)
+    np.testing.assert_array_equal(shown[..., :3], color[..., :3])
+    assert (shown[..., 3] == 1).all() and color[0, 0, 3] == 0  # the cleared corners are transparent
+    assert run_cli("render", str(blends["good"]), "-o", str(png), "--alpha").returncode == 0
+    np.testing.assert_array_equal(images.load(png), color)
     assert run_cli("render", str(blends["good"]), "-o", str(exr)).returncode == 0
     np.testing.assert_array_equal(images.load(exr), color)
 

@@ -9,7 +9,7 @@ import json
 import numpy as np
 import pytest
 
-from tests.support.blender_fixtures import one_line_error, run_cli
+from tests.support.blender_fixtures import blends_per_kind, one_line_error, run_cli
 
 MAKE = r"""
 import sys, bpy
@@ -34,14 +34,7 @@ bpy.ops.wm.save_as_mainfile(filepath=path)
 
 @pytest.fixture(scope="module")
 def blends(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("blends")
-    out = {}
-    for kind in ("good", "nocam"):
-        path = folder / f"{kind}.blend"
-        proc = run_cli(kind, str(path), code=MAKE)
-        assert proc.returncode == 0, proc.stderr
-        out[kind] = path
-    return out
+    return blends_per_kind(tmp_path_factory.mktemp("blends"), MAKE, ("good", "nocam"))
 
 
 def test_drawlist_json_and_table(blends):

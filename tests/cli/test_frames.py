@@ -38,12 +38,15 @@ def test_frame_path_and_range_rules():
     assert frame_path(Path("f_###.png"), -5) == Path("f_-005.png")  # printf %.3d, as Blender
     assert frame_path(Path("still.png"), 3) == Path("still.png")
     assert frame_path(Path("dir#/x.png"), 3) == Path("dir#/x.png")  # only the file name
-    assert parse_frames("1-10") == list(range(1, 11))
-    assert parse_frames("1-10:4") == [1, 5, 9]
-    assert parse_frames("5-5") == [5]
-    assert parse_frames("-3--1") == [-3, -2, -1]
+    assert list(parse_frames("1-10")) == list(range(1, 11))
+    assert list(parse_frames("1-10:4")) == [1, 5, 9]
+    assert list(parse_frames("5-5")) == [5]
+    assert list(parse_frames("-3--1")) == [-3, -2, -1]
+    assert list(parse_frames("3")) == [3] and list(parse_frames("-7")) == [-7]  # one frame: N
+    assert list(parse_frames("1048570-1048574:2")) == [1048570, 1048572, 1048574]  # Blender's last frame
     for bad, text in (("10-1", "after the last"), ("1-10:0", "STEP"), ("1-10:-2", "STEP"),
-                      ("1..10", "expected A-B"), ("a-b", "expected A-B"), ("1-2:1.5", "expected A-B")):
+                      ("1..10", "expected N, A-B"), ("a-b", "expected N, A-B"), ("1-2:1.5", "expected N, A-B"),
+                      ("1-1048575", "Blender's frame range"), ("-1048575--1048570", "Blender's frame range")):
         with pytest.raises(CliError, match=text):
             parse_frames(bad)
 
@@ -65,7 +68,8 @@ def test_frames_write_every_frame_with_saved_lines(anim, tmp_path):
     # each frame equals a single-frame render of that frame
     single = tmp_path / "single5.npy"
     assert run_cli("render", str(anim), "-o", str(single), "--frame", "5").returncode == 0
-    np.testing.assert_array_equal(pngs[1], images.to_uint8(np.load(single)))
+    np.testing.assert_array_equal(pngs[1][..., :3], images.to_uint8(np.load(single))[..., :3])
+    assert (pngs[1][..., 3] == 255).all()  # a PNG shows what F12 shows: opaque
     assert np.load(tmp_path / "d_05.npy").shape == (30, 40)
 
 

@@ -125,3 +125,35 @@ def one_line_error(proc: subprocess.CompletedProcess, text: str) -> None:
     assert proc.returncode == 1, proc.stderr
     lines = [x for x in proc.stderr.splitlines() if x.strip()]
     assert len(lines) == 1 and lines[0].startswith("error: ") and text in lines[0], proc.stderr
+
+
+#: The start of a scene-building script for :func:`build_blends`: the helpers above imported,
+#: ``folder`` (the first argument) and ``save(kind)`` writing ``folder/kind.blend``.
+SCENE_SCRIPT = """
+import sys, math, bpy
+sys.path.insert(0, ".")
+from tests.support.blender_fixtures import *
+folder = sys.argv[1]
+
+def save(kind):
+    bpy.ops.wm.save_as_mainfile(filepath=f"{folder}/{kind}.blend")
+"""
+
+
+def build_blends(folder: Path, body: str, kinds) -> dict[str, Path]:
+    """Run :data:`SCENE_SCRIPT` + ``body`` once in a fresh process (it saves ``kind.blend`` for each
+    kind into ``folder``); kind → path."""
+    proc = run_cli(str(folder), code=SCENE_SCRIPT + body)
+    assert proc.returncode == 0, proc.stderr
+    return {kind: Path(folder) / f"{kind}.blend" for kind in kinds}
+
+
+def blends_per_kind(folder: Path, code: str, kinds) -> dict[str, Path]:
+    """``code`` run once per kind as ``python -c code KIND PATH`` (it saves the file at PATH); kind → path."""
+    out = {}
+    for kind in kinds:
+        path = Path(folder) / f"{kind}.blend"
+        proc = run_cli(kind, str(path), code=code)
+        assert proc.returncode == 0, proc.stderr
+        out[kind] = path
+    return out

@@ -13,11 +13,22 @@ from typing import NamedTuple, Protocol
 MAX_REPEATED_WARNINGS = 10
 
 
+#: A word longer than this is shortened in messages (a 10 MB bad token made a 10 MB error line).
+MAX_WORD = 60
+
+
+def shortened(message: str) -> str:
+    """``message`` on one line, each word longer than :data:`MAX_WORD` cut to its start, "…" and
+    its length."""
+    return " ".join(w if len(w) <= MAX_WORD else f"{w[:MAX_WORD - 20]}…({len(w)} characters)"
+                    for w in str(message).split())
+
+
 class ShaderLabError(ValueError):
     """A ShaderLab parse error at a position; ``str()`` is one line ``FILE:LINE:COL: message``."""
 
     def __init__(self, message: str, line: int, column: int, filename: str = "<string>") -> None:
-        self.message = " ".join(str(message).split())
+        self.message = shortened(message)
         self.line = int(line)
         self.column = int(column)
         self.filename = filename
@@ -43,7 +54,7 @@ class SourceWarning(NamedTuple):
 
     @classmethod
     def at(cls, where: Positioned, message: str) -> SourceWarning:
-        return cls(where.line, where.column, message)
+        return cls(where.line, where.column, shortened(message))
 
     def __str__(self) -> str:
         return f"{self.line}:{self.column}: {self.message}"

@@ -14,6 +14,8 @@ import math
 from dataclasses import fields, replace
 from decimal import Decimal
 
+import numpy as np
+
 from ...core.vocabulary import (
     CompareFunction,
     Lighting,
@@ -55,12 +57,16 @@ def canonical_pass(p: Pass) -> Pass:
 
 
 def _num(x: float) -> str:
-    """A float as positional decimal text that reads back to the same double (no exponent)."""
+    """A float as positional decimal text that reads back to the same double (no exponent), or,
+    for a value that is a float32, to the same float32."""
     x = float(x)
     if not math.isfinite(x):
         raise ValueError(f"cannot write the non-finite number {x!r} into a shader")
     if x == int(x) and abs(x) < 1e15:
         return str(int(x))
+    if float(np.float32(x)) == x:
+        # a float32 (what Blender stores): its own shortest text, 0.6 rather than 0.6000000238418579
+        return float32_text(x)
     text = format(Decimal(repr(x)), "f")
     return text
 

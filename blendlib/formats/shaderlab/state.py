@@ -501,6 +501,10 @@ class _Resolver:
             value = self.values.read(command.name, command.values[0])
             if command.name in _STENCIL_FIELDS:
                 fields[_STENCIL_FIELDS[command.name]] = value
+                if command.values[0].reference:  # the binding itself is not kept
+                    self.warn(f"Stencil {command.head.text} [{command.values[0].token.text}]: imported as the "
+                              f"property's default {getattr(value, 'value', value)!s}; a material's own value "
+                              "is not applied and an export writes this number", command.values[0].token)
             else:
                 self.warn(f"Stencil {command.head.text} (per-face stencil) is not supported and ignored",
                           command.head)
