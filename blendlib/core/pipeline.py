@@ -85,6 +85,9 @@ def render_scene(
     return just those rows (the Frame's arrays are ``y1 - y0`` rows high, top row first): every
     pixel there equals the full render's, since pixels never depend on one another (one
     process's share of a frame split across processes, :mod:`blendlib.runtime.bandprocs`).
+    An observer of a band render receives the band's fragments only, and buffers whose rows
+    outside the band were never cleared (the sorted reference's later passes,
+    :mod:`blendlib.explain.sorted_reference`); a band render resumes nothing.
     ``out``: (color, depth, stencil) arrays of the Frame's shapes and dtypes to write the
     result into (a band straight into its rows of a whole frame, or into shared memory).
     ``memo``: a :class:`~blendlib.core.scene.SceneMemo` shared by renders of scenes with the
@@ -105,8 +108,8 @@ def render_scene(
         band = (int(band[0]), int(band[1]))
         if not 0 <= band[0] < band[1] <= height:
             raise SceneError(f"band {band} is not a range of rows within 0..{height}")
-        if observer is not None or resume is not None:
-            raise SceneError("a band render takes no observer and resumes nothing")
+        if resume is not None:
+            raise SceneError("a band render resumes nothing")
     cs = scene.color_space
     if resume is not None:
         buf, first = resume[0].copy(), int(resume[1])
@@ -121,7 +124,8 @@ def render_scene(
         workers = 1 if width * height < SMALL_FRAME_PIXELS else min(2, os.cpu_count() or 1)
     pool = ThreadPoolExecutor(max_workers=workers) if workers > 1 else None
     frame = FrameContext(buf, cam, lights, cs, scene.hdr, chunk_candidates, pool, workers, threading.Event(),
-                         observed=observer is not None, band=band, memo=memo, keep_setups=keep_setups)
+                         observed=observer is not None, band=band, memo=memo, keep_setups=keep_setups,
+                         reads_depth=None if observer is None else observer.reads_depth)
     try:
         _draw_all(frame, todo, should_cancel, progress, observer)
         color, depth, stencil = buf.output(pool, workers, band, out)

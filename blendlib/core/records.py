@@ -199,6 +199,12 @@ class FrameObserver:
     #: ``draw_end`` after (with the buffers after the whole batch); fragments keep their order.
     exact_boundaries = True
 
+    def reads_depth(self, call: DrawCall) -> bool:
+        """Whether :meth:`fragments` reads the depth codes of every fragment of ``call``: then
+        they are computed as the fragments are rasterised, not afterwards (the hierarchical-Z
+        shortcut of :meth:`DrawState.depth_needed` would only defer them)."""
+        return False
+
     def draw_begin(self, call: DrawCall, buffers: FrameBuffers) -> None:
         """Before draw call ``call`` (``buffers`` as left by the draw calls before it when
         :attr:`exact_boundaries`; else as left by the batch before it)."""
