@@ -60,18 +60,18 @@ def block_rows(width: int) -> int:
 
 @dataclass(eq=False)
 class Block:
-    """The kept fragments of one block in the order the frame applied them at each pixel.
+    """The kept fragments of one block (the arrays as stored, module doc), in the order the frame
+    applied them at each pixel.
 
-    ``local`` (N,) uint16, ``depth`` (N,) int64 24-bit codes, ``written`` (N,) bool, ``call``
-    (N,) int64 draw call index, ``key`` (N,) int64 colour keys with the table rows renumbered
-    into ``table`` (K, 4) float64 (``-1 - key`` for ``key < 0``). ``start``: the block's first
+    ``local`` (N,) uint16; ``depth_written`` (N,) uint32 (:data:`DEPTH_MASK`, :data:`WRITTEN_BIT`);
+    ``call`` (N,) uint16 or int32; ``key`` (N,) int32 colour keys, table rows renumbered into
+    ``table`` (K, 4) float64 (row ``-1 - key`` for ``key < 0``). ``start``: the block's first
     window pixel (``pixel = start + local``)."""
 
     index: int
     start: int
     local: np.ndarray
-    depth: np.ndarray
-    written: np.ndarray
+    depth_written: np.ndarray
     call: np.ndarray
     key: np.ndarray
     table: np.ndarray
@@ -80,13 +80,22 @@ class Block:
     def count(self) -> int:
         return int(self.local.shape[0])
 
+    def depth(self, index=slice(None)) -> np.ndarray:
+        """(M,) int64 depth codes of fragments ``index``."""
+        return (self.depth_written[index] & DEPTH_MASK).astype(np.int64)
+
+    def written(self, index=slice(None)) -> np.ndarray:
+        """(M,) bool: the frame wrote fragments ``index``."""
+        return self.depth_written[index] >= WRITTEN_BIT
+
 
 class FragmentCollector(FrameObserver):
     """Observes one render: per-pixel overdraw counts and the step-1 buffers (``overdraw``:
     the first pass), and the sorted calls' fragments of blocks ``[first_block, limit)``
     within ``budget`` bytes (module doc).
 
-    ``rasterised``, ``written`` (H*W,) uint32 per window pixel (with ``overdraw``); ``step1``:
+    ``rasterised``, ``unwritten`` (H*W,) uint32 per window pixel: fragments rasterised, and
+    those not written (with ``overdraw``); ``step1``:
     a copy of the buffers before the first draw call of a queue above 2500 (None when there is
     none, or without ``overdraw``)."""
 
@@ -102,7 +111,7 @@ class FragmentCollector(FrameObserver):
         self.overdraw = overdraw
         n = self.width * self.height
         self.rasterised = np.zeros(n if overdraw else 0, dtype=np.uint32)
-        self.written = np.zeros(n if overdraw else 0, dtype=np.uint32)
+        self.unwritten = np.zeros(n if overdraw else 0, dtype=np.uint32)  # rasterised but not written
         self.sorted_calls = frozenset(c.index for c in calls if is_sorted_queue(c.queue) and c.state.color_mask)
         firsts = [c.index for c in calls if c.queue > LAST_OPAQUE_QUEUE]
         self.first_after_opaque = min(firsts) if firsts and overdraw else None
@@ -135,12 +144,10 @@ class FragmentCollector(FrameObserver):
         wrote = outcome == Outcome.WRITTEN
         all_written = bool(wrote.all())
         if self.overdraw:
-            _count(self.rasterised, frags.pix, frags.disjoint)
             # Bands of the pipeline own disjoint rows, so threads never count the same pixels.
-            if all_written:
-                _count(self.written, frags.pix, frags.disjoint)
-            elif wrote.any():
-                _count(self.written, frags.pix[wrote], frags.disjoint)
+            _count(self.rasterised, frags.pix, frags.disjoint)
+            if not all_written:
+                _count(self.unwritten, frags.pix[~wrote], frags.disjoint)
         if call.index not in self.sorted_calls:
             return
         if frags.alive is not None and not frags.alive.all():
@@ -236,26 +243,24 @@ class FragmentCollector(FrameObserver):
             return None
         local = np.concatenate([p[0] for p in pieces])
         dw = np.concatenate([p[1] for p in pieces])
-        call = np.concatenate([p[2] for p in pieces]).astype(np.int64)
-        key = np.concatenate([p[3] for p in pieces]).astype(np.int64)
+        call = np.concatenate([p[2] for p in pieces])
+        key = np.concatenate([p[3] for p in pieces])
         tables = [p[4] for p in pieces if p[4] is not None]
         if tables:
             # Renumber each piece's table rows into the block's table: keys -1 - (offset + row).
-            offset = 0
-            start = 0
+            offset = start = 0
             for p in pieces:
                 n = p[0].size
-                if p[4] is not None and offset:
-                    seg = key[start:start + n]
-                    seg[seg < 0] -= offset
                 if p[4] is not None:
+                    if offset:
+                        seg = key[start:start + n]
+                        seg[seg < 0] -= np.int32(offset)
                     offset += p[4].shape[0]
                 start += n
             table = np.concatenate(tables)
         else:
             table = np.zeros((0, 4), dtype=np.float64)
-        return Block(b, b * self.block_pixels, local, (dw & DEPTH_MASK).astype(np.int64),
-                     (dw & WRITTEN_BIT) != 0, call, key, table)
+        return Block(b, b * self.block_pixels, local, dw, call, key, table)
 
     def stored_blocks(self) -> list[int]:
         """The blocks this pass completed that hold fragments, in order."""

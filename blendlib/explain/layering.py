@@ -29,7 +29,7 @@ import numpy as np
 from ..core.drawlist import DrawCall
 from ..core.merger import FrameBuffers, apply_layer, find_table, lut_eligible, table_pays
 from ..core.vertex import DEPTH_MAX
-from .fragment_store import Block
+from .fragment_store import DEPTH_MASK, WRITTEN_BIT, Block
 
 #: A blend table of a group of draw calls is used for at most this many palette colours (16 MB).
 TABLE_COLORS = 4096
@@ -40,12 +40,12 @@ PRUNE_OFFSETS = 4
 
 
 def group_by_pixel(block: Block, pixels: int) -> tuple[np.ndarray, np.ndarray]:
-    """Reorder ``block``'s arrays in place of the block (a new :class:`Block`, the old one's arrays
-    freed by the caller) so its fragments are grouped by pixel ascending, each pixel's in the order
-    the frame applied them. Returns (counts (P,) int64 fragments per pixel, starts (P,) int64 the
-    place of each pixel's first), ``pixels`` = P the block's size."""
+    """Reorder ``block``'s arrays (in place of the block) so its fragments are grouped by pixel
+    ascending, each pixel's in the order the frame applied them. Returns (counts (P,) int64
+    fragments per pixel, starts (P,) int64 the place of each pixel's first), ``pixels`` = P the
+    block's size."""
     order = np.argsort(block.local, kind="stable")  # 16-bit keys: numpy's radix sort
-    for name in ("local", "depth", "written", "call", "key"):
+    for name in ("local", "depth_written", "call", "key"):
         setattr(block, name, np.take(getattr(block, name), order))
     del order
     counts = np.bincount(block.local, minlength=pixels).astype(np.int64)
@@ -85,17 +85,21 @@ def far_to_near_layers(counts: np.ndarray, starts: np.ndarray, depth: np.ndarray
     """The layers of pixels' fragments far to near, laid end to end: (fragment indices (M,)
     int64, layer bounds [0, b1, ..., M]). Layer k (distinct pixels) holds the k-th farthest
     fragment of every pixel with more than k, ties in applied order. ``counts``/``starts``
-    (P,) int64: a range of pixels of a block grouped by :func:`group_by_pixel`; ``depth`` (N,)
-    int64 the block's depth codes in that order."""
+    (P,) int64: a range of pixels of a block grouped by :func:`group_by_pixel`, ``starts``
+    relative to ``depth`` (M,) int64: the range's depth codes in that order."""
     columns: list[list[np.ndarray]] = []
     for c, rows in _classes(counts, 1):
         first = starts[rows][:, None]
         if c == 1:
             frag = first
         else:
-            key = (DEPTH_MAX - depth[first + np.arange(c, dtype=np.int64)]) * c + np.arange(c, dtype=np.int64)
-            key.sort(axis=1)  # far first, then applied order: the place within the pixel is key % c
-            frag = first + key % c
+            bits = (c - 1).bit_length()
+            place = np.arange(c, dtype=np.int64)
+            key = ((DEPTH_MAX - depth[first + place]) << bits) | place  # far first, then applied order
+            key.sort(axis=1)
+            key &= (1 << bits) - 1  # the place within the pixel
+            frag = key
+            frag += first
         frag = frag.T  # (c, n): layer k is row k
         while len(columns) < c:
             columns.append([])
@@ -155,31 +159,37 @@ class ReferenceBlender:
                 self.tables[g] = find_table(buf, p, palette, 0) if use else None
             return self.tables[g]
 
-    def colour_ids(self, block: Block) -> tuple[np.ndarray, np.ndarray]:
-        """(group (N,) int64, ids (N,) int32) of a block's fragments: the state group of each and
-        its entry in the group's palette (-1: its own colour, a row of ``block.table``)."""
-        group = self.group_of_call[block.call]
-        ids = np.where(block.key >= 0, block.key + self.base_of_call[block.call], -1).astype(np.int32)
+    def colour_ids(self, block: Block) -> tuple[np.ndarray | None, np.ndarray]:
+        """(group (N,) int64 or None when there is one, ids (N,) int32) of a block's fragments:
+        the state group of each, and its entry in the group's palette (``ids >= 0``) or its own
+        colour, row ``-1 - id`` of ``block.table``."""
+        group = None if len(self.group_pass) == 1 else self.group_of_call[block.call]
+        ids = block.key + self.base_of_call[block.call].astype(np.int32)
+        own = block.key < 0
+        if own.any():
+            ids[own] = block.key[own]
         return group, ids
 
-    def apply(self, block: Block, group: np.ndarray, ids: np.ndarray, order: np.ndarray, bounds: list[int]) -> None:
-        """Apply layers (:func:`far_to_near_layers`: fragment indices of ``block``, layer by layer
-        between ``bounds``) in order; ``group``/``ids``: :meth:`colour_ids` of the block."""
+    def apply(self, block: Block, group: np.ndarray | None, ids: np.ndarray, order: np.ndarray,
+              bounds: list[int], offset: int) -> None:
+        """Apply layers (:func:`far_to_near_layers`: fragment indices ``order`` of a range starting
+        at fragment ``offset`` of ``block``, layer by layer between ``bounds``) in order;
+        ``group``/``ids``: :meth:`colour_ids` of the block."""
+        order = order + offset
         pix = block.local[order].astype(np.int64)
         pix += block.start
-        depth = block.depth[order]
+        depth = block.depth(order)
         fid = ids[order]
-        own = fid < 0
         rgba = None
+        own = fid < 0
         if own.any():  # per-fragment colours: rows of the block's table
             rgba = np.empty((order.size, 4), dtype=np.float64)
-            rgba[own] = block.table[-1 - block.key[order[own]]]
-        grp = group[order]
-        single = int(grp.min()) == int(grp.max())
+            rgba[own] = block.table[-1 - fid[own]]
+        grp = None if group is None else group[order]
         for k in range(len(bounds) - 1):
             a, b = bounds[k], bounds[k + 1]
-            if single:
-                self._apply(int(grp[a]), pix[a:b], depth[a:b], fid[a:b], None if rgba is None else rgba[a:b])
+            if grp is None:
+                self._apply(0, pix[a:b], depth[a:b], fid[a:b], None if rgba is None else rgba[a:b])
                 continue
             sel = a + np.argsort(grp[a:b], kind="stable")
             sg = grp[sel]
@@ -209,11 +219,13 @@ def block_inversions(block: Block, f0: int, f1: int, counts: np.ndarray, rendere
     :func:`group_by_pixel`: the fragments of a range of pixels, ``counts`` (P,) per pixel
     (pixels numbered from the range's first)."""
     pixel = np.repeat(np.arange(counts.size, dtype=np.int64), counts)
-    call, depth = block.call[f0:f1], block.depth[f0:f1]
-    written = block.written[f0:f1]
+    dw = block.depth_written[f0:f1]
+    call = block.call[f0:f1]
+    written = dw >= WRITTEN_BIT
     if not written.all():
-        pixel, call, depth = pixel[written], call[written], depth[written]
-    return inverted_pairs(pixel, call, depth, counts.size, renderer_of_call, renderers, exact_keys)
+        pixel, call, dw = pixel[written], call[written], dw[written]
+    return inverted_pairs(pixel, call, (dw & DEPTH_MASK).astype(np.int32), counts.size, renderer_of_call,
+                          renderers, exact_keys)
 
 
 class _PairTally:
@@ -273,7 +285,7 @@ def inverted_pairs(p: np.ndarray, c: np.ndarray, d: np.ndarray, pixels: int, ren
         add(p[ascent], r[ascent] * (renderers + 1))
     # 24-bit codes as int32: half the bytes for the comparisons.
     if not same_call.any():  # every run one fragment
-        run_min = run_max = d.astype(np.int32)
+        run_min = run_max = d.astype(np.int32, copy=False)
         run_ren, run_pix = r, p
     else:
         run_start = np.ones(p.size, dtype=bool)
@@ -293,8 +305,9 @@ def inverted_pairs(p: np.ndarray, c: np.ndarray, d: np.ndarray, pixels: int, ren
         live = (reach[:-1] < rmax[1:]).any(axis=0)
         if not live.any():
             continue
-        if not live.all():
-            rows, rmin, rmax, reach, place = rows[live], rmin[:, live], rmax[:, live], reach[:, live], place[:, live]
+        if not live.all():  # np.compress keeps the (c, n) arrays C-contiguous, unlike [:, live]
+            rows, place = rows[live], np.compress(live, place, axis=1)
+            rmin, rmax, reach = (np.compress(live, a, axis=1) for a in (rmin, rmax, reach))
         ren = run_ren[place]
         for t in range(1, n_runs):
             if t % PRUNE_OFFSETS == 0:  # drop pixels with no pair left at offsets >= t
@@ -302,8 +315,8 @@ def inverted_pairs(p: np.ndarray, c: np.ndarray, d: np.ndarray, pixels: int, ren
                 if not live.any():
                     break
                 if not live.all():
-                    rows, rmin, rmax = rows[live], rmin[:, live], rmax[:, live]
-                    reach, ren = reach[:, live], ren[:, live]
+                    rows = rows[live]
+                    rmin, rmax, reach, ren = (np.compress(live, a, axis=1) for a in (rmin, rmax, reach, ren))
             hit = np.flatnonzero(rmin[:-t] < rmax[t:])  # flat over (c - t, n)
             if hit.size:
                 n = rows.size

@@ -257,8 +257,8 @@ class _Blocks:
         pair_ids, pair_pixels = [], []
         for p0, p1 in layering.pixel_ranges(counts, WORK_FRAGMENTS):
             f0, f1 = int(starts[p0]), int(starts[p1 - 1] + counts[p1 - 1])
-            order, bounds = layering.far_to_near_layers(counts[p0:p1], starts[p0:p1], block.depth)
-            blender.apply(block, group, ids, order, bounds)
+            order, bounds = layering.far_to_near_layers(counts[p0:p1], starts[p0:p1] - f0, block.depth(slice(f0, f1)))
+            blender.apply(block, group, ids, order, bounds, f0)
             del order
             per_pixel, found, tally = layering.block_inversions(block, f0, f1, counts[p0:p1], self.renderer_of_call,
                                                                 self.renderers, self.exact_keys)
@@ -340,7 +340,10 @@ def analyze(
         else:
             reference = buf.output()[0]
         del buf
-    overdraw = np.stack([counts.rasterised, counts.written], axis=-1).reshape(height, width, 2)[::-1].copy()
+    overdraw = np.empty((height, width, 2), dtype=np.uint32)
+    overdraw[..., 0] = counts.rasterised.reshape(height, width)[::-1]
+    np.subtract(counts.rasterised, counts.unwritten, out=counts.unwritten)
+    overdraw[..., 1] = counts.unwritten.reshape(height, width)[::-1]
     del counts, collector
     inversions = [Inversion(renderers[pair // nrend], renderers[pair % nrend], count)
                   for pair, count in pair_counts.items()]
