@@ -24,6 +24,7 @@ render of those rows only (:func:`blendlib.core.pipeline.render_scene`'s ``band`
 from __future__ import annotations
 
 import threading
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -232,15 +233,33 @@ class FragmentCollector(FrameObserver):
             return frags.ids + np.int32(offset)
         return np.where(frags.ids >= 0, frags.ids + np.int32(offset), np.int32(-1)).astype(np.int32)
 
-    def take(self, b: int) -> Block | None:
-        """Block ``b``'s fragments concatenated (and freed here), None when it holds none."""
+    def take(self, b: int, most: int) -> Iterator[Block]:
+        """Block ``b``'s fragments (freed here) as :class:`Block` s of consecutive pixel ranges,
+        each holding at most ``most`` fragments (a pixel alone may hold more): the working
+        memory of a block stays bounded however deep its pixels are."""
         with self.lock:
             pieces = self.blocks[b]
             self.blocks[b] = []
             self.bytes -= int(self.block_bytes[b])
             self.block_bytes[b] = 0
         if not pieces:
-            return None
+            return
+        if sum(p[0].size for p in pieces) <= most:
+            yield self._block(b, pieces)
+            return
+        counts = np.zeros(self.block_pixels, dtype=np.int64)
+        for p in pieces:
+            counts += np.bincount(p[0], minlength=self.block_pixels)
+        for p0, p1 in pixel_ranges(counts, most):
+            parts = []
+            for local, dw, call, key, table in pieces:
+                inside = (local >= p0) & (local < p1)
+                if inside.any():
+                    parts.append((local[inside], dw[inside], call[inside], key[inside], table))
+            yield self._block(b, parts)
+
+    def _block(self, b: int, pieces: list[tuple]) -> Block:
+        """The pieces of block ``b`` (or of a range of its pixels) laid end to end."""
         local = np.concatenate([p[0] for p in pieces])
         dw = np.concatenate([p[1] for p in pieces])
         call = np.concatenate([p[2] for p in pieces])
@@ -274,6 +293,21 @@ class FragmentCollector(FrameObserver):
     def rows_of(self, b: int) -> tuple[int, int]:
         """Buffer rows ``[y0, y1)`` (from the bottom) of block ``b``."""
         return b * self.rows_per_block, min(self.height, (b + 1) * self.rows_per_block)
+
+
+def pixel_ranges(counts: np.ndarray, most: int) -> list[tuple[int, int]]:
+    """Consecutive pixel ranges ``[p0, p1)`` covering every pixel with fragments (``counts``
+    (P,) per pixel), each holding at most ``most`` fragments (or one pixel that alone holds more)."""
+    ends = np.cumsum(counts)
+    total = int(ends[-1]) if ends.size else 0
+    out = []
+    p0, done = int(np.searchsorted(ends, 0, side="right")), 0
+    while done < total:
+        p1 = max(int(np.searchsorted(ends, done + most, side="right")), p0 + 1)
+        out.append((p0, p1))
+        done = int(ends[p1 - 1])
+        p0 = p1
+    return out
 
 
 def _count(counts: np.ndarray, pix: np.ndarray, disjoint: bool) -> None:

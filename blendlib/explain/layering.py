@@ -35,6 +35,8 @@ from .fragment_store import DEPTH_MASK, WRITTEN_BIT, Block
 TABLE_COLORS = 4096
 #: Pair keys are counted with a bincount below this many renderer pairs, else sorted.
 BINCOUNT_PAIRS = 1 << 22
+#: Inverted (pixel, pair) found are reduced to counts every this many.
+TALLY_FLUSH = 1 << 20
 #: Every this many offsets, pixels with no inverted pair left at larger offsets are dropped.
 PRUNE_OFFSETS = 4
 
@@ -50,22 +52,6 @@ def group_by_pixel(block: Block, pixels: int) -> tuple[np.ndarray, np.ndarray]:
     del order
     counts = np.bincount(block.local, minlength=pixels).astype(np.int64)
     return counts, np.cumsum(counts) - counts
-
-
-def pixel_ranges(counts: np.ndarray, most: int) -> list[tuple[int, int]]:
-    """Consecutive pixel ranges ``[p0, p1)`` covering every pixel with fragments, each holding at
-    most ``most`` fragments (or a single pixel that alone holds more)."""
-    ends = np.cumsum(counts)
-    total = int(ends[-1]) if ends.size else 0
-    out = []
-    p0, done = 0, 0
-    while done < total:
-        p1 = int(np.searchsorted(ends, done + most, side="right"))
-        p1 = max(p1, p0 + 1)
-        out.append((p0, p1))
-        done = int(ends[p1 - 1])
-        p0 = p1
-    return out
 
 
 def _classes(counts: np.ndarray, smallest: int) -> list[tuple[int, np.ndarray]]:
@@ -229,28 +215,43 @@ def block_inversions(block: Block, f0: int, f1: int, counts: np.ndarray, rendere
 
 
 class _PairTally:
-    """Inverted (pixel, pair) found once each: counts per pixel and per pair id (``front * R + behind``)."""
+    """Inverted (pixel, pair) found once each: counts per pixel and per pair id (``front * R + behind``),
+    the found ones reduced to counts every :data:`TALLY_FLUSH` (bounded memory however many)."""
 
     def __init__(self, pixels: int, per_pair: int) -> None:
-        self.pixels, self.per_pair = pixels, per_pair
+        self.per_pair = per_pair
+        self.per_pixel = np.zeros(pixels, dtype=np.int64)
+        self.counts = np.zeros(per_pair, dtype=np.int64) if per_pair <= BINCOUNT_PAIRS else None
+        self.sparse: dict[int, int] = {}
         self.found: list[tuple[np.ndarray, np.ndarray]] = []
+        self.held = 0
 
     def add(self, pixel: np.ndarray, pair: np.ndarray) -> None:
         self.found.append((pixel, pair))
+        self.held += pixel.size
+        if self.held >= TALLY_FLUSH:
+            self._flush()
+
+    def _flush(self) -> None:
+        if not self.found:
+            return
+        self.per_pixel += np.bincount(np.concatenate([f[0] for f in self.found]), minlength=self.per_pixel.size)
+        pair = np.concatenate([f[1] for f in self.found])
+        self.found, self.held = [], 0
+        if self.counts is not None:
+            self.counts += np.bincount(pair, minlength=self.per_pair)
+        else:
+            ids, counts = np.unique(pair, return_counts=True)
+            for k, n in zip(ids.tolist(), counts.tolist(), strict=True):
+                self.sparse[k] = self.sparse.get(k, 0) + n
 
     def result(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        if not self.found:
-            return np.zeros(self.pixels, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
-        pixel = np.concatenate([f[0] for f in self.found])
-        per_pixel = np.bincount(pixel, minlength=self.pixels)
-        del pixel
-        pair = np.concatenate([f[1] for f in self.found])
-        if self.per_pair <= BINCOUNT_PAIRS:
-            counts = np.bincount(pair, minlength=self.per_pair)
-            ids = np.flatnonzero(counts)
-            return per_pixel, ids, counts[ids]
-        ids, counts = np.unique(pair, return_counts=True)
-        return per_pixel, ids, counts
+        self._flush()
+        if self.counts is not None:
+            ids = np.flatnonzero(self.counts)
+            return self.per_pixel, ids, self.counts[ids]
+        ids = np.array(sorted(self.sparse), dtype=np.int64)
+        return self.per_pixel, ids, np.array([self.sparse[k] for k in ids.tolist()], dtype=np.int64)
 
 
 def inverted_pairs(p: np.ndarray, c: np.ndarray, d: np.ndarray, pixels: int, renderer_of_call: np.ndarray,
@@ -272,8 +273,10 @@ def inverted_pairs(p: np.ndarray, c: np.ndarray, d: np.ndarray, pixels: int, ren
     def add(pixel: np.ndarray, pair: np.ndarray) -> None:
         if exact_keys:
             found.add(pixel, pair)
-        else:
-            keys.append(pixel * per_pair + pair)
+            return
+        keys.append(pixel * per_pair + pair)
+        if len(keys) > 1 and sum(k.size for k in keys) >= TALLY_FLUSH:
+            keys[:] = [np.unique(np.concatenate(keys))]  # the distinct ones so far
 
     r = renderer_of_call[c]
     same_call = (p[1:] == p[:-1]) & (c[1:] == c[:-1])

@@ -41,6 +41,7 @@ from .fragment_store import (
     LAST_SORTED_QUEUE,
     FragmentCollector,
     is_sorted_queue,
+    pixel_ranges,
 )
 from .progress import Progress
 
@@ -54,17 +55,19 @@ FRAGMENT_BUDGET = 1 << 30
 SMALLEST_BUDGET = 64 << 20
 #: Fragments one thread sorts and applies at once (a range of a block's pixels): bounds the
 #: working memory of step 2 and of the inversion count beside the kept fragments.
-WORK_FRAGMENTS = 1 << 20
+WORK_FRAGMENTS = 1 << 19
 #: Memory the analysis needs per pixel at most, bytes, with LDR and with HDR buffers: the
 #: result (frame 21, reference 16, error 4, overdraw 8, inverted 2), the render's buffers and
-#: their step-1 copy (13 each, HDR 25), the overdraw counts (8), and the error's conversions.
-PIXEL_BYTES = 112
-PIXEL_BYTES_HDR = 148
-#: With advice: a pristine copy of the step-1 buffers and a changed frame with its error.
-ADVICE_PIXEL_BYTES = 56
-#: The kept fragments' peak over the budget: blocks being concatenated and sorted, the working
-#: ranges of both threads (bytes, on top of ``budget``; see :func:`memory_bound`).
-WORK_BYTES = 256 << 20
+#: their step-1 copy (13 each, HDR 25), the overdraw counts (8), and a resumed render's buffers
+#: and frame when Overlay draws follow (measured: 72 and 95 at 3000x3000, budget and work included).
+PIXEL_BYTES = 96
+PIXEL_BYTES_HDR = 128
+#: With advice: a pristine copy of the step-1 buffers, a changed frame, its buffers and error,
+#: and the pairs' images (:class:`blendlib.explain.advice._PairWatch`).
+ADVICE_PIXEL_BYTES = 96
+#: The kept fragments' peak over the budget: blocks being taken, sorted and applied, by ranges
+#: of :data:`WORK_FRAGMENTS`, on two threads (bytes; measured about 90 MB).
+WORK_BYTES = 160 << 20
 
 
 def memory_bound(width: int, height: int, hdr: bool = False, budget: int = FRAGMENT_BUDGET,
@@ -238,11 +241,18 @@ class _Blocks:
         self.rows_finished = 0
 
         def one(b: int):
-            if self.should_cancel is not None and self.should_cancel():
-                raise RenderCancelled("render cancelled")
-            block = collector.take(b)
-            out = self._block(block, collector.block_pixels, blender)
-            return b, out
+            start = b * collector.block_pixels
+            inverted = np.zeros(collector.block_pixels, dtype=np.int64)
+            found, tallies = [], []
+            for block in collector.take(b, WORK_FRAGMENTS):
+                if self.should_cancel is not None and self.should_cancel():
+                    raise RenderCancelled("render cancelled")
+                per_pixel, ids, tally = self._block(block, collector.block_pixels, blender)
+                inverted += per_pixel
+                found.append(ids)
+                tallies.append(tally)
+            return b, (start, inverted, np.concatenate(found) if found else np.zeros(0, np.int64),
+                       np.concatenate(tallies) if tallies else np.zeros(0, np.int64))
 
         blocks = collector.stored_blocks()
         with ThreadPoolExecutor(max_workers=self.threads) as pool:
@@ -251,11 +261,13 @@ class _Blocks:
                 yield out
 
     def _block(self, block, block_pixels: int, blender: layering.ReferenceBlender):
+        """Step 2 and the inverted pairs of a block (or a range of its pixels): (inverted pairs
+        per pixel of the block (P,), pair ids, their pixels)."""
         counts, starts = layering.group_by_pixel(block, block_pixels)
         group, ids = blender.colour_ids(block)
         inverted = np.zeros(block_pixels, dtype=np.int64)
         pair_ids, pair_pixels = [], []
-        for p0, p1 in layering.pixel_ranges(counts, WORK_FRAGMENTS):
+        for p0, p1 in pixel_ranges(counts, WORK_FRAGMENTS):
             f0, f1 = int(starts[p0]), int(starts[p1 - 1] + counts[p1 - 1])
             order, bounds = layering.far_to_near_layers(counts[p0:p1], starts[p0:p1] - f0, block.depth(slice(f0, f1)))
             blender.apply(block, group, ids, order, bounds, f0)
@@ -267,7 +279,7 @@ class _Blocks:
             pair_pixels.append(tally)
         found = np.concatenate(pair_ids) if pair_ids else np.zeros(0, dtype=np.int64)
         tally = np.concatenate(pair_pixels) if pair_pixels else np.zeros(0, dtype=np.int64)
-        return block.start, inverted, found, tally
+        return inverted, found, tally
 
 
 def analyze(
