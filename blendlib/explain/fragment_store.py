@@ -245,7 +245,9 @@ class FragmentCollector(FrameObserver):
         if not pieces:
             return
         if sum(p[0].size for p in pieces) <= most:
-            yield self._block(b, pieces)
+            block = self._block(b, pieces)
+            del pieces  # the block holds the fragments now, not the pieces too
+            yield block
             return
         counts = np.zeros(self.block_pixels, dtype=np.int64)
         for p in pieces:

@@ -53,6 +53,8 @@ __all__ = ["FIRST_SORTED_QUEUE", "LAST_SORTED_QUEUE", "Analysis", "Inversion", "
 FRAGMENT_BUDGET = 1 << 30
 #: The smallest budget the analysis lowers itself to when memory is short (then it refuses).
 SMALLEST_BUDGET = 64 << 20
+#: A block holding more fragments than this is taken out of the store by ranges of its pixels.
+TAKE_FRAGMENTS = 1 << 21
 #: Fragments one thread sorts and applies at once (a range of a block's pixels): bounds the
 #: working memory of step 2 and of the inversion count beside the kept fragments.
 WORK_FRAGMENTS = 1 << 19
@@ -65,20 +67,27 @@ PIXEL_BYTES_HDR = 128
 #: With advice: a pristine copy of the step-1 buffers, a changed frame, its buffers and error,
 #: and the pairs' images (:class:`blendlib.explain.advice._PairWatch`).
 ADVICE_PIXEL_BYTES = 96
-#: The kept fragments' peak over the budget: blocks being taken, sorted and applied, by ranges
-#: of :data:`WORK_FRAGMENTS`, on two threads (bytes; measured about 90 MB).
+#: The kept fragments' peak over the budget, per thread processing blocks: a block taken out of
+#: the store (:data:`TAKE_FRAGMENTS` at most), sorted and applied by ranges of
+#: :data:`WORK_FRAGMENTS` (bytes; measured up to 100 MB).
 WORK_BYTES = 160 << 20
 
 
+def processing_threads(workers: int | None) -> int:
+    """Threads that process blocks: ``workers``, else two (or one on a one-core machine)."""
+    return max(1, int(workers) if workers is not None else min(2, os.cpu_count() or 1))
+
+
 def memory_bound(width: int, height: int, hdr: bool = False, budget: int = FRAGMENT_BUDGET,
-                 advice: bool = False) -> int:
+                 advice: bool = False, threads: int = 2) -> int:
     """Bytes an analysis of a ``width`` x ``height`` frame may add to the process at most: per
     pixel :data:`PIXEL_BYTES` (HDR :data:`PIXEL_BYTES_HDR`; with ``advice`` also
-    :data:`ADVICE_PIXEL_BYTES`), the fragment ``budget`` and :data:`WORK_BYTES`. It holds
-    unless a single block of rows (:data:`.fragment_store.BLOCK_PIXELS` pixels) alone holds
-    more than a tenth of the budget: several hundred transparent layers on every pixel of it."""
+    :data:`ADVICE_PIXEL_BYTES`), the fragment ``budget`` and :data:`WORK_BYTES` per processing
+    thread. The budget holds unless a single block of rows
+    (:data:`.fragment_store.BLOCK_PIXELS` pixels) alone holds more than it: thousands of
+    transparent layers on every pixel of it."""
     per_pixel = (PIXEL_BYTES_HDR if hdr else PIXEL_BYTES) + (ADVICE_PIXEL_BYTES if advice else 0)
-    return int(width) * int(height) * per_pixel + int(budget) + WORK_BYTES
+    return int(width) * int(height) * per_pixel + int(budget) + int(threads) * WORK_BYTES
 
 
 def available_memory() -> int | None:
@@ -94,11 +103,11 @@ def available_memory() -> int | None:
 
 
 def fragment_budget(width: int, height: int, hdr: bool, memory: int | None, memory_limit: int | None,
-                    advice: bool = False) -> int:
+                    advice: bool = False, threads: int = 2) -> int:
     """The fragment budget of an analysis: ``memory`` when given, else :data:`FRAGMENT_BUDGET`
-    or what ``memory_limit`` (default: :func:`available_memory`) leaves beside the per-pixel
-    memory, at least :data:`SMALLEST_BUDGET`. Raises :class:`SceneError` (one line, the memory
-    it would need) when the frame does not fit ``memory_limit`` even so."""
+    or what ``memory_limit`` (default: :func:`available_memory`) leaves beside the rest of
+    :func:`memory_bound`, at least :data:`SMALLEST_BUDGET`. Raises :class:`SceneError` (one
+    line, the memory it would need) when the frame does not fit ``memory_limit`` even so."""
     limit = available_memory() if memory_limit is None else int(memory_limit)
     if memory is not None:
         budget = int(memory)
@@ -107,14 +116,14 @@ def fragment_budget(width: int, height: int, hdr: bool, memory: int | None, memo
     else:
         budget = FRAGMENT_BUDGET
         if limit is not None:
-            spare = limit - memory_bound(width, height, hdr, 0, advice)
+            spare = limit - memory_bound(width, height, hdr, 0, advice, threads)
             budget = max(SMALLEST_BUDGET, min(FRAGMENT_BUDGET, spare))
-    need = memory_bound(width, height, hdr, budget, advice)
+    need = memory_bound(width, height, hdr, budget, advice, threads)
     if limit is not None and need > limit:
-        per_pixel = memory_bound(width, height, hdr, 0, advice) - WORK_BYTES
+        work = threads * WORK_BYTES
         raise SceneError(
             f"analyze: a {width}x{height} frame needs about {need / 2**30:.1f} GiB of memory "
-            f"({per_pixel / 2**30:.1f} GiB for its pixels, {(budget + WORK_BYTES) / 2**30:.2f} GiB for "
+            f"({(need - budget - work) / 2**30:.1f} GiB for its pixels, {(budget + work) / 2**30:.2f} GiB for "
             f"the transparent fragments) and {max(limit, 0) / 2**30:.1f} GiB is available; lower the resolution")
     return budget
 
@@ -219,7 +228,7 @@ class _Blocks:
     taken out of the store at once."""
 
     def __init__(self, calls: list[DrawCall], renderer_of_call: np.ndarray, renderers: int,
-                 workers: int | None, should_cancel: Callable[[], bool] | None) -> None:
+                 threads: int, should_cancel: Callable[[], bool] | None) -> None:
         self.by_index = {c.index: c for c in calls}
         self.renderer_of_call = renderer_of_call
         self.renderers = renderers
@@ -228,7 +237,7 @@ class _Blocks:
             minlength=renderers)
         # One sorted draw call per renderer: each (pixel, front, behind) is found once.
         self.exact_keys = bool(np.all(sorted_per_renderer <= 1))
-        self.threads = max(1, workers if workers is not None else min(2, os.cpu_count() or 1))
+        self.threads = threads
         self.should_cancel = should_cancel
         self.rows_finished = 0
 
@@ -244,7 +253,7 @@ class _Blocks:
             start = b * collector.block_pixels
             inverted = np.zeros(collector.block_pixels, dtype=np.int64)
             found, tallies = [], []
-            for block in collector.take(b, WORK_FRAGMENTS):
+            for block in collector.take(b, TAKE_FRAGMENTS):
                 if self.should_cancel is not None and self.should_cancel():
                     raise RenderCancelled("render cancelled")
                 per_pixel, ids, tally = self._block(block, collector.block_pixels, blender)
@@ -310,7 +319,8 @@ def analyze(
     calls = draw_calls(scene)
     cam = scene.camera
     width, height = int(cam.width), int(cam.height)
-    budget = fragment_budget(width, height, bool(scene.hdr), memory, memory_limit, advice=keep_step1)
+    threads = processing_threads(workers)
+    budget = fragment_budget(width, height, bool(scene.hdr), memory, memory_limit, keep_step1, threads)
     bar = Progress(progress)
     renderers = list(dict.fromkeys((c.renderer.name, c.renderer.slot) for c in calls))
     rend_index = {key: k for k, key in enumerate(renderers)}
@@ -329,7 +339,7 @@ def analyze(
     else:
         buf = collector.step1
         step1 = buf.copy() if keep_step1 else None
-        blocks = _Blocks(calls, renderer_of_call, nrend, workers, should_cancel)
+        blocks = _Blocks(calls, renderer_of_call, nrend, threads, should_cancel)
         while True:
             rows_before = collector.rows_of(collector.first_block)[0]
             for start, per_pixel, ids, tally in blocks.run(collector, buf):
