@@ -117,6 +117,7 @@ class FragmentCollector(FrameObserver):
         firsts = [c.index for c in calls if c.queue > LAST_OPAQUE_QUEUE]
         self.first_after_opaque = min(firsts) if firsts and overdraw else None
         self.step1: FrameBuffers | None = None
+        self.final: FrameBuffers | None = None
         self.lock = threading.Lock()
         self.blocks: list[list[tuple]] = [[] for _ in range(self.block_count)]
         self.block_counts = np.zeros(self.block_count, dtype=np.int64)
@@ -140,6 +141,10 @@ class FragmentCollector(FrameObserver):
     def draw_begin(self, call, buffers) -> None:
         if call.index == self.first_after_opaque:
             self.step1 = buffers.copy()
+
+    def draw_end(self, call, buffers, triangles) -> None:
+        if self.overdraw:
+            self.final = buffers  # the frame's own buffers (its codes, for the sort error)
 
     def fragments(self, call: DrawCall, frags: ShadedFragments, outcome: np.ndarray) -> None:
         wrote = outcome == Outcome.WRITTEN

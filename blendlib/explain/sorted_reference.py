@@ -208,6 +208,19 @@ class Analysis:
 ERROR_ROWS = 256
 
 
+def code_error(frame: FrameBuffers, reference: FrameBuffers) -> np.ndarray:
+    """:func:`sort_error` of two LDR buffers from their stored 8-bit codes (row 0 = top), which
+    is what ``rint(value * 255)`` recovers from their float outputs (tests/explain checks every code)."""
+    h, w = frame.height, frame.width
+    a, b = frame.color.reshape(h, w, 4), reference.color.reshape(h, w, 4)
+    out = np.empty((h, w), dtype=np.float32)
+    for y in range(0, h, ERROR_ROWS):
+        rows = slice(y, min(h, y + ERROR_ROWS))
+        diff = np.abs(a[rows].astype(np.int16) - b[rows].astype(np.int16)).max(axis=-1)
+        out[h - rows.stop:h - rows.start] = diff[::-1]
+    return out
+
+
 def sort_error(frame_color: np.ndarray, reference: np.ndarray, hdr: bool) -> np.ndarray:
     """(H, W) float32: the largest absolute difference over RGBA (8-bit steps on the codes for LDR)."""
     out = np.empty(frame_color.shape[:2], dtype=np.float32)
@@ -333,7 +346,7 @@ def analyze(
                          should_cancel=should_cancel, calls=calls)
     inverted = np.zeros(width * height, dtype=np.uint16)
     pair_counts: dict[int, int] = {}
-    step1 = None
+    step1 = final = reference_buffers = None
     if not any(is_sorted_queue(c.queue) for c in calls):
         reference = frame.color.copy()
     else:
@@ -361,6 +374,8 @@ def analyze(
                                      should_cancel=should_cancel).color
         else:
             reference = buf.output()[0]
+            if not scene.hdr:
+                final, reference_buffers = counts.final, buf
         del buf
     overdraw = np.empty((height, width, 2), dtype=np.uint32)
     overdraw[..., 0] = counts.rasterised.reshape(height, width)[::-1]
@@ -370,7 +385,10 @@ def analyze(
     inversions = [Inversion(renderers[pair // nrend], renderers[pair % nrend], count)
                   for pair, count in pair_counts.items()]
     inversions.sort(key=lambda inv: (-inv.pixels, inv.front, inv.behind))
-    error = sort_error(frame.color, reference, scene.hdr)
+    if final is not None:  # LDR without Overlay draws: from the stored codes, as rint(value * 255) gives them
+        error = code_error(final, reference_buffers)
+    else:
+        error = sort_error(frame.color, reference, scene.hdr)
     bar(1.0)
     return Analysis(frame=frame, reference=reference, error=error, overdraw=overdraw,
                     inverted=inverted.reshape(height, width)[::-1].copy(), inversions=inversions,

@@ -297,3 +297,21 @@ def test_inversions_equal_a_plain_pairwise_count(seed):
     result = analyze(scene)
     assert {(i.front, i.behind): i.pixels for i in result.inversions} == pairs
     assert np.array_equal(result.inverted, inverted.reshape(cam.height, cam.width)[::-1])
+
+
+@pytest.mark.parametrize("space", ["Gamma", "Linear"])
+def test_the_error_from_stored_codes_equals_the_error_of_the_float_outputs(space):
+    """Every pair of 8-bit codes in every channel: code_error (the analysis' LDR path) equals
+    sort_error of the two buffers' float outputs."""
+    from blendlib.core.merger import FrameBuffers
+    from blendlib.core.vocabulary import ColorSpace
+
+    cs = ColorSpace[space]
+    a = FrameBuffers(256, 256, False, cs, (0, 0, 0, 0))
+    b = FrameBuffers(256, 256, False, cs, (0, 0, 0, 0))
+    first, second = np.meshgrid(np.arange(256, dtype=np.uint8), np.arange(256, dtype=np.uint8))
+    for c in range(4):  # each channel holds every pair once, in a different arrangement
+        a.color[:, c] = np.roll(first.reshape(-1), 257 * c)
+        b.color[:, c] = np.roll(second.reshape(-1), 257 * c)
+    expected = sr.sort_error(a.output()[0], b.output()[0], False)
+    assert np.array_equal(sr.code_error(a, b), expected) and float(expected.max()) == 255.0
