@@ -160,9 +160,10 @@ def _draw_all(frame: FrameContext, todo: list[DrawCall], should_cancel: Callable
     ``draw_begin`` come before it is drawn and ``draw_end`` after (with the buffers after the
     batch). With one, a batch is one renderer's passes (one vertex setup) and a step one call."""
     exact = observer is not None and observer.exact_boundaries
+    cuts = frozenset() if observer is None else frozenset(observer.exact_before)
     floors = RowFloors(frame.buf)
     done = 0
-    for runs in _batches(todo, exact):
+    for runs in _batches(todo, exact, cuts):
         _check(should_cancel)
         prepared = prepare_batch(frame, runs)
         if observer is None:  # an observer is told of each call's own fragments
@@ -194,15 +195,17 @@ def _renderer_runs(calls: list[DrawCall]) -> list[list[DrawCall]]:
     return runs
 
 
-def _batches(calls: list[DrawCall], exact: bool = False) -> list[list[list[DrawCall]]]:
+def _batches(calls: list[DrawCall], exact: bool = False,
+             cuts: frozenset[int] = frozenset()) -> list[list[list[DrawCall]]]:
     """Renderer runs grouped into batches (a run is never split; at least one run a batch), of
-    at most :data:`BATCH_TRIANGLES` and :data:`BATCH_DRAWS`; one run each when ``exact``."""
+    at most :data:`BATCH_TRIANGLES` and :data:`BATCH_DRAWS`; one run each when ``exact``; a
+    run holding a call of ``cuts`` starts a batch."""
     batches: list[list[list[DrawCall]]] = []
     triangles = draws = 0
     for run in _renderer_runs(calls):
         count = int(run[0].renderer.mesh.triangle_count)
         if (batches and not exact and triangles + count <= BATCH_TRIANGLES
-                and draws + len(run) <= BATCH_DRAWS):
+                and draws + len(run) <= BATCH_DRAWS and not any(c.index in cuts for c in run)):
             batches[-1].append(run)
             triangles += count
             draws += len(run)

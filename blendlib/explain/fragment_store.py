@@ -130,10 +130,13 @@ class FragmentCollector(FrameObserver):
         self.peak_bytes = 0
         self.call_dtype = np.uint16 if max((c.index for c in calls), default=0) < 65535 else np.int32
 
+    #: Draw calls are drawn in batches; only the step-1 snapshot needs the buffers exactly
+    #: between two draw calls (:attr:`exact_before`).
+    exact_boundaries = False
+
     @property
-    def exact_boundaries(self) -> bool:
-        """The step-1 snapshot needs the buffers exactly between two draw calls."""
-        return self.first_after_opaque is not None
+    def exact_before(self) -> frozenset[int]:
+        return frozenset() if self.first_after_opaque is None else frozenset((self.first_after_opaque,))
 
     def reads_depth(self, call: DrawCall) -> bool:
         return call.index in self.sorted_calls

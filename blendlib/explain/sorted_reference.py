@@ -208,17 +208,23 @@ class Analysis:
 ERROR_ROWS = 256
 
 
-def code_error(frame: FrameBuffers, reference: FrameBuffers) -> np.ndarray:
-    """:func:`sort_error` of two LDR buffers from their stored 8-bit codes (row 0 = top), which
-    is what ``rint(value * 255)`` recovers from their float outputs (tests/explain checks every code)."""
+def reference_from_codes(frame_color: np.ndarray, frame: FrameBuffers,
+                         reference: FrameBuffers) -> tuple[np.ndarray, np.ndarray]:
+    """(reference (H, W, 4) float32, :func:`sort_error` (H, W) float32) of two LDR buffers —
+    the frame's, whose output is ``frame_color``, and the reference's — from their stored 8-bit
+    codes: the frame's values where the codes agree, the reference's output and the code
+    difference (what ``rint(value * 255)`` recovers, every code checked by tests/explain) where
+    they differ."""
     h, w = frame.height, frame.width
-    a, b = frame.color.reshape(h, w, 4), reference.color.reshape(h, w, 4)
-    out = np.empty((h, w), dtype=np.float32)
-    for y in range(0, h, ERROR_ROWS):
-        rows = slice(y, min(h, y + ERROR_ROWS))
-        diff = np.abs(a[rows].astype(np.int16) - b[rows].astype(np.int16)).max(axis=-1)
-        out[h - rows.stop:h - rows.start] = diff[::-1]
-    return out
+    differ = np.flatnonzero(frame.packed() != reference.packed())
+    out = frame_color.copy()
+    error = np.zeros((h, w), dtype=np.float32)
+    if differ.size:
+        y, x = h - 1 - differ // w, differ % w
+        codes = reference.color[differ]
+        out[y, x] = np.divide(codes, np.float32(255), dtype=np.float32)  # as FrameBuffers.output
+        error[y, x] = np.abs(frame.color[differ].astype(np.int16) - codes.astype(np.int16)).max(axis=1)
+    return out, error
 
 
 def sort_error(frame_color: np.ndarray, reference: np.ndarray, hdr: bool) -> np.ndarray:
@@ -346,9 +352,10 @@ def analyze(
                          should_cancel=should_cancel, calls=calls)
     inverted = np.zeros(width * height, dtype=np.uint16)
     pair_counts: dict[int, int] = {}
-    step1 = final = reference_buffers = None
+    step1 = error = None
     if not any(is_sorted_queue(c.queue) for c in calls):
         reference = frame.color.copy()
+        error = np.zeros((height, width), dtype=np.float32)
     else:
         buf = collector.step1
         step1 = buf.copy() if keep_step1 else None
@@ -372,10 +379,10 @@ def analyze(
         if any(c.queue > LAST_SORTED_QUEUE for c in calls):
             reference = render_scene(scene, resume=(buf, last_sorted), workers=workers, calls=calls,
                                      should_cancel=should_cancel).color
-        else:
+        elif scene.hdr:
             reference = buf.output()[0]
-            if not scene.hdr:
-                final, reference_buffers = counts.final, buf
+        else:
+            reference, error = reference_from_codes(frame.color, counts.final, buf)
         del buf
     overdraw = np.empty((height, width, 2), dtype=np.uint32)
     overdraw[..., 0] = counts.rasterised.reshape(height, width)[::-1]
@@ -385,9 +392,7 @@ def analyze(
     inversions = [Inversion(renderers[pair // nrend], renderers[pair % nrend], count)
                   for pair, count in pair_counts.items()]
     inversions.sort(key=lambda inv: (-inv.pixels, inv.front, inv.behind))
-    if final is not None:  # LDR without Overlay draws: from the stored codes, as rint(value * 255) gives them
-        error = code_error(final, reference_buffers)
-    else:
+    if error is None:
         error = sort_error(frame.color, reference, scene.hdr)
     bar(1.0)
     return Analysis(frame=frame, reference=reference, error=error, overdraw=overdraw,

@@ -300,18 +300,23 @@ def test_inversions_equal_a_plain_pairwise_count(seed):
 
 
 @pytest.mark.parametrize("space", ["Gamma", "Linear"])
-def test_the_error_from_stored_codes_equals_the_error_of_the_float_outputs(space):
-    """Every pair of 8-bit codes in every channel: code_error (the analysis' LDR path) equals
-    sort_error of the two buffers' float outputs."""
+def test_the_reference_and_error_from_stored_codes_equal_those_of_the_float_outputs(space):
+    """Every pair of 8-bit codes in every channel (and pixels where the codes agree):
+    reference_from_codes (the analysis' LDR path) equals the reference buffers' float output and
+    sort_error of the two outputs."""
     from blendlib.core.merger import FrameBuffers
     from blendlib.core.vocabulary import ColorSpace
 
     cs = ColorSpace[space]
-    a = FrameBuffers(256, 256, False, cs, (0, 0, 0, 0))
-    b = FrameBuffers(256, 256, False, cs, (0, 0, 0, 0))
+    a = FrameBuffers(256, 260, False, cs, (0, 0, 0, 0))
+    b = FrameBuffers(256, 260, False, cs, (0, 0, 0, 0))
     first, second = np.meshgrid(np.arange(256, dtype=np.uint8), np.arange(256, dtype=np.uint8))
     for c in range(4):  # each channel holds every pair once, in a different arrangement
-        a.color[:, c] = np.roll(first.reshape(-1), 257 * c)
-        b.color[:, c] = np.roll(second.reshape(-1), 257 * c)
-    expected = sr.sort_error(a.output()[0], b.output()[0], False)
-    assert np.array_equal(sr.code_error(a, b), expected) and float(expected.max()) == 255.0
+        a.color[:65536, c] = np.roll(first.reshape(-1), 257 * c)
+        b.color[:65536, c] = np.roll(second.reshape(-1), 257 * c)
+    a.color[65536:] = b.color[65536:] = 77  # four rows where the codes agree
+    frame, reference = a.output()[0], b.output()[0]
+    out, error = sr.reference_from_codes(frame, a, b)
+    assert np.array_equal(out, reference) and out.dtype == np.float32
+    expected = sr.sort_error(frame, reference, False)
+    assert np.array_equal(error, expected) and float(expected.max()) == 255.0 and not expected[:4].any()
