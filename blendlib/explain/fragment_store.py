@@ -241,15 +241,40 @@ class FragmentCollector(FrameObserver):
             return frags.ids + np.int32(offset)
         return np.where(frags.ids >= 0, frags.ids + np.int32(offset), np.int32(-1)).astype(np.int32)
 
-    def take(self, b: int, most: int) -> Iterator[Block]:
-        """Block ``b``'s fragments (freed here) as :class:`Block` s of consecutive pixel ranges,
-        each holding at most ``most`` fragments (a pixel alone may hold more): the working
-        memory of a block stays bounded however deep its pixels are."""
+    def units(self, most: int) -> list[list[int]]:
+        """The blocks this pass completed that hold fragments, in order, as units processed
+        together: consecutive blocks of at most 65536 pixels in all (a pixel of the unit still
+        fits 16 bits) holding at most ``most`` fragments (so many shallow blocks cost as few
+        rounds of the per-pixel work as deep ones)."""
+        per_unit = max(1, 65536 // self.block_pixels)
+        out: list[list[int]] = []
+        total = 0
+        for b in range(self.first_block, self.limit):
+            count = int(self.block_counts[b])
+            if not count:
+                continue
+            if (out and out[-1][-1] == b - 1 and len(out[-1]) < per_unit and total + count <= most):
+                out[-1].append(b)
+                total += count
+            else:
+                out.append([b])
+                total = count
+        return out
+
+    def take(self, unit: list[int], most: int) -> Iterator[Block]:
+        """The fragments of consecutive blocks ``unit`` (freed here; :meth:`units`) as
+        :class:`Block` s of consecutive pixel ranges, each holding at most ``most`` fragments (a
+        pixel alone may hold more): the working memory of a block stays bounded however deep
+        its pixels are. A unit's pixels are numbered from its first block's first pixel."""
+        pieces = []
         with self.lock:
-            pieces = self.blocks[b]
-            self.blocks[b] = []
-            self.bytes -= int(self.block_bytes[b])
-            self.block_bytes[b] = 0
+            for k, b in enumerate(unit):
+                shift = k * self.block_pixels
+                pieces += self.blocks[b] if not shift else [(p[0] + np.uint16(shift), *p[1:]) for p in self.blocks[b]]
+                self.blocks[b] = []
+                self.bytes -= int(self.block_bytes[b])
+                self.block_bytes[b] = 0
+        b = unit[0]
         if not pieces:
             return
         if sum(p[0].size for p in pieces) <= most:
@@ -257,9 +282,10 @@ class FragmentCollector(FrameObserver):
             del pieces  # the block holds the fragments now, not the pieces too
             yield block
             return
-        counts = np.zeros(self.block_pixels, dtype=np.int64)
+        pixels = len(unit) * self.block_pixels
+        counts = np.zeros(pixels, dtype=np.int64)
         for p in pieces:
-            counts += np.bincount(p[0], minlength=self.block_pixels)
+            counts += np.bincount(p[0], minlength=pixels)
         for p0, p1 in pixel_ranges(counts, most):
             parts = []
             for local, dw, call, key, table in pieces:
@@ -290,10 +316,6 @@ class FragmentCollector(FrameObserver):
         else:
             table = np.zeros((0, 4), dtype=np.float64)
         return Block(b, b * self.block_pixels, local, dw, call, key, table)
-
-    def stored_blocks(self) -> list[int]:
-        """The blocks this pass completed that hold fragments, in order."""
-        return [b for b in range(self.first_block, self.limit) if self.block_counts[b]]
 
     def palette(self, index: int) -> np.ndarray:
         """(K, 4) float64: the call's palettes laid end to end (palette keys index it)."""

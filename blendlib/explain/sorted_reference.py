@@ -268,23 +268,23 @@ class _Blocks:
                                             dict(collector.call_fragments))
         self.rows_finished = 0
 
-        def one(b: int):
-            start = b * collector.block_pixels
-            inverted = np.zeros(collector.block_pixels, dtype=np.int64)
+        def one(unit: list[int]):
+            pixels = len(unit) * collector.block_pixels
+            inverted = np.zeros(pixels, dtype=np.int64)
             found, tallies = [], []
-            for block in collector.take(b, TAKE_FRAGMENTS):
+            for block in collector.take(unit, TAKE_FRAGMENTS):
                 if self.should_cancel is not None and self.should_cancel():
                     raise RenderCancelled("render cancelled")
-                per_pixel, ids, tally = self._block(block, collector.block_pixels, blender)
+                per_pixel, ids, tally = self._block(block, pixels, blender)
                 inverted += per_pixel
                 found.append(ids)
                 tallies.append(tally)
-            return b, (start, inverted, np.concatenate(found) if found else np.zeros(0, np.int64),
-                       np.concatenate(tallies) if tallies else np.zeros(0, np.int64))
+            return unit[-1], (unit[0] * collector.block_pixels, inverted,
+                              np.concatenate(found) if found else np.zeros(0, np.int64),
+                              np.concatenate(tallies) if tallies else np.zeros(0, np.int64))
 
-        blocks = collector.stored_blocks()
         with ThreadPoolExecutor(max_workers=self.threads) as pool:
-            for b, out in pool.map(one, blocks):
+            for b, out in pool.map(one, collector.units(WORK_FRAGMENTS)):
                 self.rows_finished = collector.rows_of(b)[1] - collector.rows_of(collector.first_block)[0]
                 yield out
 

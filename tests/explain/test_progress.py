@@ -11,6 +11,7 @@ import pytest
 from blendlib.core.records import RenderCancelled
 from blendlib.core.vocabulary import Queue
 from blendlib.explain import advice, fragment_store
+from blendlib.explain import sorted_reference as sr
 from blendlib.explain.advice import analyze_and_advise
 from blendlib.explain.sorted_reference import analyze
 from tests.explain.test_sorted_reference import BLEND, layered_scene
@@ -29,7 +30,8 @@ def _share(max_advice: int) -> float:
 
 @pytest.mark.parametrize("memory", [None, 1])  # one pass, or one block a pass
 def test_one_fraction_over_every_phase(monkeypatch, memory):
-    monkeypatch.setattr(fragment_store, "BLOCK_PIXELS", 32)  # two rows a block: seven blocks
+    monkeypatch.setattr(fragment_store, "BLOCK_PIXELS", 32)  # two rows a block: seven blocks,
+    monkeypatch.setattr(sr, "WORK_FRAGMENTS", 40)  # processed a few at a time
     scene = _with_overlay(layered_scene(3))
     fractions = []
     result = analyze_and_advise(scene, max_advice=3, progress=fractions.append, memory=memory)
@@ -57,7 +59,8 @@ def _cancel_after(limit: float):
 
 @pytest.mark.parametrize("phase", ["blocks", "advice"])
 def test_cancel_stops_step_two_and_the_advice(monkeypatch, phase):
-    monkeypatch.setattr(fragment_store, "BLOCK_PIXELS", 32)  # two rows a block: seven blocks
+    monkeypatch.setattr(fragment_store, "BLOCK_PIXELS", 32)  # two rows a block: seven blocks,
+    monkeypatch.setattr(sr, "WORK_FRAGMENTS", 40)  # processed a few at a time
     scene = layered_scene(1)
     share = _share(2)
     # After the first of seven blocks; or once the analysis is done (the advice has started).
