@@ -1,5 +1,6 @@
-"""Operators: analyse the scene's sorting (a job: progress, Esc cancels); apply a suggested queue
-offset or sort setting."""
+"""Operators: analyse the scene's sorting (a job: one progress bar over the render, step 2 and
+the advice's measurements; Esc cancels any of them and keeps the previous list); apply a
+suggested queue offset or sort setting."""
 
 from __future__ import annotations
 

@@ -85,6 +85,9 @@ def render_scene(
     return just those rows (the Frame's arrays are ``y1 - y0`` rows high, top row first): every
     pixel there equals the full render's, since pixels never depend on one another (one
     process's share of a frame split across processes, :mod:`blendlib.runtime.bandprocs`).
+    An observer of a band render receives the band's fragments only, and buffers whose rows
+    outside the band were never cleared (the sorted reference's later passes,
+    :mod:`blendlib.explain.sorted_reference`); a band render resumes nothing.
     ``out``: (color, depth, stencil) arrays of the Frame's shapes and dtypes to write the
     result into (a band straight into its rows of a whole frame, or into shared memory).
     ``memo``: a :class:`~blendlib.core.scene.SceneMemo` shared by renders of scenes with the
@@ -105,8 +108,8 @@ def render_scene(
         band = (int(band[0]), int(band[1]))
         if not 0 <= band[0] < band[1] <= height:
             raise SceneError(f"band {band} is not a range of rows within 0..{height}")
-        if observer is not None or resume is not None:
-            raise SceneError("a band render takes no observer and resumes nothing")
+        if resume is not None:
+            raise SceneError("a band render resumes nothing")
     cs = scene.color_space
     if resume is not None:
         buf, first = resume[0].copy(), int(resume[1])
@@ -121,7 +124,8 @@ def render_scene(
         workers = 1 if width * height < SMALL_FRAME_PIXELS else min(2, os.cpu_count() or 1)
     pool = ThreadPoolExecutor(max_workers=workers) if workers > 1 else None
     frame = FrameContext(buf, cam, lights, cs, scene.hdr, chunk_candidates, pool, workers, threading.Event(),
-                         observed=observer is not None, band=band, memo=memo, keep_setups=keep_setups)
+                         observed=observer is not None, band=band, memo=memo, keep_setups=keep_setups,
+                         reads_depth=None if observer is None else observer.reads_depth)
     try:
         _draw_all(frame, todo, should_cancel, progress, observer)
         color, depth, stencil = buf.output(pool, workers, band, out)
@@ -156,9 +160,10 @@ def _draw_all(frame: FrameContext, todo: list[DrawCall], should_cancel: Callable
     ``draw_begin`` come before it is drawn and ``draw_end`` after (with the buffers after the
     batch). With one, a batch is one renderer's passes (one vertex setup) and a step one call."""
     exact = observer is not None and observer.exact_boundaries
+    cuts = frozenset() if observer is None else frozenset(observer.exact_before)
     floors = RowFloors(frame.buf)
     done = 0
-    for runs in _batches(todo, exact):
+    for runs in _batches(todo, exact, cuts):
         _check(should_cancel)
         prepared = prepare_batch(frame, runs)
         if observer is None:  # an observer is told of each call's own fragments
@@ -190,15 +195,17 @@ def _renderer_runs(calls: list[DrawCall]) -> list[list[DrawCall]]:
     return runs
 
 
-def _batches(calls: list[DrawCall], exact: bool = False) -> list[list[list[DrawCall]]]:
+def _batches(calls: list[DrawCall], exact: bool = False,
+             cuts: frozenset[int] = frozenset()) -> list[list[list[DrawCall]]]:
     """Renderer runs grouped into batches (a run is never split; at least one run a batch), of
-    at most :data:`BATCH_TRIANGLES` and :data:`BATCH_DRAWS`; one run each when ``exact``."""
+    at most :data:`BATCH_TRIANGLES` and :data:`BATCH_DRAWS`; one run each when ``exact``; a
+    run holding a call of ``cuts`` starts a batch."""
     batches: list[list[list[DrawCall]]] = []
     triangles = draws = 0
     for run in _renderer_runs(calls):
         count = int(run[0].renderer.mesh.triangle_count)
         if (batches and not exact and triangles + count <= BATCH_TRIANGLES
-                and draws + len(run) <= BATCH_DRAWS):
+                and draws + len(run) <= BATCH_DRAWS and not any(c.index in cuts for c in run)):
             batches[-1].append(run)
             triangles += count
             draws += len(run)

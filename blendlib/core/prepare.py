@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import functools
 import threading
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
@@ -44,6 +45,8 @@ class FrameContext:
     workers: int
     stop_flag: threading.Event
     observed: bool = False
+    #: ``reads_depth(call)`` of the observer (:meth:`.records.FrameObserver.reads_depth`), or None.
+    reads_depth: Callable[[DrawCall], bool] | None = None
     #: Buffer rows ``[y0, y1)`` (y from the bottom) this render draws, or None for all
     #: (:func:`.pipeline.render_scene`'s ``band``: one process's share of a frame).
     band: tuple[int, int] | None = None
@@ -218,7 +221,8 @@ def _draw_state(frame: FrameContext, call: DrawCall, setup, texels,
     """A draw call's derived state and the triangles its Cull keeps (``selected`` when known)."""
     p = call.state
     zbound = None
-    if not p.zwrite and p.ztest in (CompareFunction.Less, CompareFunction.LEqual):
+    if (not p.zwrite and p.ztest in (CompareFunction.Less, CompareFunction.LEqual)
+            and not (frame.reads_depth is not None and frame.reads_depth(call))):
         zbound = raster.depth_upper_codes(setup, p.offset_factor, p.offset_units)
     state = DrawState(call, call.renderer.material, texels, frame.lights, frame.color_space, frame.hdr,
                       frame.width, observed=frame.observed, zbound=zbound)

@@ -198,6 +198,15 @@ class FrameObserver:
     #: without an observer: ``draw_begin`` of a batch's calls comes before it is drawn and
     #: ``draw_end`` after (with the buffers after the whole batch); fragments keep their order.
     exact_boundaries = True
+    #: Draw calls (indices) whose :meth:`draw_begin` must see the buffers exactly as the calls
+    #: before them left them even without :attr:`exact_boundaries`: a batch starts there.
+    exact_before: frozenset[int] = frozenset()
+
+    def reads_depth(self, call: DrawCall) -> bool:
+        """Whether :meth:`fragments` reads the depth codes of every fragment of ``call``: then
+        they are computed as the fragments are rasterised, not afterwards (the hierarchical-Z
+        shortcut of :meth:`DrawState.depth_needed` would only defer them)."""
+        return False
 
     def draw_begin(self, call: DrawCall, buffers: FrameBuffers) -> None:
         """Before draw call ``call`` (``buffers`` as left by the draw calls before it when

@@ -1,17 +1,26 @@
-"""Advice for inverted renderer pairs (docs/sorting.md), each checked by re-rendering with the change.
+"""Advice for inverted renderer pairs (docs/sorting.md), each checked by rendering the scene with the change.
 
 For a pair of different renderers (A drawn before B although A lies in front of B) the
 candidates are: a render-queue offset that draws A after B (on A's material) or B before A
 (on B's material), and a sort setting of the scene (``CustomAxis`` along the line from A's
-sort point to B's, or the other built-in mode). Each candidate is rendered and analysed; the
-one that leaves the fewest inverted pixels of the pair (then the fewest differing pixels,
-measured against the original sorted reference: the image the artist means) is advised.
+sort point to B's, or the other built-in mode). Each candidate is measured; the one that
+leaves the fewest inverted pixels of the pair (then the fewest differing pixels, measured
+against the original sorted reference: the image the artist means) is advised.
 
 For a renderer that overlaps itself no queue or sort setting helps. The measured technique is
 the depth prepass (preset "Alpha Blend ZWrite"): it removes the inversions, but it shows only
 the front layer, so the frame still differs from the sorted reference — the technique's price,
 reported as ``differing_after``. Splitting the mesh or sorting its triangles (Blender's Mesh ›
 Sort Elements) are named too; they depend on the view and are not measured.
+
+**What a measurement re-renders** (:class:`_Measurer`): a candidate changes only the order of
+the draw calls (queues, sort settings) or one renderer's passes (the prepass), so its frame is
+the original's step-1 buffers (everything up to queue 2500, kept by the analysis) with the
+draw calls from there on; only those are rendered, once per distinct draw list (a sort mode
+shared by several pairs is rendered once; a draw list equal to the original's is not rendered
+at all). The pairs' inversions are counted as that render goes (:class:`_PairWatch`), and the
+differing pixels against the original reference. The numbers equal those of a full analysis of
+the changed scene (tests/explain/test_advice.py checks it on random scenes).
 
 Advice sits on top of the analysis (:mod:`.sorted_reference` knows nothing of it):
 :func:`analyze_and_advise` runs one and then the other, for the callers that want both
@@ -20,20 +29,32 @@ Advice sits on top of the analysis (:mod:`.sorted_reference` knows nothing of it
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
 
-from ..core.drawlist import sort_key_distance
+from ..core import shade
+from ..core.drawlist import DrawCall, draw_calls, sort_key_distance
+from ..core.merger import FrameBuffers, Outcome
+from ..core.pipeline import render_scene
+from ..core.records import FrameObserver, RenderCancelled
 from ..core.scene import DrawScene, Renderer
-from ..core.vocabulary import SortMode, preset, queue_text
+from ..core.vocabulary import LAST_OPAQUE_QUEUE, SortMode, preset, queue_text
+from .fragment_store import is_sorted_queue
+from .progress import Progress
 from .sorted_reference import Analysis, analyze, sort_error
 
 PREPASS_PRESET = "Alpha Blend ZWrite"
+#: Share of the progress bar the analysis takes in :func:`analyze_and_advise`, per advised pair
+#: the advice takes about as much as an analysis takes in all (a render or two per pair).
+ADVICE_WEIGHT = 0.35
+
+Key = tuple[str, int]
 
 
-def _renderer(scene: DrawScene, key: tuple[str, int]) -> Renderer:
+def _renderer(scene: DrawScene, key: Key) -> Renderer:
     return next(r for r in scene.renderers if (r.name, r.slot) == key)
 
 
@@ -44,7 +65,7 @@ def with_queue_offset(scene: DrawScene, material: str, offset: int) -> DrawScene
         for r in scene.renderers))
 
 
-def with_prepass(scene: DrawScene, key: tuple[str, int]) -> DrawScene:
+def with_prepass(scene: DrawScene, key: Key) -> DrawScene:
     """The scene with renderer ``key``'s material given the depth-prepass preset's queue and passes."""
     queue, passes = preset(PREPASS_PRESET)
     return replace(scene, renderers=tuple(
@@ -52,14 +73,7 @@ def with_prepass(scene: DrawScene, key: tuple[str, int]) -> DrawScene:
         for r in scene.renderers))
 
 
-def _measure(scene: DrawScene, original: Analysis, front, behind, workers) -> tuple[int, int]:
-    """(pixels of the pair still inverted, pixels differing from the original sorted reference)."""
-    after = analyze(scene, workers=workers)
-    error = sort_error(after.frame.color, original.reference, original.hdr)
-    return after.pair_pixels(front, behind), int(np.count_nonzero(error > original.step))
-
-
-def _label(key: tuple[str, int]) -> str:
+def _label(key: Key) -> str:
     return f"'{key[0]}'" if key[1] == 0 else f"'{key[0]}' (slot {key[1]})"
 
 
@@ -99,16 +113,188 @@ def _pair_candidates(scene: DrawScene, a: Renderer, b: Renderer) -> list[tuple[d
     return out
 
 
-def advise(scene: DrawScene, analysis: Analysis, limit: int = 5, workers: int | None = None) -> list[dict]:
-    """Advice items for the ``limit`` largest inversion pairs (fields of docs/json.md), each checked."""
+class _PairWatch(FrameObserver):
+    """Counts, as a render goes, the pixels where each watched pair (A, B) is inverted: a written
+    fragment of A applied before a farther written fragment of B (draw calls of queues 2501–3999
+    that write colour, as the analysis counts them).
+
+    Per front renderer A: ``nearest[A]`` (H*W,) int32, the smallest depth code of A's written
+    fragments applied so far at each pixel (``NONE`` before any); per pair a (H*W,) bool image of
+    its inverted pixels. A fragment of B inverts the pair where ``nearest[A]`` is below its depth
+    (fragments of one chunk of A itself: those before it in the chunk count too). Screen bands
+    own disjoint pixels, so threads never touch the same entries."""
+
+    exact_boundaries = False  # only fragments are read
+    NONE = np.int32(1 << 30)
+
+    def __init__(self, pairs: list[tuple[Key, Key]], calls: list[DrawCall], pixels: int) -> None:
+        self.pairs = pairs
+        fronts = sorted({front for front, _ in pairs})
+        self.nearest = {front: np.full(pixels, self.NONE, dtype=np.int32) for front in fronts}
+        self.inverted = {pair: np.zeros(pixels, dtype=bool) for pair in pairs}
+        watched = {key for pair in pairs for key in pair}
+        self.watched = {c.index: (c.renderer.name, c.renderer.slot) for c in calls
+                        if is_sorted_queue(c.queue) and c.state.color_mask
+                        and (c.renderer.name, c.renderer.slot) in watched}
+        self.lock = threading.Lock()
+
+    def reads_depth(self, call: DrawCall) -> bool:
+        return call.index in self.watched
+
+    def fragments(self, call, frags, outcome) -> None:
+        key = self.watched.get(call.index)
+        if key is None:
+            return
+        written = outcome == Outcome.WRITTEN
+        if not written.any():
+            return
+        pix = frags.pix if written.all() else frags.pix[written]
+        depth = (frags.depth if written.all() else frags.depth[written]).astype(np.int32)
+        if frags.disjoint:
+            before = None  # one fragment per pixel in this chunk
+        else:  # each fragment's nearest earlier one of the chunk at its pixel, as a pixel order
+            order = np.argsort(pix, kind="stable")
+            pix, depth = pix[order], depth[order]
+            start = np.ones(pix.size, dtype=bool)
+            start[1:] = pix[1:] != pix[:-1]
+            group = np.cumsum(start) - 1
+            big = np.int64(1 << 31)
+            running = np.minimum.accumulate(depth - group * big) + group * big  # within each pixel
+            before = np.full(pix.size, self.NONE, dtype=np.int32)
+            later = ~start
+            before[later] = running[np.flatnonzero(later) - 1]
+        for (front, behind), hit in self.inverted.items():
+            if behind != key:
+                continue
+            nearest = self.nearest[front][pix]
+            if front == key and before is not None:
+                nearest = np.minimum(nearest, before)
+            hit[pix[nearest < depth]] = True
+        if key in self.nearest:
+            near = self.nearest[key]
+            if before is None:
+                near[pix] = np.minimum(near[pix], depth)
+            else:  # the chunk's nearest at each of its pixels
+                last = np.flatnonzero(np.append(start[1:], True))
+                near[pix[last]] = np.minimum(near[pix[last]], np.minimum(before[last], depth[last]))
+
+    def counts(self) -> dict[tuple[Key, Key], int]:
+        return {pair: int(np.count_nonzero(hit)) for pair, hit in self.inverted.items()}
+
+
+class _Snapshot(FrameObserver):
+    """Keeps the buffers after the last draw call a render draws (with ``until_draw``)."""
+
+    exact_boundaries = False
+
+    def __init__(self) -> None:
+        self.buffers: FrameBuffers | None = None
+
+    def draw_end(self, call, buffers, triangles) -> None:
+        self.buffers = buffers
+
+
+def _signature(scene: DrawScene, calls: list[DrawCall]) -> tuple:
+    """What a draw list draws, call by call: the renderer (its place in the scene), pass, its
+    state and light. Candidates change only queues, sort settings and one renderer's passes, so
+    equal signatures mean equal frames."""
+    place = {id(r): k for k, r in enumerate(scene.renderers)}
+    lights = {id(light): k for k, light in enumerate(scene.lights)}
+    return tuple((place[id(c.renderer)], c.pass_index, c.state, None if c.light is None else lights[id(c.light)])
+                 for c in calls)
+
+
+class _Measurer:
+    """Measures changed scenes against an analysis (module doc): per distinct draw list, the
+    inverted pixels of every pair advised and the pixels differing from the original reference."""
+
+    def __init__(self, scene: DrawScene, analysis: Analysis, pairs: list[tuple[Key, Key]], workers: int | None,
+                 should_cancel: Callable[[], bool] | None) -> None:
+        self.scene, self.analysis, self.pairs = scene, analysis, pairs
+        self.workers, self.should_cancel = workers, should_cancel
+        self.calls = draw_calls(scene)
+        self.signature = _signature(scene, self.calls)
+        self.opaque = self._opaque_prefix(self.signature, self.calls)
+        self.cache: dict[tuple, tuple[dict, int]] = {}
+        self._step1 = analysis.step1
+
+    @staticmethod
+    def _opaque_prefix(signature: tuple, calls: list[DrawCall]) -> tuple:
+        return tuple(s for s, c in zip(signature, calls, strict=True) if c.queue <= LAST_OPAQUE_QUEUE)
+
+    def step1(self) -> FrameBuffers:
+        """The buffers after the last draw call of queue ≤ 2500 (the analysis's, else rendered)."""
+        if self._step1 is None:
+            last = max((c.index for c in self.calls if c.queue <= LAST_OPAQUE_QUEUE), default=0)
+            snapshot = _Snapshot()
+            render_scene(self.scene, until_draw=last, observer=snapshot, workers=self.workers,
+                         should_cancel=self.should_cancel, calls=self.calls)
+            self._step1 = snapshot.buffers if snapshot.buffers is not None else _cleared(self.scene)
+        return self._step1
+
+    def measure(self, changed: DrawScene) -> tuple[dict[tuple[Key, Key], int], int]:
+        """(inverted pixels per advised pair, pixels differing from the original reference)."""
+        if self.should_cancel is not None and self.should_cancel():
+            raise RenderCancelled("render cancelled")
+        calls = draw_calls(changed)
+        signature = _signature(changed, calls)
+        if signature == self.signature:
+            return {pair: self.analysis.pair_pixels(*pair) for pair in self.pairs}, self.analysis.differing
+        if signature in self.cache:
+            return self.cache[signature]
+        width, height = int(changed.camera.width), int(changed.camera.height)
+        watch = _PairWatch(self.pairs, calls, width * height)
+        resume = None
+        if self._opaque_prefix(signature, calls) == self.opaque:
+            last = max((c.index for c in calls if c.queue <= LAST_OPAQUE_QUEUE), default=0)
+            resume = (self.step1(), last) if last else None
+        frame = render_scene(changed, resume=resume, observer=watch, workers=self.workers,
+                             should_cancel=self.should_cancel, calls=calls)
+        original = self.analysis
+        error = sort_error(frame.color, original.reference, original.hdr)
+        result = watch.counts(), int(np.count_nonzero(error > original.step))
+        self.cache[signature] = result
+        return result
+
+
+def _cleared(scene: DrawScene) -> FrameBuffers:
+    """The cleared buffers of ``scene``'s frame (a step 1 with nothing drawn)."""
+    clear = shade.gamma_color_to_shading(scene.clear_color[:3], scene.color_space) + (float(scene.clear_color[3]),)
+    return FrameBuffers(int(scene.camera.width), int(scene.camera.height), scene.hdr, scene.color_space, clear)
+
+
+def advise(scene: DrawScene, analysis: Analysis, limit: int = 5, workers: int | None = None, *,
+           progress: Callable[[float], None] | None = None,
+           should_cancel: Callable[[], bool] | None = None) -> list[dict]:
+    """Advice items for the ``limit`` largest inversion pairs (fields of docs/json.md), each checked.
+    ``progress``/``should_cancel`` as for :func:`~.sorted_reference.analyze`."""
+    bar = Progress(progress)
+    inversions = analysis.inversions[:limit]
+    plans = []
+    for inv in inversions:
+        if inv.self_overlap:
+            plans.append((inv, [(None, with_prepass(scene, inv.front), None)]))
+        else:
+            plans.append((inv, _pair_candidates(scene, _renderer(scene, inv.front), _renderer(scene, inv.behind))))
+    measurer = _Measurer(scene, analysis, [(inv.front, inv.behind) for inv in inversions], workers, should_cancel)
+    total = max(1, sum(len(candidates) for _, candidates in plans))
+    done = 0
     items = []
     before_differing = analysis.differing
-    for inv in analysis.inversions[:limit]:
+    for inv, candidates in plans:
         base = {**inv.as_json(), "inversions_before": inv.pixels, "differing_before": before_differing}
         base.pop("pixels")
+        pair = (inv.front, inv.behind)
+        best = None
+        for change, changed, sentence in candidates:
+            pixels, differing = measurer.measure(changed)
+            done += 1
+            bar(done / total)
+            score = (pixels[pair], differing)
+            if best is None or score < best[0]:
+                best = (score, change, sentence)
         if inv.self_overlap:
-            changed = with_prepass(scene, inv.front)
-            pairs, differing = _measure(changed, analysis, inv.front, inv.behind, workers)
+            (pairs, differing), _, _ = best
             items.append({**base, "change": None, "technique": "depth prepass", "preset": PREPASS_PRESET,
                           "inversions_after": pairs, "differing_after": differing,
                           "text": (f"{_label(inv.front)} overlaps itself on {inv.pixels} pixels: a depth prepass "
@@ -118,13 +304,6 @@ def advise(scene: DrawScene, analysis: Analysis, limit: int = 5, workers: int | 
                                    "the mesh into parts that sort by distance, or order its triangles back to "
                                    "front (Mesh > Sort Elements)")})
             continue
-        a, b = _renderer(scene, inv.front), _renderer(scene, inv.behind)
-        best = None
-        for change, changed, sentence in _pair_candidates(scene, a, b):
-            pairs, differing = _measure(changed, analysis, inv.front, inv.behind, workers)
-            score = (pairs, differing)
-            if best is None or score < best[0]:
-                best = (score, change, sentence)
         if best is None:
             items.append({**base, "change": None, "inversions_after": inv.pixels,
                           "differing_after": before_differing,
@@ -137,6 +316,7 @@ def advise(scene: DrawScene, analysis: Analysis, limit: int = 5, workers: int | 
                       "text": (f"{_label(inv.front)} is in front of {_label(inv.behind)} on {inv.pixels} pixels "
                                f"but drawn first: {sentence} (checked: {inv.pixels} → {pairs} inverted pixels, "
                                f"{before_differing} → {differing} differing)")})
+    bar(1.0)
     return items
 
 
@@ -147,11 +327,19 @@ def analyze_and_advise(
     workers: int | None = None,
     progress: Callable[[float], None] | None = None,
     should_cancel: Callable[[], bool] | None = None,
+    **kwargs,
 ) -> Analysis:
     """:func:`~.sorted_reference.analyze` of ``scene``, its ``advice`` filled with a checked fix
-    for each of the ``max_advice`` largest inversion pairs (:func:`advise`; 0: none). Raises as
-    ``analyze`` does."""
-    analysis = analyze(scene, workers=workers, progress=progress, should_cancel=should_cancel)
+    for each of the ``max_advice`` largest inversion pairs (:func:`advise`; 0: none). One
+    ``progress`` fraction runs over both. Other keyword arguments go to ``analyze`` (``memory``,
+    ``memory_limit``). Raises as ``analyze`` does."""
+    bar = Progress(progress)
+    share = 1.0 if max_advice <= 0 else 1.0 / (1.0 + ADVICE_WEIGHT * max_advice)
+    analysis = analyze(scene, workers=workers, progress=bar.part(0.0, share), should_cancel=should_cancel,
+                       keep_step1=max_advice > 0, **kwargs)
     if max_advice > 0 and analysis.inversions:
-        analysis.advice = advise(scene, analysis, limit=max_advice, workers=workers)
+        analysis.advice = advise(scene, analysis, limit=max_advice, workers=workers, progress=bar.part(share, 1.0),
+                                 should_cancel=should_cancel)
+    analysis.step1 = None  # the advice's: not part of the result
+    bar(1.0)
     return analysis

@@ -1,20 +1,21 @@
-"""The sorted reference, sort errors, inversions and overdraw (docs/sorting.md), vectorised.
+"""The sorted reference, sort errors, inversions and overdraw (docs/sorting.md), vectorised, in bounded memory.
 
 One observed render of the scene gives everything: the frame as drawn, the buffers after the
 last draw of queue ≤ 2500 (step 1), every fragment of queues 2501–3999 that survived culling
-and the alpha test (with whether the frame wrote it) and the per-pixel fragment counts.
-Step 2 applies the kept fragments per pixel far to near — one stable sort by (pixel, depth
-code descending) of the fragments in draw order, so ties keep draw order then primitive
-order — layer by layer (layer k = the k-th fragment of every pixel, distinct pixels) with
-:func:`blendlib.core.merger.apply_layer`, each layer's fragments grouped by draw call so each
-goes through its own pass's stencil, depth test (against step 1's depth: nothing writes depth
-in step 2), blending and ColorMask. Step 3 resumes the pipeline from those buffers for the
-Overlay draws.
+and the alpha test (with whether the frame wrote it) and the per-pixel fragment counts. The
+fragments are kept compactly by blocks of rows (:mod:`.fragment_store`). Step 2 applies each
+block's fragments per pixel far to near, ties in draw order then primitive order, layer by layer
+(layer k = the k-th farthest fragment of every pixel, distinct pixels), each through its own
+pass's stencil, depth test (against step 1's depth: nothing writes depth in step 2), blending and
+ColorMask; the same block gives the inverted renderer pairs (:mod:`.layering`). Step 3 resumes
+the pipeline from those buffers for the Overlay draws.
 
-Memory is bounded by screen bands: fragments are stored compactly as they arrive (pixel,
-depth code, draw call, colour key: 14 bytes, colours kept once per triangle where the
-shader output is constant) in blocks of rows, and step 2 and the inversion count run one
-band of blocks at a time.
+**Memory** (docs/sorting.md "Cost"): the kept fragments stay within a budget (``memory``,
+default :data:`FRAGMENT_BUDGET`, less when the machine has less to spare). When a frame's
+fragments do not fit, the blocks that did are finished, and the rows above them are rendered
+again, alone, for the next blocks: a few more partial renders instead of more memory. Beyond the
+budget the analysis needs memory in proportion to the pixels (:func:`memory_bound`); a frame for
+which even that is not available is refused before anything is rendered.
 
 Passes with ColorMask 0 write nothing in step 2 (no colour, no depth, no stencil): they are
 left out of it and of the inversion counts.
@@ -23,33 +24,108 @@ left out of it and of the inversion counts.
 from __future__ import annotations
 
 import os
-import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..core.drawlist import DrawCall, draw_calls
-from ..core.merger import BlendTable, FrameBuffers, Outcome, apply_layer, blend_lut, layers_by_rank
+from ..core.merger import FrameBuffers
 from ..core.pipeline import render_scene
-from ..core.records import Frame, FrameObserver, RenderCancelled, ShadedFragments
-from ..core.scene import DrawScene, validate_scene
-from ..core.vertex import DEPTH_MAX
-from ..core.vocabulary import LAST_OPAQUE_QUEUE, QUEUE_NUMBERS, Queue
+from ..core.records import Frame, RenderCancelled
+from ..core.scene import DrawScene, SceneError, validate_scene
+from . import layering
+from .fragment_store import (
+    FIRST_SORTED_QUEUE,
+    LAST_SORTED_QUEUE,
+    FragmentCollector,
+    is_sorted_queue,
+    pixel_ranges,
+)
+from .progress import Progress
 
-#: Queues sorted per fragment in step 2: from the first transparent queue up to Overlay − 1.
-FIRST_SORTED_QUEUE = LAST_OPAQUE_QUEUE + 1
-LAST_SORTED_QUEUE = QUEUE_NUMBERS[Queue.Overlay] - 1
-#: Rows per storage block (fragments are bucketed by block as they arrive).
-BLOCK_ROWS = 32
-#: Fragments per processing band (step 2 and inversions): bounds the sort's working memory.
-BAND_FRAGMENTS = 6_000_000
+__all__ = ["FIRST_SORTED_QUEUE", "LAST_SORTED_QUEUE", "Analysis", "Inversion", "analyze", "is_sorted_queue",
+           "memory_bound", "sort_error"]
+
+#: Default budget of the kept fragments, bytes: about 90 million fragments (50 transparent
+#: layers over 1920x1080 take 73 million) before the rows above are analysed by another pass.
+FRAGMENT_BUDGET = 1 << 30
+#: The smallest budget the analysis lowers itself to when memory is short (then it refuses).
+SMALLEST_BUDGET = 64 << 20
+#: A block holding more fragments than this is taken out of the store by ranges of its pixels.
+TAKE_FRAGMENTS = 1 << 21
+#: Fragments one thread sorts and applies at once (a range of a block's pixels): bounds the
+#: working memory of step 2 and of the inversion count beside the kept fragments.
+WORK_FRAGMENTS = 1 << 19
+#: Memory the analysis needs per pixel at most, bytes, with LDR and with HDR buffers: the
+#: result (frame 21, reference 16, error 4, overdraw 8, inverted 2), the render's buffers and
+#: their step-1 copy (13 each, HDR 25), the overdraw counts (8), and a resumed render's buffers
+#: and frame when Overlay draws follow (measured: 72 and 95 at 3000x3000, budget and work included).
+PIXEL_BYTES = 96
+PIXEL_BYTES_HDR = 128
+#: With advice: a pristine copy of the step-1 buffers, a changed frame, its buffers and error,
+#: and the pairs' images (:class:`blendlib.explain.advice._PairWatch`).
+ADVICE_PIXEL_BYTES = 96
+#: The kept fragments' peak over the budget, per thread processing blocks: a block taken out of
+#: the store (:data:`TAKE_FRAGMENTS` at most), sorted and applied by ranges of
+#: :data:`WORK_FRAGMENTS` (bytes; measured up to 100 MB).
+WORK_BYTES = 160 << 20
 
 
-def is_sorted_queue(queue: int) -> bool:
-    """Whether a draw call of this queue is applied per fragment in step 2 (2501–3999)."""
-    return FIRST_SORTED_QUEUE <= queue <= LAST_SORTED_QUEUE
+def processing_threads(workers: int | None) -> int:
+    """Threads that process blocks: ``workers``, else two (or one on a one-core machine)."""
+    return max(1, int(workers) if workers is not None else min(2, os.cpu_count() or 1))
+
+
+def memory_bound(width: int, height: int, hdr: bool = False, budget: int = FRAGMENT_BUDGET,
+                 advice: bool = False, threads: int = 2) -> int:
+    """Bytes an analysis of a ``width`` x ``height`` frame may add to the process at most: per
+    pixel :data:`PIXEL_BYTES` (HDR :data:`PIXEL_BYTES_HDR`; with ``advice`` also
+    :data:`ADVICE_PIXEL_BYTES`), the fragment ``budget`` and :data:`WORK_BYTES` per processing
+    thread. The budget holds unless a single block of rows
+    (:data:`.fragment_store.BLOCK_PIXELS` pixels) alone holds more than it: thousands of
+    transparent layers on every pixel of it."""
+    per_pixel = (PIXEL_BYTES_HDR if hdr else PIXEL_BYTES) + (ADVICE_PIXEL_BYTES if advice else 0)
+    return int(width) * int(height) * per_pixel + int(budget) + int(threads) * WORK_BYTES
+
+
+def available_memory() -> int | None:
+    """Bytes the system can still give this process (Linux ``MemAvailable``), None where unknown."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
+def fragment_budget(width: int, height: int, hdr: bool, memory: int | None, memory_limit: int | None,
+                    advice: bool = False, threads: int = 2) -> int:
+    """The fragment budget of an analysis: ``memory`` when given, else :data:`FRAGMENT_BUDGET`
+    or what ``memory_limit`` (default: :func:`available_memory`) leaves beside the rest of
+    :func:`memory_bound`, at least :data:`SMALLEST_BUDGET`. Raises :class:`SceneError` (one
+    line, the memory it would need) when the frame does not fit ``memory_limit`` even so."""
+    limit = available_memory() if memory_limit is None else int(memory_limit)
+    if memory is not None:
+        budget = int(memory)
+        if budget < 1:
+            raise SceneError(f"analyze: the fragment memory must be positive, got {memory!r}")
+    else:
+        budget = FRAGMENT_BUDGET
+        if limit is not None:
+            spare = limit - memory_bound(width, height, hdr, 0, advice, threads)
+            budget = max(SMALLEST_BUDGET, min(FRAGMENT_BUDGET, spare))
+    need = memory_bound(width, height, hdr, budget, advice, threads)
+    if limit is not None and need > limit:
+        work = threads * WORK_BYTES
+        raise SceneError(
+            f"analyze: a {width}x{height} frame needs about {need / 2**30:.1f} GiB of memory "
+            f"({(need - budget - work) / 2**30:.1f} GiB for its pixels, {(budget + work) / 2**30:.2f} GiB for "
+            f"the transparent fragments) and {max(limit, 0) / 2**30:.1f} GiB is available; lower the resolution")
+    return budget
 
 
 @dataclass(frozen=True)
@@ -95,6 +171,9 @@ class Analysis:
     inversions: list[Inversion]
     hdr: bool
     advice: list[dict] = field(default_factory=list)
+    #: The buffers after the last draw call of queue ≤ 2500, kept for advice (``analyze(...,
+    #: keep_step1=True)``), else None: a changed scene's frame resumes from them.
+    step1: FrameBuffers | None = field(default=None, repr=False)
 
     @property
     def step(self) -> float:
@@ -130,280 +209,110 @@ class Analysis:
         }
 
 
-class _Collector(FrameObserver):
-    """Observes one render: step-1 snapshot, overdraw counts, the sorted-range fragments (compact)."""
-
-    def __init__(self, calls: list[DrawCall], width: int, height: int) -> None:
-        self.width, self.height = width, height
-        n = width * height
-        self.rasterised = np.zeros(n, dtype=np.uint32)
-        self.written = np.zeros(n, dtype=np.uint32)
-        self.sorted_calls = {c.index for c in calls if is_sorted_queue(c.queue) and c.state.color_mask}
-        firsts = [c.index for c in calls if c.queue > LAST_OPAQUE_QUEUE]
-        self.first_after_opaque = min(firsts) if firsts else None
-        self.step1: FrameBuffers | None = None
-        self.final: FrameBuffers | None = None
-        self.lock = threading.Lock()
-        self.block_pixels = BLOCK_ROWS * width
-        self.blocks: list[list[tuple]] = [[] for _ in range((height + BLOCK_ROWS - 1) // BLOCK_ROWS)]
-        self.block_counts = np.zeros(len(self.blocks), dtype=np.int64)
-        self.palettes: dict[int, list[np.ndarray]] = {}  # call → palettes (constant triangle colours)
-        self.palette_size: dict[int, int] = {}
-        self.table: list[np.ndarray] = []  # float64 (K, 4) colours of the other fragments
-        self.table_size = 0
-        self.call_dtype = np.uint16 if len(calls) < 65535 else np.int32
-
-    def draw_begin(self, call, buffers) -> None:
-        if call.index == self.first_after_opaque:
-            self.step1 = buffers.copy()
-
-    def draw_end(self, call, buffers, triangles) -> None:
-        self.final = buffers
-
-    def fragments(self, call: DrawCall, frags: ShadedFragments, outcome: np.ndarray) -> None:
-        pix = frags.pix
-        lo, hi = int(pix.min()), int(pix.max())
-        # Bands of the pipeline own disjoint row ranges, so these slices never overlap between threads.
-        self.rasterised[lo:hi + 1] += np.bincount(pix - lo, minlength=hi - lo + 1).astype(np.uint32)
-        wrote = outcome == Outcome.WRITTEN
-        if wrote.any():
-            wp = pix[wrote]
-            self.written[lo:hi + 1] += np.bincount(wp - lo, minlength=hi - lo + 1).astype(np.uint32)
-        if call.index not in self.sorted_calls:
-            return
-        if frags.alive is not None:
-            frags = frags.select(frags.alive)
-            wrote = wrote[outcome != Outcome.ALPHA_TEST]
-            if frags.count == 0:
-                return
-        key = self._colour_keys(call.index, frags)
-        pix32 = frags.pix.astype(np.int32)
-        depth32 = frags.depth.astype(np.int32)
-        block = frags.pix // self.block_pixels
-        b0, b1 = int(block[0]), int(block.max())
-        calls = np.full(frags.count, call.index, dtype=self.call_dtype)
-        if b0 == b1 and int(block.min()) == b0:
-            parts = [(b0, slice(None))]
-        else:
-            order = np.argsort((block - block.min()).astype(np.uint16), kind="stable")
-            sb = block[order]
-            cuts = np.flatnonzero(sb[1:] != sb[:-1]) + 1
-            bounds = np.concatenate([[0], cuts, [sb.size]])
-            parts = [(int(sb[a]), order[a:b]) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
-        pieces = [(b, (pix32[s], depth32[s], calls[s], key[s], wrote[s])) for b, s in parts]
-        with self.lock:
-            for b, piece in pieces:
-                self.blocks[b].append(piece)
-                self.block_counts[b] += piece[0].size
-
-    def _colour_keys(self, index: int, frags: ShadedFragments) -> np.ndarray:
-        """(N,) int32: ≥ 0 an entry of the call's palette, < 0 the table row ``-1 - key``."""
-        n = frags.count
-        key = np.empty(n, dtype=np.int32)
-        if frags.ids is not None:
-            tabled = frags.ids >= 0
-            with self.lock:
-                offset = self.palette_size.get(index, 0)
-                self.palettes.setdefault(index, []).append(frags.palette)
-                self.palette_size[index] = offset + frags.palette.shape[0]
-            key[tabled] = frags.ids[tabled] + offset
-            rest = np.flatnonzero(~tabled)
-        else:
-            rest = None
-        if frags.rgba is None:  # every colour is a palette entry
-            rows = np.empty((0, 4), dtype=np.float64)
-        else:
-            rows = frags.rgba if rest is None else frags.rgba[rest]
-        if rows.shape[0]:
-            # Consecutive fragments of a constant-colour triangle share one table row.
-            new = np.ones(rows.shape[0], dtype=bool)
-            new[1:] = (rows[1:] != rows[:-1]).any(axis=1)
-            run = np.cumsum(new) - 1
-            unique = rows[new]
-            with self.lock:
-                offset = self.table_size
-                self.table.append(unique)
-                self.table_size += unique.shape[0]
-            codes = (-1 - (offset + run)).astype(np.int32)
-            if rest is None:
-                key[:] = codes
-            else:
-                key[rest] = codes
-        return key
-
-    def bands(self) -> list[list[int]]:
-        """Consecutive blocks grouped into bands of at most about BAND_FRAGMENTS fragments."""
-        out: list[list[int]] = []
-        current: list[int] = []
-        total = 0
-        for b, count in enumerate(self.block_counts.tolist()):
-            if count == 0:
-                continue
-            if current and total + count > BAND_FRAGMENTS:
-                out.append(current)
-                current, total = [], 0
-            current.append(b)
-            total += count
-        if current:
-            out.append(current)
-        return out
-
-    def take_band(self, blocks: list[int]) -> tuple[np.ndarray, ...]:
-        """Concatenate (and free) the pieces of ``blocks``: pix, depth, call, key, written."""
-        pieces = [p for b in blocks for p in self.blocks[b]]
-        for b in blocks:
-            self.blocks[b] = []
-        pix, depth, call, key, written = (np.concatenate([p[k] for p in pieces]) for k in range(5))
-        return pix.astype(np.int64), depth.astype(np.int64), call, key, written
+#: Rows of the sort error computed at once (bounds its temporaries).
+ERROR_ROWS = 256
 
 
-class _Step2:
-    """Applies a band's fragments far to near with their passes' state (no depth writes).
-
-    Draw calls whose passes have the same state share one group: one blend table over their
-    palettes laid end to end, so a layer costs one merge per distinct state, not one per draw
-    call (a layer's fragments lie on distinct pixels, so the grouping cannot change the result).
-    """
-
-    def __init__(self, collector: _Collector, calls: dict[int, DrawCall], buf: FrameBuffers) -> None:
-        self.c = collector
-        self.buf = buf
-        self.table = np.concatenate(collector.table) if collector.table else np.zeros((0, 4), np.float64)
-        size = max(calls, default=0) + 1
-        self.group_of_call = np.zeros(size, dtype=np.int64)
-        self.base_of_call = np.zeros(size, dtype=np.int64)  # offset of the call's palette in its group's
-        self.group_pass: list = []
-        self.group_calls: list[list[int]] = []
-        groups: dict = {}
-        filled: list[int] = []
-        for index in sorted(collector.sorted_calls):
-            state = replace(calls[index].state, zwrite=False)
-            g = groups.setdefault(state, len(groups))
-            if g == len(self.group_pass):
-                self.group_pass.append(state)
-                self.group_calls.append([])
-                filled.append(0)
-            self.group_of_call[index] = g
-            self.base_of_call[index] = filled[g]
-            self.group_calls[g].append(index)
-            filled[g] += collector.palette_size.get(index, 0)
-        self.luts: dict[int, BlendTable] = {}
-        self.lock = threading.Lock()
-
-    def lut(self, group: int) -> BlendTable:
-        with self.lock:  # bands run on two threads: build each table once
-            if group not in self.luts:
-                palette = np.concatenate([p for i in self.group_calls[group] for p in self.c.palettes.get(i, ())])
-                self.luts[group] = BlendTable(blend_lut(self.buf, self.group_pass[group], palette))
-            return self.luts[group]
-
-    def apply_band(self, pix, depth, call, key, written) -> np.ndarray:
-        """Apply a band (arrays in draw order, ``pix``/``depth`` int64); returns the pixels (sorted,
-        unique) where the written fragments were not applied far to near (candidates for inversions)."""
-        lo = int(pix.min())
-        sort_key = ((pix - lo) << 24) | (DEPTH_MAX - depth)
-        order = np.argsort(sort_key, kind="stable")  # far first; ties keep draw then primitive order
-        del sort_key
-        # In sorted order, a written fragment that arrived before its farther predecessor = an inversion.
-        w = order[written[order]]
-        wp = pix[w]
-        descent = (wp[1:] == wp[:-1]) & (w[1:] < w[:-1])
-        suspects = np.unique(wp[1:][descent])
-        del w, wp, descent
-        layers = layers_by_rank(order, pix[order])  # layer k: the k-th farthest fragment of each pixel
-        del order
-        for sel in layers:
-            self.apply_layer(pix[sel], depth[sel], call[sel], key[sel])
-        return suspects
-
-    def apply_layer(self, pix, depth, call, key) -> None:
-        group = self.group_of_call[call]
-        first, last = int(group.min()), int(group.max())
-        if first == last:
-            groups = [(first, slice(None))]
-        else:
-            order = np.argsort(group, kind="stable")
-            sg = group[order]
-            cuts = np.flatnonzero(sg[1:] != sg[:-1]) + 1
-            bounds = np.concatenate([[0], cuts, [sg.size]])
-            groups = [(int(sg[a]), order[a:b]) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
-        for g, sel in groups:
-            k = key[sel]
-            n = k.size
-            tabled = k >= 0
-            rgba = np.empty((n, 4), dtype=np.float64)
-            ids = lut = None
-            if tabled.any():
-                ids = np.where(tabled, k + self.base_of_call[call[sel]], -1).astype(np.int32)
-                lut = self.lut(g)
-                plain = ~tabled
-                if plain.any():
-                    rgba[plain] = self.table[-1 - k[plain].astype(np.int64)]
-            else:
-                rgba = self.table[-1 - k.astype(np.int64)]
-            apply_layer(self.buf, self.group_pass[g], pix[sel], depth[sel], rgba, ids, lut)
-
-
-def _band_inversions(pix, depth, call, written, renderer_of_call: np.ndarray, nrend: int) -> np.ndarray:
-    """Unique keys ``(pixel * R + front) * R + behind`` of the pairs inverted in a band.
-
-    Among the written fragments of a pixel in the order the frame applied them, (A, B) scores
-    when a fragment of A precedes a farther (larger depth code) fragment of B. Consecutive
-    fragments of one draw call form a run: inside a run that holds iff two neighbours ascend
-    in depth; between runs iff the earlier run's nearest fragment is nearer than the later
-    run's farthest. Only runs preceded by a nearer fragment are paired with their predecessors,
-    so a well-sorted frame costs one pass.
-    """
-    w = np.flatnonzero(written)
-    if w.size == 0:
-        return np.zeros(0, dtype=np.int64)
-    idx = w[np.argsort(pix[w], kind="stable")]
-    p = pix[idx].astype(np.int64)
-    d = depth[idx].astype(np.int64)
-    c = call[idx]
-    r = renderer_of_call[c].astype(np.int64)
-    same_call = (p[1:] == p[:-1]) & (c[1:] == c[:-1])
-    found = []
-    ascent = np.flatnonzero(same_call & (d[:-1] < d[1:])) + 1
-    if ascent.size:
-        found.append((p[ascent] * nrend + r[ascent]) * nrend + r[ascent])
-    run_start = np.ones(p.size, dtype=bool)
-    run_start[1:] = ~same_call
-    starts = np.flatnonzero(run_start)
-    run_pix, run_r = p[starts], r[starts]
-    run_min = np.minimum.reduceat(d, starts)
-    run_max = np.maximum.reduceat(d, starts)
-    seg_start = np.ones(starts.size, dtype=bool)
-    seg_start[1:] = run_pix[1:] != run_pix[:-1]
-    seg = np.cumsum(seg_start) - 1
-    big = np.int64(1 << 25)  # > every depth code: a segmented running minimum by offsets
-    inclusive = np.minimum.accumulate(run_min - seg * big) + seg * big
-    before = np.full(starts.size, big, dtype=np.int64)
-    before[1:] = np.where(seg_start[1:], big, inclusive[:-1])
-    q = np.flatnonzero(before < run_max)
-    t = 1
-    while q.size:
-        a = q - t
-        ok = a >= 0
-        ok[ok] = seg[a[ok]] == seg[q[ok]]
-        q, a = q[ok], a[ok]
-        hit = run_min[a] < run_max[q]
-        if hit.any():
-            found.append((run_pix[q[hit]] * nrend + run_r[a[hit]]) * nrend + run_r[q[hit]])
-        t += 1
-    if not found:
-        return np.zeros(0, dtype=np.int64)
-    return np.unique(np.concatenate(found))
+def reference_from_codes(frame_color: np.ndarray, frame: FrameBuffers,
+                         reference: FrameBuffers) -> tuple[np.ndarray, np.ndarray]:
+    """(reference (H, W, 4) float32, :func:`sort_error` (H, W) float32) of two LDR buffers —
+    the frame's, whose output is ``frame_color``, and the reference's — from their stored 8-bit
+    codes: the frame's values where the codes agree, the reference's output and the code
+    difference (what ``rint(value * 255)`` recovers, every code checked by tests/explain) where
+    they differ."""
+    h, w = frame.height, frame.width
+    differ = np.flatnonzero(frame.packed() != reference.packed())
+    out = frame_color.copy()
+    error = np.zeros((h, w), dtype=np.float32)
+    if differ.size:
+        y, x = h - 1 - differ // w, differ % w
+        codes = reference.color[differ]
+        out[y, x] = np.divide(codes, np.float32(255), dtype=np.float32)  # as FrameBuffers.output
+        error[y, x] = np.abs(frame.color[differ].astype(np.int16) - codes.astype(np.int16)).max(axis=1)
+    return out, error
 
 
 def sort_error(frame_color: np.ndarray, reference: np.ndarray, hdr: bool) -> np.ndarray:
     """(H, W) float32: the largest absolute difference over RGBA (8-bit steps on the codes for LDR)."""
-    if hdr:
-        diff = np.abs(frame_color.astype(np.float64) - reference.astype(np.float64))
-    else:
-        diff = np.abs(np.rint(frame_color * np.float32(255)).astype(np.int16)
-                      - np.rint(reference * np.float32(255)).astype(np.int16))
-    return diff.max(axis=-1).astype(np.float32)
+    out = np.empty(frame_color.shape[:2], dtype=np.float32)
+    for y in range(0, frame_color.shape[0], ERROR_ROWS):
+        a, b = frame_color[y:y + ERROR_ROWS], reference[y:y + ERROR_ROWS]
+        if hdr:
+            diff = np.abs(a.astype(np.float64) - b.astype(np.float64))
+        else:
+            diff = np.abs(np.rint(a * np.float32(255)).astype(np.int16) - np.rint(b * np.float32(255)).astype(np.int16))
+        out[y:y + ERROR_ROWS] = diff.max(axis=-1)
+    return out
+
+
+
+class _Blocks:
+    """Step 2 and the inversion count of the blocks each pass keeps, two blocks at a time on the
+    two cores (numpy releases the GIL; blocks own disjoint pixels), at most ``threads`` blocks
+    taken out of the store at once."""
+
+    def __init__(self, calls: list[DrawCall], renderer_of_call: np.ndarray, renderers: int,
+                 threads: int, should_cancel: Callable[[], bool] | None) -> None:
+        self.by_index = {c.index: c for c in calls}
+        self.renderer_of_call = renderer_of_call
+        self.renderers = renderers
+        sorted_per_renderer = np.bincount(
+            [renderer_of_call[c.index] for c in calls if is_sorted_queue(c.queue) and c.state.color_mask],
+            minlength=renderers)
+        # One sorted draw call per renderer: each (pixel, front, behind) is found once.
+        self.exact_keys = bool(np.all(sorted_per_renderer <= 1))
+        self.threads = threads
+        self.should_cancel = should_cancel
+        self.rows_finished = 0
+
+    def run(self, collector: FragmentCollector, buf: FrameBuffers):
+        """Yield (first window pixel, inverted pairs per pixel (P,), pair ids, their pixels) of
+        each block ``collector`` kept, its reference rows applied onto ``buf``."""
+        palettes = {index: collector.palette(index) for index in collector.palettes}
+        blender = layering.ReferenceBlender(buf, self.by_index, collector.sorted_calls, palettes,
+                                            dict(collector.call_fragments))
+        self.rows_finished = 0
+
+        def one(unit: list[int]):
+            pixels = len(unit) * collector.block_pixels
+            inverted = np.zeros(pixels, dtype=np.int64)
+            found, tallies = [], []
+            for block in collector.take(unit, TAKE_FRAGMENTS):
+                if self.should_cancel is not None and self.should_cancel():
+                    raise RenderCancelled("render cancelled")
+                per_pixel, ids, tally = self._block(block, pixels, blender)
+                inverted += per_pixel
+                found.append(ids)
+                tallies.append(tally)
+            return unit[-1], (unit[0] * collector.block_pixels, inverted,
+                              np.concatenate(found) if found else np.zeros(0, np.int64),
+                              np.concatenate(tallies) if tallies else np.zeros(0, np.int64))
+
+        with ThreadPoolExecutor(max_workers=self.threads) as pool:
+            for b, out in pool.map(one, collector.units(WORK_FRAGMENTS)):
+                self.rows_finished = collector.rows_of(b)[1] - collector.rows_of(collector.first_block)[0]
+                yield out
+
+    def _block(self, block, block_pixels: int, blender: layering.ReferenceBlender):
+        """Step 2 and the inverted pairs of a block (or a range of its pixels): (inverted pairs
+        per pixel of the block (P,), pair ids, their pixels)."""
+        counts, starts = layering.group_by_pixel(block, block_pixels)
+        group, ids = blender.colour_ids(block)
+        inverted = np.zeros(block_pixels, dtype=np.int64)
+        pair_ids, pair_pixels = [], []
+        for p0, p1 in pixel_ranges(counts, WORK_FRAGMENTS):
+            f0, f1 = int(starts[p0]), int(starts[p1 - 1] + counts[p1 - 1])
+            order, bounds = layering.far_to_near_layers(counts[p0:p1], starts[p0:p1] - f0, block.depth(slice(f0, f1)))
+            blender.apply(block, group, ids, order, bounds, f0)
+            del order
+            per_pixel, found, tally = layering.block_inversions(block, f0, f1, counts[p0:p1], self.renderer_of_call,
+                                                                self.renderers, self.exact_keys)
+            inverted[p0:p1] = per_pixel
+            pair_ids.append(found)
+            pair_pixels.append(tally)
+        found = np.concatenate(pair_ids) if pair_ids else np.zeros(0, dtype=np.int64)
+        tally = np.concatenate(pair_pixels) if pair_pixels else np.zeros(0, dtype=np.int64)
+        return inverted, found, tally
 
 
 def analyze(
@@ -412,74 +321,85 @@ def analyze(
     workers: int | None = None,
     progress: Callable[[float], None] | None = None,
     should_cancel: Callable[[], bool] | None = None,
+    memory: int | None = None,
+    memory_limit: int | None = None,
+    keep_step1: bool = False,
 ) -> Analysis:
     """Render ``scene`` and its sorted reference; sort error, inversions, overdraw (docs/sorting.md).
 
+    ``memory``: the budget of kept fragments in bytes (default :data:`FRAGMENT_BUDGET`, lowered
+    to what ``memory_limit`` leaves); ``memory_limit``: the bytes the analysis may use (default:
+    what the system has available), see :func:`memory_bound`. ``keep_step1``: keep a copy of the
+    step-1 buffers in the result (advice resumes from them). ``progress(fraction)`` and
+    ``should_cancel()`` as for :func:`~blendlib.core.pipeline.render_scene`, over every phase.
+
     The result's ``advice`` is empty: advice is checked on top of an analysis
     (:func:`blendlib.explain.advice.analyze_and_advise`). Raises
-    :class:`~blendlib.core.scene.SceneError` for input that cannot render,
-    :class:`~blendlib.core.records.RenderCancelled` when cancelled.
+    :class:`~blendlib.core.scene.SceneError` for input that cannot render or a frame too large
+    for the memory (before anything is rendered), :class:`~blendlib.core.records.RenderCancelled`
+    when cancelled.
     """
     validate_scene(scene)  # one-line SceneError before anything is allocated
     calls = draw_calls(scene)
     cam = scene.camera
     width, height = int(cam.width), int(cam.height)
-    collector = _Collector(calls, width, height)
-    frame = render_scene(scene, observer=collector, workers=workers, progress=progress,
-                         should_cancel=should_cancel, calls=calls)
-    n = width * height
-    inverted = np.zeros(n, dtype=np.uint16)
-    pair_counts: dict[int, int] = {}
+    threads = processing_threads(workers)
+    budget = fragment_budget(width, height, bool(scene.hdr), memory, memory_limit, keep_step1, threads)
+    bar = Progress(progress)
     renderers = list(dict.fromkeys((c.renderer.name, c.renderer.slot) for c in calls))
     rend_index = {key: k for k, key in enumerate(renderers)}
     nrend = max(len(renderers), 1)
     renderer_of_call = np.zeros(len(calls) + 1, dtype=np.int64)
     for c in calls:
         renderer_of_call[c.index] = rend_index[(c.renderer.name, c.renderer.slot)]
+    collector = counts = FragmentCollector(calls, width, height, budget)
+    frame = render_scene(scene, observer=collector, workers=workers, progress=bar.part(0.0, 0.4),
+                         should_cancel=should_cancel, calls=calls)
+    inverted = np.zeros(width * height, dtype=np.uint16)
+    pair_counts: dict[int, int] = {}
+    step1 = error = None
     if not any(is_sorted_queue(c.queue) for c in calls):
         reference = frame.color.copy()
+        error = np.zeros((height, width), dtype=np.float32)
     else:
         buf = collector.step1
-        by_index = {c.index: c for c in calls}
-        step2 = _Step2(collector, by_index, buf)
-
-        def band_inversions(blocks: list[int]) -> np.ndarray:
-            """Step 2 of one band (its pixels are its own), then its inverted pairs' keys."""
-            if should_cancel is not None and should_cancel():
-                raise RenderCancelled("render cancelled")
-            pix, depth, call, key, wrote = collector.take_band(blocks)
-            suspects = step2.apply_band(pix, depth, call, key, wrote)
-            del key
-            if not suspects.size:
-                return np.zeros(0, dtype=np.int64)
-            lo = int(suspects[0])
-            marked = np.zeros(int(suspects[-1]) - lo + 1, dtype=bool)
-            marked[suspects - lo] = True
-            inside = (pix >= lo) & (pix <= int(suspects[-1]))
-            inside[inside] = marked[pix[inside] - lo]
-            wrote &= inside
-            return _band_inversions(pix, depth, call, wrote, renderer_of_call, nrend)
-
-        # Bands own disjoint pixels: two at a time on the two cores (numpy releases the GIL),
-        # at most ``threads`` bands' fragments in memory at once.
-        threads = workers if workers is not None else min(2, os.cpu_count() or 1)
-        with ThreadPoolExecutor(max_workers=max(1, threads)) as pool:
-            for keys in pool.map(band_inversions, collector.bands()):
-                if keys.size:
-                    pixel = keys // (nrend * nrend)
-                    np.add.at(inverted, pixel, 1)
-                    pairs, counts = np.unique(keys % (nrend * nrend), return_counts=True)
-                    for pair, count in zip(pairs.tolist(), counts.tolist(), strict=True):
-                        pair_counts[pair] = pair_counts.get(pair, 0) + count
+        step1 = buf.copy() if keep_step1 else None
+        blocks = _Blocks(calls, renderer_of_call, nrend, threads, should_cancel)
+        while True:
+            rows_before = collector.rows_of(collector.first_block)[0]
+            for start, per_pixel, ids, tally in blocks.run(collector, buf):
+                inverted[start:start + per_pixel.size] = per_pixel[:inverted.size - start]
+                for pair, count in zip(ids.tolist(), tally.tolist(), strict=True):
+                    pair_counts[pair] = pair_counts.get(pair, 0) + count
+                bar(0.4 + 0.55 * (rows_before + blocks.rows_finished) / height)
+            if collector.limit >= collector.block_count:
+                break
+            # The rows above the blocks kept: another pass renders them alone and keeps what fits.
+            first = collector.limit
+            collector = FragmentCollector(calls, width, height, budget, first_block=first, overdraw=False)
+            render_scene(scene, observer=collector, workers=workers, should_cancel=should_cancel, calls=calls,
+                         band=(collector.rows_of(first)[0], height))
+        bar(0.95)
         last_sorted = max(c.index for c in calls if c.queue <= LAST_SORTED_QUEUE)
         if any(c.queue > LAST_SORTED_QUEUE for c in calls):
-            reference = render_scene(scene, resume=(buf, last_sorted), workers=workers, calls=calls).color
-        else:
+            reference = render_scene(scene, resume=(buf, last_sorted), workers=workers, calls=calls,
+                                     should_cancel=should_cancel).color
+        elif scene.hdr:
             reference = buf.output()[0]
-    overdraw = np.stack([collector.rasterised, collector.written], axis=-1).reshape(height, width, 2)[::-1].copy()
+        else:
+            reference, error = reference_from_codes(frame.color, counts.final, buf)
+        del buf
+    overdraw = np.empty((height, width, 2), dtype=np.uint32)
+    overdraw[..., 0] = counts.rasterised.reshape(height, width)[::-1]
+    np.subtract(counts.rasterised, counts.unwritten, out=counts.unwritten)
+    overdraw[..., 1] = counts.unwritten.reshape(height, width)[::-1]
+    del counts, collector
     inversions = [Inversion(renderers[pair // nrend], renderers[pair % nrend], count)
                   for pair, count in pair_counts.items()]
     inversions.sort(key=lambda inv: (-inv.pixels, inv.front, inv.behind))
-    return Analysis(frame=frame, reference=reference, error=sort_error(frame.color, reference, scene.hdr),
-                    overdraw=overdraw, inverted=inverted.reshape(height, width)[::-1].copy(),
-                    inversions=inversions, hdr=bool(scene.hdr))
+    if error is None:
+        error = sort_error(frame.color, reference, scene.hdr)
+    bar(1.0)
+    return Analysis(frame=frame, reference=reference, error=error, overdraw=overdraw,
+                    inverted=inverted.reshape(height, width)[::-1].copy(), inversions=inversions,
+                    hdr=bool(scene.hdr), step1=step1)

@@ -7,13 +7,16 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
+import pytest
 
 from blendlib.core.drawlist import draw_calls
 from blendlib.core.vocabulary import Cull, Queue
-from blendlib.explain.advice import analyze_and_advise, with_queue_offset
-from blendlib.explain.sorted_reference import analyze
-from tests.explain.test_sorted_reference import BLEND, _two_quads
+from blendlib.explain import advice
+from blendlib.explain.advice import analyze_and_advise, with_prepass, with_queue_offset
+from blendlib.explain.sorted_reference import analyze, sort_error
+from tests.explain.test_sorted_reference import BLEND, _two_quads, layered_scene, transparent
 from tests.reference import scenes as sc
+from tests.reference.random_scenes import seeded_scene
 
 
 def _named(scene):
@@ -57,3 +60,80 @@ def test_self_overlap_advice_is_the_prepass_with_its_price():
     assert item["differing_after"] > 0  # only the front layer shows
     assert "Sort Elements" in item["text"] and "front layer" in item["text"]
     assert np.all(result.inverted[result.inverted > 0] == 1)
+
+
+def _full_measure(original, pairs):
+    """What advice measured before it re-rendered only what a change can change: a whole new
+    analysis of the changed scene, compared with the original sorted reference."""
+
+    def measure(changed):
+        after = analyze(changed)
+        error = sort_error(after.frame.color, original.reference, original.hdr)
+        return {pair: after.pair_pixels(*pair) for pair in pairs}, int(np.count_nonzero(error > original.step))
+
+    return measure
+
+
+def _candidates(scene, inv):
+    if inv.self_overlap:
+        return [with_prepass(scene, inv.front)]
+    a = next(r for r in scene.renderers if (r.name, r.slot) == inv.front)
+    b = next(r for r in scene.renderers if (r.name, r.slot) == inv.behind)
+    return [changed for _, changed, _ in advice._pair_candidates(scene, a, b)]
+
+
+def _two_pass_quad_scene():
+    """Quad A in two passes, the second pushed farther by its Offset (its nearest fragment comes
+    first), then quad B on the same plane at a depth between the two; and two quads C, D beside
+    them in the wrong order, whose fixes leave A drawn before B: the pair (A, B) stays inverted."""
+    cam = sc.screen_camera(128, 8)  # long rows: chunks the rasteriser knows are one layer
+    a = sc.renderer(sc.quad(0, 0, 64, 8), sc.unlit((0.9, 0.1, 0.1, 0.5), queue=Queue.Transparent, name="MA",
+                                                    passes=[BLEND, replace(BLEND, offset_units=1000.0)]), name="A")
+    b = sc.renderer(sc.quad(0, 0, 64, 8), sc.unlit((0.1, 0.9, 0.1, 0.5), queue=Queue.Transparent, queue_offset=1,
+                                                    name="MB", passes=[replace(BLEND, offset_units=500.0)]), name="B")
+    c = sc.renderer(sc.quad(64, 0, 128, 8, z=1.0), sc.unlit((0.1, 0.1, 0.9, 0.5), queue=Queue.Transparent,
+                                                            name="MC", passes=[BLEND]), name="C")
+    d = sc.renderer(sc.quad(64, 0, 128, 8, z=-1.0), sc.unlit((0.9, 0.9, 0.1, 0.5), queue=Queue.Transparent,
+                                                             queue_offset=1, name="MD", passes=[BLEND]), name="D")
+    return sc.scene(cam, a, b, c, d)
+
+
+def _advice_scenes():
+    yield "two-pass quad", _two_pass_quad_scene()
+    for seed in range(10):
+        yield f"layered {seed}", layered_scene(seed)
+    for seed in (3, 11, 23, 31, 47):
+        yield f"seeded {seed}", _named(transparent(seeded_scene(seed), every=1))
+        yield f"seeded shared {seed}", transparent(seeded_scene(seed + 100), every=2)
+
+
+@pytest.mark.parametrize("keep_step1", [True, False])
+def test_measurements_equal_a_full_analysis_of_each_changed_scene(keep_step1):
+    """Every candidate of every advised pair, on random scenes (stencil, ZWrite and ZTest
+    variations, Cull Off, several passes, opaque and overlay queues): the inverted pixels of
+    every advised pair and the differing pixels equal those of a full analysis of the changed scene."""
+    checked = 0
+    for name, scene in _advice_scenes():
+        original = analyze(scene, keep_step1=keep_step1)
+        pairs = [(inv.front, inv.behind) for inv in original.inversions[:5]]
+        measurer = advice._Measurer(scene, original, pairs, None, None)
+        full = _full_measure(original, pairs)
+        for inv in original.inversions[:5]:
+            for changed in _candidates(scene, inv):
+                assert measurer.measure(changed) == full(changed), (name, inv)
+                checked += 1
+    assert checked > 40
+
+
+@pytest.mark.parametrize("seed", [0, 2, 5])
+def test_advice_equals_advice_measured_by_full_analyses(monkeypatch, seed):
+    scene = layered_scene(seed)
+    fast = analyze_and_advise(scene)
+    assert fast.advice
+
+    def full(self, changed):
+        return _full_measure(self.analysis, self.pairs)(changed)
+
+    monkeypatch.setattr(advice._Measurer, "measure", full)
+    slow = analyze_and_advise(scene)
+    assert fast.advice == slow.advice

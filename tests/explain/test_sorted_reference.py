@@ -16,6 +16,7 @@ from blendlib.core.drawlist import draw_calls
 from blendlib.core.merger import Outcome
 from blendlib.core.pipeline import FrameObserver
 from blendlib.core.vocabulary import BlendFactor, CompareFunction, Cull, Pass, Queue, preset
+from blendlib.explain import fragment_store
 from blendlib.explain import sorted_reference as sr
 from blendlib.explain.sorted_reference import analyze
 from tests.reference import scenes as sc
@@ -60,14 +61,27 @@ def test_random_scenes_equal_the_scalar_sorted_reference(scene):
     assert_reference(transparent(scene, every=2))
 
 
-def test_small_bands_and_blocks_give_the_same_result(monkeypatch):
-    scene = transparent(seeded_scene(42))
+@pytest.mark.parametrize("seed", [42, 7])
+def test_small_blocks_ranges_and_budgets_give_the_same_result(monkeypatch, seed):
+    """One row per block, a few fragments per working range, and a budget so small that every
+    pass keeps one block (the rows above are rendered again, alone): the same analysis."""
+    scene = transparent(seeded_scene(seed))
     whole = analyze(scene)
-    monkeypatch.setattr(sr, "BLOCK_ROWS", 1)
-    monkeypatch.setattr(sr, "BAND_FRAGMENTS", 5)
-    banded = analyze(scene)
-    assert np.array_equal(whole.reference, banded.reference)
-    assert np.array_equal(whole.inverted, banded.inverted) and whole.inversions == banded.inversions
+    monkeypatch.setattr(fragment_store, "BLOCK_PIXELS", 1)
+    monkeypatch.setattr(sr, "WORK_FRAGMENTS", 5)
+    passes = []
+    real = fragment_store.FragmentCollector.__init__
+
+    def counted(self, *args, **kwargs):
+        passes.append(kwargs.get("first_block", 0))
+        real(self, *args, **kwargs)
+
+    monkeypatch.setattr(fragment_store.FragmentCollector, "__init__", counted)
+    banded = analyze(scene, memory=1)
+    assert len(passes) > 2 and passes == sorted(passes)  # pass k starts where pass k - 1 stopped
+    for name in ("reference", "error", "overdraw", "inverted"):
+        assert np.array_equal(getattr(whole, name), getattr(banded, name)), name
+    assert whole.inversions == banded.inversions and np.array_equal(whole.frame.color, banded.frame.color)
 
 
 def _two_quads(order_right: bool):
@@ -283,3 +297,26 @@ def test_inversions_equal_a_plain_pairwise_count(seed):
     result = analyze(scene)
     assert {(i.front, i.behind): i.pixels for i in result.inversions} == pairs
     assert np.array_equal(result.inverted, inverted.reshape(cam.height, cam.width)[::-1])
+
+
+@pytest.mark.parametrize("space", ["Gamma", "Linear"])
+def test_the_reference_and_error_from_stored_codes_equal_those_of_the_float_outputs(space):
+    """Every pair of 8-bit codes in every channel (and pixels where the codes agree):
+    reference_from_codes (the analysis' LDR path) equals the reference buffers' float output and
+    sort_error of the two outputs."""
+    from blendlib.core.merger import FrameBuffers
+    from blendlib.core.vocabulary import ColorSpace
+
+    cs = ColorSpace[space]
+    a = FrameBuffers(256, 260, False, cs, (0, 0, 0, 0))
+    b = FrameBuffers(256, 260, False, cs, (0, 0, 0, 0))
+    first, second = np.meshgrid(np.arange(256, dtype=np.uint8), np.arange(256, dtype=np.uint8))
+    for c in range(4):  # each channel holds every pair once, in a different arrangement
+        a.color[:65536, c] = np.roll(first.reshape(-1), 257 * c)
+        b.color[:65536, c] = np.roll(second.reshape(-1), 257 * c)
+    a.color[65536:] = b.color[65536:] = 77  # four rows where the codes agree
+    frame, reference = a.output()[0], b.output()[0]
+    out, error = sr.reference_from_codes(frame, a, b)
+    assert np.array_equal(out, reference) and out.dtype == np.float32
+    expected = sr.sort_error(frame, reference, False)
+    assert np.array_equal(error, expected) and float(expected.max()) == 255.0 and not expected[:4].any()

@@ -1,0 +1,381 @@
+"""The kept fragments of the sorted reference (docs/sorting.md "Cost"): an observer that stores every
+fragment of queues 2501–3999 compactly, by blocks of rows, within a memory budget.
+
+A render hands its fragments over chunk by chunk (:class:`~blendlib.core.records.FrameObserver`);
+:class:`FragmentCollector` keeps those of the sorted calls (queue 2501–3999, ColorMask not 0) that
+survived the alpha test, split by **block** — a run of whole rows of at most
+:data:`BLOCK_PIXELS` pixels, so a pixel within its block fits 16 bits — in the order they arrive,
+which at each pixel is the order the frame applied them. Per fragment it keeps 12 bytes:
+
+- ``local`` uint16: the pixel within its block (``pixel - block * block_pixels``);
+- ``depth_written`` uint32: the 24-bit depth code, bit 31 set when the frame wrote the fragment;
+- ``call`` uint16 (int32 beyond 65535 draw calls): the draw call;
+- ``key`` int32: its colour — ``k >= 0`` entry ``k`` of the call's palette (constant-colour
+  triangles, one entry per triangle colour, kept once per call), ``k < 0`` row ``-1 - k`` of its
+  piece's colour table (per-fragment colours, consecutive equal colours stored once: 32 bytes).
+
+**Budget.** The collector counts the bytes it holds (pieces, colour tables, palettes). Past
+``budget`` it drops the highest stored block and stores no more fragments of the rows above it
+(never the first block of the pass, so each pass makes progress): the blocks it keeps,
+``[first_block, limit)``, are complete. The rows it dropped are collected by the next pass, a
+render of those rows only (:func:`blendlib.core.pipeline.render_scene`'s ``band``).
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..core.drawlist import DrawCall
+from ..core.merger import FrameBuffers, Outcome
+from ..core.records import FrameObserver, ShadedFragments
+from ..core.vocabulary import LAST_OPAQUE_QUEUE, QUEUE_NUMBERS, Queue
+
+#: Queues sorted per fragment in step 2: from the first transparent queue up to Overlay − 1.
+FIRST_SORTED_QUEUE = LAST_OPAQUE_QUEUE + 1
+LAST_SORTED_QUEUE = QUEUE_NUMBERS[Queue.Overlay] - 1
+#: Pixels per storage block at most (whole rows; one row when a row is wider): a pixel's place in
+#: its block fits 16 bits, and a block is the unit of storage, of eviction and of processing.
+BLOCK_PIXELS = 1 << 15
+#: Bytes kept per fragment (local pixel 2, depth and written 4, draw call 2, colour key 4).
+FRAGMENT_BYTES = 12
+#: Bytes of a colour (RGBA float64) in a palette or a colour table.
+COLOR_BYTES = 32
+#: Bit of ``depth_written`` that marks a fragment the frame wrote.
+WRITTEN_BIT = np.uint32(1 << 31)
+DEPTH_MASK = np.uint32((1 << 24) - 1)
+
+
+def is_sorted_queue(queue: int) -> bool:
+    """Whether a draw call of this queue is applied per fragment in step 2 (2501–3999)."""
+    return FIRST_SORTED_QUEUE <= queue <= LAST_SORTED_QUEUE
+
+
+def block_rows(width: int) -> int:
+    """Rows per block for frames ``width`` pixels wide (at least one)."""
+    return max(1, BLOCK_PIXELS // max(1, int(width)))
+
+
+@dataclass(eq=False)
+class Block:
+    """The kept fragments of one block (the arrays as stored, module doc), in the order the frame
+    applied them at each pixel.
+
+    ``local`` (N,) uint16; ``depth_written`` (N,) uint32 (:data:`DEPTH_MASK`, :data:`WRITTEN_BIT`);
+    ``call`` (N,) uint16 or int32; ``key`` (N,) int32 colour keys, table rows renumbered into
+    ``table`` (K, 4) float64 (row ``-1 - key`` for ``key < 0``). ``start``: the block's first
+    window pixel (``pixel = start + local``)."""
+
+    index: int
+    start: int
+    local: np.ndarray
+    depth_written: np.ndarray
+    call: np.ndarray
+    key: np.ndarray
+    table: np.ndarray
+
+    @property
+    def count(self) -> int:
+        return int(self.local.shape[0])
+
+    def depth(self, index=slice(None)) -> np.ndarray:
+        """(M,) int64 depth codes of fragments ``index``."""
+        return (self.depth_written[index] & DEPTH_MASK).astype(np.int64)
+
+    def written(self, index=slice(None)) -> np.ndarray:
+        """(M,) bool: the frame wrote fragments ``index``."""
+        return self.depth_written[index] >= WRITTEN_BIT
+
+
+class FragmentCollector(FrameObserver):
+    """Observes one render: per-pixel overdraw counts and the step-1 buffers (``overdraw``:
+    the first pass), and the sorted calls' fragments of blocks ``[first_block, limit)``
+    within ``budget`` bytes (module doc).
+
+    ``rasterised``, ``unwritten`` (H*W,) uint32 per window pixel: fragments rasterised, and
+    those not written (with ``overdraw``); ``step1``:
+    a copy of the buffers before the first draw call of a queue above 2500 (None when there is
+    none, or without ``overdraw``)."""
+
+    def __init__(self, calls: list[DrawCall], width: int, height: int, budget: int, *,
+                 first_block: int = 0, overdraw: bool = True) -> None:
+        self.width, self.height = int(width), int(height)
+        self.rows_per_block = block_rows(width)
+        self.block_pixels = self.rows_per_block * self.width
+        self.block_count = (self.height + self.rows_per_block - 1) // self.rows_per_block
+        self.first_block = int(first_block)
+        self.limit = self.block_count
+        self.budget = int(budget)
+        self.overdraw = overdraw
+        n = self.width * self.height
+        self.rasterised = np.zeros(n if overdraw else 0, dtype=np.uint32)
+        self.unwritten = np.zeros(n if overdraw else 0, dtype=np.uint32)  # rasterised but not written
+        self.sorted_calls = frozenset(c.index for c in calls if is_sorted_queue(c.queue) and c.state.color_mask)
+        firsts = [c.index for c in calls if c.queue > LAST_OPAQUE_QUEUE]
+        self.first_after_opaque = min(firsts) if firsts and overdraw else None
+        self.step1: FrameBuffers | None = None
+        self.final: FrameBuffers | None = None
+        self.lock = threading.Lock()
+        self.blocks: list[list[tuple]] = [[] for _ in range(self.block_count)]
+        self.block_counts = np.zeros(self.block_count, dtype=np.int64)
+        self.block_bytes = np.zeros(self.block_count, dtype=np.int64)
+        self.palettes: dict[int, list[np.ndarray]] = {}  # call → its chunks' palettes, in order
+        self.palette_size: dict[int, int] = {}
+        self.palette_bytes = 0
+        self.call_fragments: dict[int, int] = {}  # call → fragments kept (which blend tables pay)
+        self.bytes = 0  # held now: pieces, their tables and the palettes
+        self.peak_bytes = 0
+        self.call_dtype = np.uint16 if max((c.index for c in calls), default=0) < 65535 else np.int32
+
+    #: Draw calls are drawn in batches; only the step-1 snapshot needs the buffers exactly
+    #: between two draw calls (:attr:`exact_before`).
+    exact_boundaries = False
+
+    @property
+    def exact_before(self) -> frozenset[int]:
+        return frozenset() if self.first_after_opaque is None else frozenset((self.first_after_opaque,))
+
+    def reads_depth(self, call: DrawCall) -> bool:
+        return call.index in self.sorted_calls
+
+    def draw_begin(self, call, buffers) -> None:
+        if call.index == self.first_after_opaque:
+            self.step1 = buffers.copy()
+
+    def draw_end(self, call, buffers, triangles) -> None:
+        if self.overdraw:
+            self.final = buffers  # the frame's own buffers (its codes, for the sort error)
+
+    def fragments(self, call: DrawCall, frags: ShadedFragments, outcome: np.ndarray) -> None:
+        wrote = outcome == Outcome.WRITTEN
+        all_written = bool(wrote.all())
+        if self.overdraw:
+            # Bands of the pipeline own disjoint rows, so threads never count the same pixels.
+            _count(self.rasterised, frags.pix, frags.disjoint)
+            if not all_written:
+                _count(self.unwritten, frags.pix[~wrote], frags.disjoint)
+        if call.index not in self.sorted_calls:
+            return
+        if frags.alive is not None and not frags.alive.all():
+            keep = frags.alive
+            frags = frags.select(keep)
+            wrote = wrote[keep]
+            if frags.count == 0:
+                return
+        pix = frags.pix
+        block = pix // self.block_pixels
+        if not any(self.first_block <= int(b) < self.limit for b in (block[0], block[-1])):
+            b_lo, b_hi = int(block.min()), int(block.max())
+            if b_hi < self.first_block or b_lo >= self.limit:
+                return  # rows another pass collects (depth codes not even computed)
+        depth = frags.depth.astype(np.uint32)
+        if all_written:
+            depth |= WRITTEN_BIT
+        elif wrote.any():
+            depth[wrote] |= WRITTEN_BIT
+        key = self._palette_keys(call.index, frags)
+        pieces = []
+        for b, sel in _pieces(block, self.first_block, self.limit):
+            local = np.empty(pix[sel].size, dtype=np.uint16)
+            np.subtract(pix[sel], b * self.block_pixels, out=local, casting="unsafe")
+            n = local.size
+            piece_key = np.empty(n, dtype=np.int32) if key is None else key[sel]
+            own = None if key is None else (np.flatnonzero(piece_key < 0) if frags.rgba is not None else None)
+            table = None
+            if key is None or (own is not None and own.size):
+                rows = frags.rgba[sel]
+                table, codes = _color_table(rows if own is None else rows[own])
+                if own is None:
+                    piece_key[:] = codes
+                else:
+                    piece_key[own] = codes
+            if piece_key.base is not None:
+                piece_key = piece_key.copy()  # a slice of the chunk's keys would keep them all alive
+            piece = (local, depth[sel].copy() if isinstance(sel, slice) else depth[sel],
+                     np.full(n, call.index, dtype=self.call_dtype), piece_key, table)
+            nbytes = n * FRAGMENT_BYTES + (0 if table is None else table.shape[0] * COLOR_BYTES)
+            pieces.append((b, piece, n, nbytes))
+        with self.lock:
+            for b, piece, n, nbytes in pieces:
+                if b >= self.limit:
+                    continue
+                self.blocks[b].append(piece)
+                self.call_fragments[call.index] = self.call_fragments.get(call.index, 0) + n
+                self.block_counts[b] += n
+                self.block_bytes[b] += nbytes
+                self.bytes += nbytes
+            self.peak_bytes = max(self.peak_bytes, self.bytes)
+            self._evict()
+
+    def _evict(self) -> None:
+        """Drop the highest stored blocks while over the budget, never the lowest that holds fragments
+        (each pass makes progress). Under the lock."""
+        if self.bytes <= self.budget:
+            return
+        held = np.flatnonzero(self.block_counts[self.first_block:self.limit])
+        lowest = self.first_block + (int(held[0]) if held.size else 0)  # kept whatever its size
+        while self.bytes > self.budget and self.limit - 1 > lowest:
+            self.limit -= 1
+            b = self.limit
+            self.bytes -= int(self.block_bytes[b])
+            self.blocks[b] = []
+            self.block_counts[b] = 0
+            self.block_bytes[b] = 0
+
+    def _palette_keys(self, index: int, frags: ShadedFragments) -> np.ndarray | None:
+        """(N,) int32 of a chunk: ``>= 0`` the entry of the call's palettes laid end to end,
+        -1 where the fragment has its own colour (a row of ``frags.rgba``); None without a palette."""
+        if frags.ids is None:
+            return None
+        count = frags.palette.shape[0]
+        with self.lock:
+            offset = self.palette_size.get(index, 0)
+            self.palettes.setdefault(index, []).append(frags.palette)
+            self.palette_size[index] = offset + count
+            self.palette_bytes += count * COLOR_BYTES
+            self.bytes += count * COLOR_BYTES
+        if frags.rgba is None:  # every fragment has a palette entry
+            return frags.ids + np.int32(offset)
+        return np.where(frags.ids >= 0, frags.ids + np.int32(offset), np.int32(-1)).astype(np.int32)
+
+    def units(self, most: int) -> list[list[int]]:
+        """The blocks this pass completed that hold fragments, in order, as units processed
+        together: consecutive blocks of at most 65536 pixels in all (a pixel of the unit still
+        fits 16 bits) holding at most ``most`` fragments (so many shallow blocks cost as few
+        rounds of the per-pixel work as deep ones)."""
+        per_unit = max(1, 65536 // self.block_pixels)
+        out: list[list[int]] = []
+        total = 0
+        for b in range(self.first_block, self.limit):
+            count = int(self.block_counts[b])
+            if not count:
+                continue
+            if (out and out[-1][-1] == b - 1 and len(out[-1]) < per_unit and total + count <= most):
+                out[-1].append(b)
+                total += count
+            else:
+                out.append([b])
+                total = count
+        return out
+
+    def take(self, unit: list[int], most: int) -> Iterator[Block]:
+        """The fragments of consecutive blocks ``unit`` (freed here; :meth:`units`) as
+        :class:`Block` s of consecutive pixel ranges, each holding at most ``most`` fragments (a
+        pixel alone may hold more): the working memory of a block stays bounded however deep
+        its pixels are. A unit's pixels are numbered from its first block's first pixel."""
+        pieces = []
+        with self.lock:
+            for k, b in enumerate(unit):
+                shift = k * self.block_pixels
+                pieces += self.blocks[b] if not shift else [(p[0] + np.uint16(shift), *p[1:]) for p in self.blocks[b]]
+                self.blocks[b] = []
+                self.bytes -= int(self.block_bytes[b])
+                self.block_bytes[b] = 0
+        b = unit[0]
+        if not pieces:
+            return
+        if sum(p[0].size for p in pieces) <= most:
+            block = self._block(b, pieces)
+            del pieces  # the block holds the fragments now, not the pieces too
+            yield block
+            return
+        pixels = len(unit) * self.block_pixels
+        counts = np.zeros(pixels, dtype=np.int64)
+        for p in pieces:
+            counts += np.bincount(p[0], minlength=pixels)
+        for p0, p1 in pixel_ranges(counts, most):
+            parts = []
+            for local, dw, call, key, table in pieces:
+                inside = (local >= p0) & (local < p1)
+                if inside.any():
+                    parts.append((local[inside], dw[inside], call[inside], key[inside], table))
+            yield self._block(b, parts)
+
+    def _block(self, b: int, pieces: list[tuple]) -> Block:
+        """The pieces of block ``b`` (or of a range of its pixels) laid end to end."""
+        local = np.concatenate([p[0] for p in pieces])
+        dw = np.concatenate([p[1] for p in pieces])
+        call = np.concatenate([p[2] for p in pieces])
+        key = np.concatenate([p[3] for p in pieces])
+        tables = [p[4] for p in pieces if p[4] is not None]
+        if tables:
+            # Renumber each piece's table rows into the block's table: keys -1 - (offset + row).
+            offset = start = 0
+            for p in pieces:
+                n = p[0].size
+                if p[4] is not None:
+                    if offset:
+                        seg = key[start:start + n]
+                        seg[seg < 0] -= np.int32(offset)
+                    offset += p[4].shape[0]
+                start += n
+            table = np.concatenate(tables)
+        else:
+            table = np.zeros((0, 4), dtype=np.float64)
+        return Block(b, b * self.block_pixels, local, dw, call, key, table)
+
+    def palette(self, index: int) -> np.ndarray:
+        """(K, 4) float64: the call's palettes laid end to end (palette keys index it)."""
+        parts = self.palettes.get(index)
+        return np.concatenate(parts) if parts else np.zeros((0, 4), dtype=np.float64)
+
+    def rows_of(self, b: int) -> tuple[int, int]:
+        """Buffer rows ``[y0, y1)`` (from the bottom) of block ``b``."""
+        return b * self.rows_per_block, min(self.height, (b + 1) * self.rows_per_block)
+
+
+def pixel_ranges(counts: np.ndarray, most: int) -> list[tuple[int, int]]:
+    """Consecutive pixel ranges ``[p0, p1)`` covering every pixel with fragments (``counts``
+    (P,) per pixel), each holding at most ``most`` fragments (or one pixel that alone holds more)."""
+    ends = np.cumsum(counts)
+    total = int(ends[-1]) if ends.size else 0
+    out = []
+    p0, done = int(np.searchsorted(ends, 0, side="right")), 0
+    while done < total:
+        p1 = max(int(np.searchsorted(ends, done + most, side="right")), p0 + 1)
+        out.append((p0, p1))
+        done = int(ends[p1 - 1])
+        p0 = p1
+    return out
+
+
+def _count(counts: np.ndarray, pix: np.ndarray, disjoint: bool) -> None:
+    """``counts[p] += 1`` for every pixel ``p`` in ``pix`` (repeated pixels counted each time)."""
+    if disjoint:
+        counts[pix] += np.uint32(1)
+        return
+    lo, hi = int(pix.min()), int(pix.max())
+    counts[lo:hi + 1] += np.bincount(pix - lo, minlength=hi - lo + 1).astype(np.uint32)
+
+
+#: A chunk falling into more runs of consecutive fragments of one block than this is split by sorting.
+SPLIT_RUNS = 64
+
+
+def _pieces(block: np.ndarray, first: int, limit: int) -> list[tuple[int, slice | np.ndarray]]:
+    """(block, selection) for the fragments of a chunk in blocks ``[first, limit)``, each block's
+    in chunk order: runs of consecutive fragments (slices) when there are few, else index arrays."""
+    cuts = np.flatnonzero(block[1:] != block[:-1]) + 1
+    if cuts.size < SPLIT_RUNS:
+        bounds = [0, *cuts.tolist(), block.size]
+        runs = [(int(block[a]), slice(a, b)) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+        return [(b, s) for b, s in runs if first <= b < limit]
+    b_lo = int(block.min())
+    order = np.argsort((block - b_lo).astype(np.uint16), kind="stable")  # radix; chunk order kept
+    sorted_block = block[order]
+    cuts = np.flatnonzero(sorted_block[1:] != sorted_block[:-1]) + 1
+    bounds = [0, *cuts.tolist(), order.size]
+    parts = [(int(sorted_block[a]), order[a:b]) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+    return [(b, s) for b, s in parts if first <= b < limit]
+
+
+def _color_table(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rows (M, 4) float64 → (distinct consecutive rows (K, 4), codes (M,) int32 ``-1 - row``)."""
+    new = np.ones(rows.shape[0], dtype=bool)
+    if rows.shape[0] > 1:
+        new[1:] = (rows[1:] != rows[:-1]).any(axis=1)
+    codes = (-1 - (np.cumsum(new) - 1)).astype(np.int32)
+    return rows[new], codes
