@@ -24,10 +24,10 @@ from blendlib.core.vocabulary import (
     ColorSpace,
     CompareFunction,
     Cull,
+    Lighting,
     LightMode,
     LightRenderMode,
     LightType,
-    Lighting,
     Material,
     OutlineFormula,
     OutlineMode,
@@ -127,9 +127,7 @@ def vertex_color_sweep(color_space: ColorSpace = ColorSpace.Gamma, seed: int = 2
         mesh = type(mesh)(mesh.positions, mesh.triangles, normals, mesh.uvs, colors=colors, color_encoding=encoding)
         mat = Material(name=f"M{k}", color=tuple(rng.uniform(0.3, 1.0, 4).tolist()), main_tex=texture,
                        main_tex_filter=TextureFilter.Point, lighting=lighting, vertex_color=mode,
-                       tint_color=tuple(rng.uniform(0.2, 0.8, 4).tolist()), queue=Queue.Transparent,
-                       passes=(Pass(blend=True, zwrite=False, src_blend=BlendFactor.SrcAlpha,
-                                    dst_blend=BlendFactor.OneMinusSrcAlpha),))
+                       tint_color=tuple(rng.uniform(0.2, 0.8, 4).tolist()))  # Blend Off: alpha as written
         renderers.append(renderer(mesh, mat, name=f"Q{k:03d}"))
     for k, mode in enumerate(VertexColor):  # no colour attribute: white
         x0, y0 = k * cell, (rows - 1) * cell
@@ -137,8 +135,8 @@ def vertex_color_sweep(color_space: ColorSpace = ColorSpace.Gamma, seed: int = 2
                        tint_color=(0.4, 0.6, 0.2, 0.5))
         renderers.append(renderer(quad(x0, y0, x0 + cell, y0 + cell), mat, name=f"W{k}"))
     return DrawScene(camera=screen_camera(w, h), renderers=tuple(renderers),
-                     light=Light(direction=(0.3, 0.4, 0.9), color=(1.0, 0.9, 0.8), energy=0.8), ambient=(0.2, 0.2, 0.25),
-                     color_space=color_space)
+                     light=Light(direction=(0.3, 0.4, 0.9), color=(1.0, 0.9, 0.8), energy=0.8),
+                     ambient=(0.2, 0.2, 0.25), color_space=color_space)
 
 
 def mip_texture(seed: int = 23, size: int = 32) -> Texture:
