@@ -463,3 +463,18 @@ def test_random_feature_scenes_agree_with_gl(first):
     for mipmapped, limit in ((False, 0.995), (True, 0.99)):
         pixels, agreeing = counts[mipmapped]
         assert pixels == 0 or agreeing / pixels >= limit, (mipmapped, agreeing / pixels)
+
+
+def test_draw_list_and_pixel_history_name_the_light_of_each_forward_add_draw():
+    """docs/json.md: ``light`` is the light a ForwardAdd draw is for, null for the other draws."""
+    from blendlib.explain import framedebug
+
+    sun = ForwardLight("Rim", LightType.Directional, axis=(0, 0, 1), render_mode=LightRenderMode.Important)
+    point = ForwardLight("Bulb", LightType.Point, position=(0, 0, 1), range=5.0, render_mode=LightRenderMode.Important)
+    scene = _plane_scene((BASE, ADD), lights_=(sun, point))
+    items = framedebug.draw_list_json(framedebug.draw_list(scene))
+    # By importance (drawlist.pixel_lights): the sun's 1 before the bulb's 1 × falloff(1/25) = 0.5.
+    assert [(i["pass_name"], i["light"]) for i in items] == [("Base", None), ("Add", "Rim"), ("Add", "Bulb")]
+    history = framedebug.pixel_history(scene, 16, 16).to_json()
+    assert [(f["pass_name"], f["light"], f["result"]) for f in history["fragments"]] == [
+        ("Base", None, "written"), ("Add", "Rim", "written"), ("Add", "Bulb", "written")]
