@@ -178,7 +178,8 @@ class PixelFragment:
         return {
             "draw": call.index, "object": call.renderer.name, "slot": call.renderer.slot,
             "material": call.renderer.material.name, "pass": call.pass_index, "pass_name": call.state.name,
-            "light": _light_name(call), "triangle": self.triangle, "polygon": self.polygon, "depth": float32_json(self.depth),
+            "light": _light_name(call), "triangle": self.triangle, "polygon": self.polygon,
+            "depth": float32_json(self.depth),
             "source": _rgba_json(self.source), "before": _rgba_json(self.before), "after": _rgba_json(self.after),
             "depth_before": float32_json(self.depth_before), "depth_after": float32_json(self.depth_after),
             "stencil_before": self.stencil_before, "stencil_after": self.stencil_after, "result": self.result,
