@@ -121,19 +121,11 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
     # World positions only for Lambert under a point or spot light (a ForwardAdd draw).
     positions = setup.world_positions_of(tris) if normals is not None and state.lights.positional else None
     flat = np.ones(tris.size, dtype=bool)  # shading inputs constant over the triangle (§6)
-    uv_flat = normal_flat = color_flat = position_flat = None
-    if uvs is not None:
-        uv_flat = raster.flat_corners(uvs)
-        flat &= uv_flat
-    if normals is not None:
-        normal_flat = raster.flat_corners(normals)
-        flat &= normal_flat
-    if colors is not None:
-        color_flat = raster.flat_corners(colors)
-        flat &= color_flat
-    if positions is not None:
-        position_flat = raster.flat_corners(positions)
-        flat &= position_flat
+    uv_flat, normal_flat, color_flat, position_flat = (None if corners is None else raster.flat_corners(corners)
+                                                       for corners in (uvs, normals, colors, positions))
+    for corners_flat in (uv_flat, normal_flat, color_flat, position_flat):
+        if corners_flat is not None:
+            flat &= corners_flat
     any_varying = not bool(np.all(flat))
     counts = np.add.reduceat(length, np.flatnonzero(first))  # (K,) fragments per triangle
     groups = None  # texel-palette groups (normals (G, 3), colours, group (K,)) and the triangles they serve

@@ -1,9 +1,10 @@
-"""The scalar reference's shading features of docs/pipeline.md §1 and §7 beyond the book's ForwardBase:
-the outline vertex program, a ForwardAdd draw's light, vertex colours and mipmaps, one value at a time
-in plain Python floats (each sum and product in the order the page writes it).
+"""The scalar reference's shading (docs/pipeline.md §7) and the outline vertex program (§1): the
+fragment program (:class:`Shader`: the book's ForwardBase, a ForwardAdd draw's light, vertex colours,
+mipmaps) and its helpers, one value at a time in plain Python floats (each sum and product in the
+order the page writes it).
 
-A module of its own so that tests/reference/scalar.py stays readable; it uses nothing of
-``blendlib.core`` beyond the vocabulary.
+A module of its own so that tests/reference/scalar.py (the pipeline around it) stays readable; it
+uses nothing of ``blendlib.core`` beyond the data classes and the vocabulary.
 """
 
 from __future__ import annotations
@@ -11,14 +12,32 @@ from __future__ import annotations
 import math
 import struct
 
-from blendlib.core.vocabulary import LightType, OutlineFormula, OutlineMode, TextureFilter
+import numpy as np
+
+from blendlib.core.scene import DrawScene
+from blendlib.core.vocabulary import (
+    ColorSpace,
+    Lighting,
+    LightType,
+    OutlineFormula,
+    OutlineMode,
+    TextureFilter,
+    TextureWrap,
+    VertexColor,
+)
 
 S = 256
 HALF = S // 2
 EXP = 1.0 / 2.4
 
 
+def to_list(m) -> list:
+    """A numpy array (any float dtype) as nested lists of Python floats (float64)."""
+    return np.asarray(m, dtype=np.float64).tolist()
+
+
 def f32(x: float) -> float:
+    """The float32 nearest to ``x`` (round to nearest even; overflow gives +-inf)."""
     try:
         return struct.unpack("<f", struct.pack("<f", x))[0]
     except OverflowError:
@@ -48,6 +67,7 @@ def nmax(a: float, b: float) -> float:
 
 
 def div(a: float, b: float) -> float:
+    """IEEE division (numpy semantics: x/0 is +-inf or nan instead of an exception)."""
     try:
         return a / b
     except ZeroDivisionError:
@@ -267,3 +287,139 @@ def mip_sample(levels: list, sample_level, u: float, v: float, lod: float, filt:
     t0 = sample_level(levels[int(d)], u, v)
     t1 = sample_level(levels[int(d) + 1], u, v)
     return [t0[k] * (1.0 - f) + t1[k] * f for k in range(4)]
+
+
+# ---------------------------------------------------------------- §7 the fragment program
+
+
+class Shader:
+    """The material's fragment program in shading space (docs/pipeline.md §7); :meth:`for_light` sets
+    the light of a ForwardAdd draw."""
+
+    def __init__(self, scene: DrawScene, material):
+        linear = scene.color_space is ColorSpace.Linear
+        self.linear = linear
+
+        def from_gamma(c):  # COLOR_GAMMA colour
+            return decode(c) if linear else c
+
+        def from_linear(c):  # linear Blender colour
+            return c if linear else encode(c)
+
+        self.from_gamma = from_gamma
+        self.color = [from_gamma(float(c)) for c in material.color[:3]] + [float(material.color[3])]
+        self.tint = [from_gamma(float(c)) for c in material.tint_color[:3]] + [float(material.tint_color[3])]
+        self.vertex_color = material.vertex_color
+        self.tiling = [float(v) for v in material.main_tex_tiling]
+        self.offset = [float(v) for v in material.main_tex_offset]
+        self.alpha_scale = float(material.alpha_scale)
+        self.cutoff = float(material.cutoff)
+        self.lambert = material.lighting is Lighting.Lambert
+        self.filter = material.main_tex_filter
+        self.point = material.main_tex_filter is TextureFilter.Point
+        self.repeat = material.main_tex_wrap is TextureWrap.Repeat
+        amb = [float(c) for c in scene.ambient]
+        self.ambient = [from_linear(c) if scene.ambient_is_linear else from_gamma(c) for c in amb]
+        if scene.light is None:
+            self.light = [0.0, 0.0, 0.0]
+            self.ldir = [0.0, 0.0, 0.0]
+        else:
+            energy = float(scene.light.energy)
+            self.light = [from_linear(float(c)) * energy for c in scene.light.color]
+            self.ldir = normalise([float(v) for v in scene.light.direction])
+        self.add = None  # a ForwardAdd draw's light (scalar_shading.AddLight)
+        tex = material.main_tex
+        self.tex = None
+        self.mips = None
+        if tex is not None:
+            rows = to_list(np.asarray(tex.pixels, dtype=np.float32))
+            if tex.encoding == "sRGB":
+                conv = decode if linear else (lambda c: c)
+            elif tex.encoding == "Linear":
+                conv = (lambda c: c) if linear else encode
+            else:
+                conv = lambda c: c  # noqa: E731
+            self.tex = [[[conv(t[0]), conv(t[1]), conv(t[2]), t[3]] for t in row] for row in rows]
+            self.th = len(rows)
+            self.tw = len(rows[0])
+            if material.main_tex_mipmaps:
+                self.mips = build_mips(self.tex, material.main_tex_preserve_coverage, self.cutoff)
+
+    def for_light(self, light, linear: bool) -> Shader:
+        """This program with the light of a ForwardAdd draw (None: the frame's main light)."""
+        self.add = None if light is None else AddLight(light, linear)
+        return self
+
+    def wrap(self, i: int, n: int) -> int:
+        return i % n if self.repeat else min(max(i, 0), n - 1)
+
+    def sample(self, u: float, v: float) -> list:
+        if self.tex is None:
+            return [1.0, 1.0, 1.0, 1.0]
+        return self.sample_level(self.tex, u, v)
+
+    def sample_level(self, T: list, u: float, v: float) -> list:
+        """Sample one level (rows of texels) at texture coordinates (u, v) with the filter (§7)."""
+        w, h = len(T[0]), len(T)
+        if not (math.isfinite(u) and math.isfinite(v)):
+            return list(T[0][0])
+        if self.point:
+            i = self.wrap(math.floor(u * w), w)
+            j = self.wrap(math.floor(v * h), h)
+            return list(T[j][i])
+        fu = u * w - 0.5
+        fv = v * h - 0.5
+        i0 = math.floor(fu)
+        j0 = math.floor(fv)
+        au = fu - i0
+        av = fv - j0
+        i1, j1 = self.wrap(i0 + 1, w), self.wrap(j0 + 1, h)
+        i0, j0 = self.wrap(i0, w), self.wrap(j0, h)
+        out = []
+        for c in range(4):
+            lo = T[j0][i0][c] * (1 - au) + T[j0][i1][c] * au
+            hi = T[j1][i0][c] * (1 - au) + T[j1][i1][c] * au
+            out.append(lo * (1 - av) + hi * av)
+        return out
+
+    def texture_uv(self, uv: list) -> tuple[float, float]:
+        return uv[0] * self.tiling[0] + self.offset[0], uv[1] * self.tiling[1] + self.offset[1]
+
+    def shade(self, uv: list, nw: list, vc: list | None = None, pos: list | None = None,
+              lod: float | None = None) -> list:
+        """rgba of the fragment in shading space (before clamping); ``vc`` the vertex colour in
+        shading space (None: white), ``pos`` the world position, ``lod`` the quad's LOD (mipmaps)."""
+        u, v = self.texture_uv(uv)
+        if self.mips is not None and lod is not None:
+            tex = mip_sample(self.mips, self.sample_level, u, v, lod, self.filter)
+        else:
+            tex = self.sample(u, v)
+        if self.vertex_color is VertexColor.Particle:
+            c = [1.0, 1.0, 1.0, 1.0] if vc is None else vc
+            rgba = [((2.0 * c[k]) * self.tint[k]) * tex[k] for k in range(4)]
+            albedo, alpha = rgba[:3], rgba[3]
+        else:
+            albedo = [tex[c] * self.color[c] for c in range(3)]
+            alpha = (tex[3] * self.color[3]) * self.alpha_scale
+            if self.vertex_color is VertexColor.Multiply and vc is not None:
+                albedo = [albedo[c] * vc[c] for c in range(3)]
+                alpha = alpha * vc[3]
+        if not self.lambert:
+            return albedo + [alpha]
+        n = normalise(nw)
+        if self.add is None:
+            l = self.ldir
+            ndl = nmax(0.0, (n[0] * l[0] + n[1] * l[1]) + n[2] * l[2])
+            rgb = [self.ambient[c] * albedo[c] + (self.light[c] * albedo[c]) * ndl for c in range(3)]
+            return rgb + [alpha]
+        l, atten = light_terms(self.add, pos)
+        ndl = nmax(0.0, (n[0] * l[0] + n[1] * l[1]) + n[2] * l[2])
+        rgb = [((self.add.color[c] * albedo[c]) * ndl) * atten for c in range(3)]
+        return rgb + [alpha]
+
+
+def normalise(v: list) -> list:
+    length = math.sqrt((v[0] * v[0] + v[1] * v[1]) + v[2] * v[2])
+    if length == 0:
+        return [0.0, 0.0, 0.0]
+    return [v[0] / length, v[1] / length, v[2] / length]
