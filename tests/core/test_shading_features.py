@@ -289,6 +289,26 @@ def test_quad_lod_is_log2_of_texels_per_pixel():
         assert np.allclose(got, lod, atol=1e-12), (tpp, np.unique(got))
 
 
+def test_quad_lod_evaluates_the_triangle_plane_which_gives_each_fragment_its_own_coordinates():
+    """The LOD's texture coordinates at any pixel centre come from the triangle's plane (helper
+    pixels included); at a fragment's own pixel they are exactly its interpolated coordinates (§6)."""
+    from blendlib.core import raster, vertex
+
+    scene = mip_sweep(TextureFilter.Trilinear)
+    r = scene.renderers[0]
+    setup = vertex.setup_triangles(r.mesh, r.matrix_world, scene.camera)
+    rows = raster.coverage_rows(setup, vertex.cull_select(setup, Cull.Back), 120, 80)
+    frags = raster.rasterize_rows(rows, 0, rows.count, 120)
+    _, weights = raster.interpolate(setup, frags)
+    corners = setup.uvs_of(setup.src[frags.tri])
+    uv = [(weights[0] * corners[:, 0, c] + weights[1] * corners[:, 1, c]) + weights[2] * corners[:, 2, c]
+          for c in range(2)]
+    expected = shade.texture_uv_of(r.material, uv[0], uv[1])
+    x, y = frags.pix % 120, frags.pix // 120
+    got = mips._texture_uv_at(setup, frags.tri, corners, np.zeros(frags.count, bool), r.material, x, y)
+    assert np.array_equal(got[0], expected[0]) and np.array_equal(got[1], expected[1])
+
+
 def test_trilinear_blends_two_levels_by_the_lod_fraction():
     """GL_LINEAR_MIPMAP_LINEAR: (1 − f)·level d + f·level d+1 with d = floor λ, f = λ − d; the
     nearest-level filters take level ceil(λ + ½) − 1."""
