@@ -524,6 +524,73 @@ def build_gamma_linear():
     save("gamma_linear")
 
 
+def sphere_mesh(name: str, radius=1.0, segments=32, rings=16):
+    """A smooth UV sphere (poles single vertices, outward winding)."""
+    verts = [(0.0, 0.0, radius)]
+    for r in range(1, rings):
+        t = math.pi * r / rings
+        verts += [(radius * math.sin(t) * math.cos(2 * math.pi * k / segments),
+                   radius * math.sin(t) * math.sin(2 * math.pi * k / segments), radius * math.cos(t))
+                  for k in range(segments)]
+    verts.append((0.0, 0.0, -radius))
+
+    def ring(r, k):
+        return 1 + (r - 1) * segments + k % segments
+
+    faces = [(0, ring(1, k), ring(1, k + 1)) for k in range(segments)]
+    faces += [(ring(r, k), ring(r + 1, k), ring(r + 1, k + 1), ring(r, k + 1))
+              for r in range(1, rings - 1) for k in range(segments)]
+    faces += [(len(verts) - 1, ring(rings - 1, k + 1), ring(rings - 1, k)) for k in range(segments)]
+    return scenekit.mesh(name, verts, faces, smooth=True)
+
+
+def forward_light(name: str, kind: str, location, color, *, direction=None, power=None, **unity):
+    """A Point or Spot light; ``power`` (W) with Unity values derived from it (Light.unity's
+    "use Blender values"), else the Unity values ``unity`` stored (intensity, range, spot_angle)."""
+    data = bpy.data.lights.new(name, kind)
+    data.color = color
+    if kind == "SPOT":
+        data.spot_size = math.radians(unity.get("spot_angle", 45.0))
+    ob = bpy.data.objects.new(name, data)
+    ob.location = location
+    if direction is not None:
+        ob.rotation_euler = scenekit.pointing(Vector(direction).normalized(), "-Z")
+    bpy.context.scene.collection.objects.link(ob)
+    if power is not None:
+        data.energy = power
+        data.use_custom_distance, data.cutoff_distance = True, unity["range"]
+    else:
+        blender.write_light_settings(data, use_blender_values=False, **unity)
+    return ob
+
+
+def build_lights():
+    """10. Additional lights: every ForwardAdd pass draws once per per-pixel light, so a transparent
+    object under a sun, two point lights and a spot is drawn four times (SPEC §12)."""
+    scene = new_file("Lights", distance=10.0, sun_energy=0.35, world=0.05)
+    scene.camera.location = (0.0, -8.5, 3.2)
+    scene.camera.rotation_euler = (math.radians(70.0), 0.0, 0.0)  # looking down at the floor
+    base, add = dict(name="ForwardBase"), dict(name="ForwardAdd", light_mode="ForwardAdd", zwrite=False,
+                                               blend=True, src_blend="One", dst_blend="One")
+    stone = material("Stone (ForwardBase + ForwardAdd One One)", color=(0.72, 0.72, 0.72, 1), passes=[base, add])
+    floor = scenekit.mesh("Floor", [(-6, -4, -1.3), (6, -4, -1.3), (6, 4, -1.3), (-6, 4, -1.3)], [(0, 1, 2, 3)])
+    obj("Floor", floor, material=stone)
+    obj("Wall", quad_mesh("Wall", 12.0, 6.0), (0, 3.6, 1.7), material=stone)
+    glass = material("Glass (SrcAlpha OneMinusSrcAlpha + SrcAlpha One)", queue="Transparent",
+                     color=(0.55, 0.75, 1.0, 0.5),
+                     passes=[dict(BLEND, name="ForwardBase"), dict(add, src_blend="SrcAlpha", dst_blend="One")])
+    obj("Glass Sphere", sphere_mesh("Sphere", 1.0), (-1.6, 0.4, -0.2), material=glass)
+    glow = material("Glow (One One + One One)", queue="Transparent", color=(0.45, 0.25, 0.12, 1),
+                    passes=[dict(add, name="ForwardBase", light_mode="ForwardBase"), add])
+    obj("Glow Torus", torus_mesh("Torus", 0.8, 0.3, 48, 16), (1.7, 0.4, -0.2), (70, 0, 20), material=glow)
+    forward_light("Warm Point", "POINT", (-2.6, -0.4, -0.6), (1.0, 0.55, 0.25), power=80.0, range=4.0)
+    forward_light("Cool Point", "POINT", (2.7, -0.3, -0.5), (0.35, 0.6, 1.0), intensity=1.8, range=4.0)
+    forward_light("Spot", "SPOT", (0.0, -0.6, 3.0), (1.0, 0.95, 0.8), direction=(0.0, 0.4, -1.0), intensity=2.0,
+                  range=7.0, spot_angle=40.0)
+    label("ForwardAdd: one draw per per-pixel light", (0, 3.4, 1.05), size=0.26)
+    save("lights")
+
+
 SCENES = {
     "alpha_test": build_alpha_test,
     "alpha_blend": build_alpha_blend,
@@ -534,6 +601,7 @@ SCENES = {
     "blend_modes": build_blend_modes,
     "render_queues": build_render_queues,
     "gamma_linear": build_gamma_linear,
+    "lights": build_lights,
 }
 
 

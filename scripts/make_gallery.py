@@ -34,6 +34,7 @@ CAPTIONS = (
     ("render_queues", "RenderQueues", "8  Render queues, Overlay ZTest Always, Transparent+1"),
     ("gamma_linear", "Gamma", "9a Gamma colour space: blending encoded values"),
     ("gamma_linear", "Linear", "9b Linear colour space: blending in linear light"),
+    ("lights", "Lights", "10 Additional lights: ForwardAdd once per per-pixel light"),
 )
 
 TILE = (480, 270)

@@ -46,6 +46,7 @@ EXPECTED_FILES = {
     "blend_modes.blend": ["BlendModes"],
     "render_queues.blend": ["RenderQueues"],
     "gamma_linear.blend": ["Gamma", "Linear"],
+    "lights.blend": ["Lights"],
 }
 
 
@@ -633,6 +634,74 @@ def test_gamma_vs_linear(scenes):
     gamma = rgb(codes_of(scene(scenes, "gamma_linear.blend", "Gamma"))["color"])
     linear = rgb(codes_of(scene(scenes, "gamma_linear.blend", "Linear"))["color"])
     assert (np.abs(gamma - linear).max(axis=2) > 10).mean() > 0.3
+
+
+# ---------------------------------------------------------------------------
+# 10. Additional lights: ForwardAdd once per per-pixel light
+# ---------------------------------------------------------------------------
+
+
+def _floor_point(draw, x: int, y: int, height: float) -> np.ndarray:
+    """The world point of the plane z = ``height`` seen at the centre of pixel (x, y) (row 0 = top)."""
+    cam = draw.camera
+    inverse = np.linalg.inv(cam.projection @ cam.view_matrix)
+    ndc = ((x + 0.5) / cam.width * 2 - 1, 1 - (y + 0.5) / cam.height * 2)
+    near, far = (inverse @ np.array([*ndc, z, 1.0]) for z in (-1.0, 1.0))
+    near, far = near[:3] / near[3], far[:3] / far[3]
+    t = (height - near[2]) / (far[2] - near[2])
+    return near + t * (far - near)
+
+
+def test_lights_every_forward_add_pass_draws_once_per_light(scenes):
+    """Unity's forward path: the ForwardAdd pass of each lit object draws once per per-pixel light
+    reaching it (all three here, Pixel Light Count 4): the transparent sphere is drawn four times."""
+    from blendlib.core.drawlist import draw_calls
+
+    draw = scene(scenes, "lights.blend")
+    assert sorted(light.name for light in draw.lights) == ["Cool Point", "Spot", "Warm Point"]
+    calls = draw_calls(draw)
+    by_object: dict[str, list] = {}
+    for call in calls:
+        by_object.setdefault(call.renderer.name, []).append(call)
+    glass = by_object["Glass Sphere"]
+    assert [c.state.name for c in glass] == ["ForwardBase", "ForwardAdd", "ForwardAdd", "ForwardAdd"]
+    assert sorted(c.light.name for c in glass[1:]) == ["Cool Point", "Spot", "Warm Point"]
+    assert [len(by_object[n]) for n in ("Floor", "Wall", "Glow Torus")] == [4, 4, 4]
+    # the Glow torus adds (One One), so each additional light can only brighten it
+    alone = render(dataclasses.replace(draw, lights=()))
+    full = codes_of(draw)
+    _, _, depth, _ = probe(draw, "Glow Torus")
+    mask = depth < mg.DMAX
+    assert np.all(rgb(full["color"])[mask] >= rgb(alone["color"])[mask])
+
+
+def test_lights_a_point_light_adds_exactly_its_lambert_term_times_falloff(scenes):
+    """A floor pixel in the warm point light's pool, outside the spot's cone and the cool light's
+    range: the frame there is the sun-lit floor plus ``0.72 × colour × intensity × max(0, N·L) ×
+    atten``, with Unity's falloff ``1 / (1 + 25 r²)`` faded to 0 from 80 % of the range (Gamma mode:
+    the light colour encoded), blended One One."""
+    draw = scene(scenes, "lights.blend")
+    warm = next(light for light in draw.lights if light.name == "Warm Point")
+    assert warm.intensity == pytest.approx(80 / (4 * np.pi ** 2))  # 80 W, derived as glTF → glTFast carry it
+    x, y = 62, 160
+    point = _floor_point(draw, x, y, -1.3)
+    d = np.asarray(warm.position) - point
+    r2 = (d @ d) / warm.range ** 2
+    assert r2 < 0.64  # inside the unfaded part of the range
+    atten = 1 / (1 + 25 * r2)
+    ndl = d[2] / np.linalg.norm(d)  # the floor's normal is +Z
+    add = 0.72 * encode(np.asarray(warm.color)) * warm.intensity * ndl * atten
+    alone = render(dataclasses.replace(draw, lights=()))["color"][y, x, :3].astype(np.float64)
+    expected = quantise(alone / 255 + add)
+    got = rgb(codes_of(draw)["color"])[y, x]
+    assert np.all(np.abs(got - expected) <= 1), (got, expected)
+    assert np.all(got - rgb(alone[None, None])[0, 0] >= 20)  # a pool of warm light, clearly
+    from blendlib.explain import framedebug
+
+    history = framedebug.pixel_history(draw, x, y).to_json()["fragments"]
+    warm_fragment = next(f for f in history if f["light"] == "Warm Point")
+    assert np.allclose(warm_fragment["source"][:3], add, rtol=1e-3)
+    assert [f["light"] for f in history if f["object"] == "Floor"][0] is None  # the base pass first
 
 
 # ---------------------------------------------------------------------------

@@ -203,6 +203,13 @@ def draw_pass(layout, item, rule: tuple[str, str] | None = None) -> None:
     sub.prop(item, "alpha_test_comp")
     col.prop(item, "alpha_to_mask")
     col.separator()
+    col.prop(item, "outline_mode")
+    sub = col.column(align=True)
+    sub.active = item.outline_mode != "Off"
+    sub.prop(item, "outline_width")
+    sub.prop(item, "outline_formula")
+    sub.prop(item, "outline_max_distance")
+    col.separator()
     col.prop(item, "stencil")
     sub = col.column(align=True)
     sub.active = item.stencil

@@ -14,7 +14,7 @@ import numpy as np
 
 from ..core import colorspace
 from ..core.scene import Camera, DrawScene, ForwardLight, Light, Mesh, Renderer, SceneError
-from ..core.vocabulary import ColorSpace, LightType, Material, SortMode, Texture
+from ..core.vocabulary import ColorSpace, LightType, Material, SortMode, Texture, VertexColor
 from .lights import forward_light, is_forward_light
 from .schema import material_from_values, material_values, scene_settings
 
@@ -118,10 +118,12 @@ class _Extractor:
     def _mesh_renderers(self, obj_eval: Any, mesh: Any, matrix_world: np.ndarray, name: str) -> list[Renderer]:
         if mesh is None:
             return []
-        arrays = mesh_arrays(mesh)
-        positions = arrays["positions"]
         slots = obj_eval.material_slots
         mats = [s.material for s in slots] or list(mesh.materials)
+        # Vertex colours are read only when a material uses them (extraction runs on every viewport edit).
+        reads_colors = any(self.material(m).vertex_color is not VertexColor.Off for m in mats)
+        arrays = mesh_arrays(mesh, colors=reads_colors)
+        positions = arrays["positions"]
         finite = positions[np.isfinite(positions).all(axis=1)]  # NaN/inf vertices: the core skips their triangles
         if len(finite):
             lo, hi = finite.min(axis=0).astype(np.float64), finite.max(axis=0).astype(np.float64)
@@ -149,7 +151,7 @@ class _Extractor:
             if mat is None and len(arrays["triangles"]) and mats:
                 cause = (name.split("#")[0], int(slot))  # every instance of one object: one cause
                 self.empty_slots[cause] = self.empty_slots.get(cause, 0) + 1
-            uvs = arrays["uvs"]
+            uvs, colors = arrays["uvs"], arrays.get("colors")
             sub = Mesh(
                 positions=positions,
                 triangles=arrays["triangles"][sel],
@@ -157,6 +159,8 @@ class _Extractor:
                 uvs=None if uvs is None else uvs[sel],
                 polygons=arrays["polygons"][sel],
                 loop_triangles=loop_tris,
+                colors=None if colors is None else colors[sel],
+                color_encoding=arrays.get("color_encoding", "sRGB"),
             )
             out.append(Renderer(name=name, slot=int(slot), mesh=sub, matrix_world=matrix_world,
                                 material=self.material(mat), bounds_center=center))
@@ -172,12 +176,14 @@ def material_from_blender(mat: Any, with_texture: bool = False) -> Material:
     return _Extractor([])._convert_material(mat, with_texture=with_texture)
 
 
-def mesh_arrays(mesh: Any) -> dict[str, np.ndarray | None]:
+def mesh_arrays(mesh: Any, colors: bool = False) -> dict[str, np.ndarray | None]:
     """Triangles of a (temporary, evaluated) Blender mesh as numpy arrays, via fast ``foreach_get``.
 
     ``positions`` (V, 3) float32, ``triangles`` (T, 3) int32 vertex indices in loop-triangle
     order, ``normals`` (T, 3, 3) float32 corner normals, ``uvs`` (T, 3, 2) float32 of the
     active UV map or None, ``material_index`` (T,) int32, ``polygons`` (T,) int32 face index.
+    With ``colors``: ``colors`` (T, 3, 4) float32 per corner of the active colour attribute, or None
+    when the mesh has none, and ``color_encoding`` (:func:`corner_colors`).
     """
     mesh.calc_loop_triangles()
     t = len(mesh.loop_triangles)
@@ -213,8 +219,29 @@ def mesh_arrays(mesh: Any) -> dict[str, np.ndarray | None]:
         poly_mat = np.empty(len(mesh.polygons), np.int32)
         attr.data.foreach_get("value", poly_mat)
         material_index = np.take(poly_mat, tri_poly)
-    return {"positions": positions, "triangles": triangles, "normals": normals, "uvs": uvs,
-            "material_index": material_index, "polygons": tri_poly}
+    out = {"positions": positions, "triangles": triangles, "normals": normals, "uvs": uvs,
+           "material_index": material_index, "polygons": tri_poly}
+    if colors:
+        out["colors"], out["color_encoding"] = corner_colors(mesh, tri_loops, corner_vert)
+    return out
+
+
+def corner_colors(mesh: Any, tri_loops: np.ndarray, corner_vert: np.ndarray) -> tuple[np.ndarray | None, str]:
+    """The mesh's active colour attribute per triangle corner, (T, 3, 4) float32, and its encoding:
+    a byte attribute (``BYTE_COLOR``) read as its stored sRGB-encoded values (``color_srgb``, k/255:
+    ``"sRGB"``), a float one as its linear values (``color``: ``"Linear"``); point-domain values go
+    to every corner of their vertex. (None, "sRGB") when the mesh has no colour attribute.
+    ``tri_loops`` (3T,) the corners of the loop triangles, ``corner_vert`` (corners,) their vertices."""
+    attribute = mesh.color_attributes.active_color
+    if attribute is None or not len(tri_loops):
+        return None, "sRGB"
+    byte = attribute.data_type == "BYTE_COLOR"
+    values = np.empty(len(attribute.data) * 4, np.float32)
+    # float32 buffers take Blender's fastest path for both kinds (a byte buffer is slower, measured).
+    attribute.data.foreach_get("color_srgb" if byte else "color", values)
+    values = values.reshape(-1, 4)
+    index = tri_loops if attribute.domain == "CORNER" else np.take(corner_vert, tri_loops)
+    return np.take(values, index, axis=0).reshape(-1, 3, 4), "sRGB" if byte else "Linear"
 
 
 def principled_inputs(mat: Any) -> tuple[tuple[float, float, float, float], Any]:

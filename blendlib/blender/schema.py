@@ -35,6 +35,8 @@ from ..core.vocabulary import (
     LightMode,
     LightRenderMode,
     Material,
+    OutlineFormula,
+    OutlineMode,
     Pass,
     Queue,
     SortMode,
@@ -127,6 +129,21 @@ PASS_FIELDS: tuple[Field, ...] = (
     Field("light_mode", "enum", "ForwardBase", "LightMode",
           "Tags { \"LightMode\"=... }: Always and ForwardBase draw once, ForwardAdd once per extra per-pixel "
           "light, Vertex only without forward passes, the others never", enum=LightMode),
+    # The outline vertex program (MToon's outline pass, SPEC §11.6; issue 28): appended in schema
+    # version 3 too; absent values are Off, which draws the vertices as before.
+    Field("outline_mode", "enum", "Off", "Outline",
+          "Outline vertex program (MToon's outline pass): vertices pushed out along their normal before "
+          "projection, by a width in scene units (World) or a share of the screen height (Screen)",
+          enum=OutlineMode),
+    Field("outline_width", "float", 0.0, "Outline Width",
+          "MToon's outline width: 0.x's _OutlineWidth (World: centimetres; Screen: % of the screen height), "
+          "1.0's outlineWidthFactor (World: metres; Screen: share of the screen height)",
+          min=0.0, soft_max=10.0),
+    Field("outline_formula", "enum", "MToon0x", "Outline Formula",
+          "Which MToon's outline arithmetic: VRM 0.x's VRM/MToon or VRM 1.0's VRM10/MToon10", enum=OutlineFormula),
+    Field("outline_max_distance", "float", 1.0, "Outline Max Distance",
+          "MToon 0.x's _OutlineScaledMaxDistance: in Screen mode the outline stops growing with distance "
+          "beyond this clip w", min=0.0, soft_min=1.0, soft_max=10.0),
 )
 
 

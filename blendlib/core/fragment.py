@@ -23,7 +23,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from . import raster, shade
+from . import mips, raster, shade
 from .merger import table_pays
 from .records import DrawState, ShadedFragments
 from .vertex import TriangleSetup
@@ -40,10 +40,12 @@ TEXEL_PALETTE_SHARE = 4
 TEXEL_PALETTE_EXAMINE = 1 << 14
 
 
-def _texel_groups(state: DrawState, candidates: np.ndarray, normals, counts) -> tuple[np.ndarray, np.ndarray] | None:
-    """Point-filtered triangles whose normal is constant: their colour is a function of
-    (normal, texel). Returns ``(normals (G, 3), group (K,) int64 per triangle)`` when a palette
-    of G * (distinct texels) colours is cheaper than shading the candidates' fragments, else None."""
+def _texel_groups(state: DrawState, candidates: np.ndarray, normals, colors,
+                  counts) -> tuple[np.ndarray, np.ndarray | None, np.ndarray] | None:
+    """Point-filtered triangles whose normal and vertex colour are constant: their colour is a
+    function of (normal, vertex colour, texel). Returns ``(normals (G, 3), vertex colours (G, 4)
+    or None, group (K,) int64 per triangle)`` when a palette of G * (distinct texels) colours is
+    cheaper than shading the candidates' fragments, else None."""
     served = int(counts[candidates].sum())
     h, w = state.texels.shape[:2]
     # Finding the distinct texels of a large texture costs more than it can save unless even
@@ -53,18 +55,22 @@ def _texel_groups(state: DrawState, candidates: np.ndarray, normals, counts) -> 
     texel_count = state.texels.distinct()[0].size
     if texel_count * TEXEL_PALETTE_SHARE > served:
         return None
-    if normals is None:  # Unlit: the colour depends on the texel alone
-        return np.zeros((1, 3), dtype=np.float64), np.zeros(candidates.size, dtype=np.int64)
-    corner = np.ascontiguousarray(normals[candidates, 0])
-    # Distinct by bytes, not value: -0.0 and 0.0 (or NaNs) stay apart, so each group's normal is
-    # bit for bit the one its fragments would be shaded with.
-    _, where, inverse = np.unique(corner.view(np.dtype((np.void, corner.itemsize * 3))).reshape(-1),
+    parts = [v[candidates, 0] for v in (normals, colors) if v is not None]
+    if not parts:  # Unlit, no vertex colour: the colour depends on the texel alone
+        return np.zeros((1, 3), dtype=np.float64), None, np.zeros(candidates.size, dtype=np.int64)
+    corner = np.ascontiguousarray(np.concatenate(parts, axis=1))
+    # Distinct by bytes, not value: -0.0 and 0.0 (or NaNs) stay apart, so each group's normal and
+    # colour are bit for bit the ones its fragments would be shaded with.
+    _, where, inverse = np.unique(corner.view(np.dtype((np.void, corner.itemsize * corner.shape[1]))).reshape(-1),
                                   return_index=True, return_inverse=True)
     if where.size * texel_count * TEXEL_PALETTE_SHARE > served:
         return None
     group = np.zeros(candidates.size, dtype=np.int64)
     group[candidates] = inverse.reshape(-1)
-    return corner[where], group
+    chosen = corner[where]
+    group_normals = chosen[:, :3] if normals is not None else np.zeros((where.size, 3), dtype=np.float64)
+    group_colors = chosen[:, -4:] if colors is not None else None
+    return group_normals, group_colors, group
 
 
 def distinct_colors(colors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -129,21 +135,26 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
     tris = row_src[first]  # (K,) the source triangles of this chunk
     uvs = setup.uvs_of(tris) if texels is not None and setup.object_uvs is not None else None
     normals = setup.world_normals_of(tris) if setup.object_normals is not None else None
+    colors = setup.colors_of(tris) if setup.object_colors is not None else None
+    # World positions only for Lambert under a point or spot light (a ForwardAdd draw).
+    positions = setup.world_positions_of(tris) if normals is not None and state.lights.positional else None
     flat = np.ones(tris.size, dtype=bool)  # shading inputs constant over the triangle (§6)
-    uv_flat = normal_flat = None
-    if uvs is not None:
-        uv_flat = raster.flat_corners(uvs)
-        flat &= uv_flat
-    if normals is not None:
-        normal_flat = raster.flat_corners(normals)
-        flat &= normal_flat
+    uv_flat, normal_flat, color_flat, position_flat = (None if corners is None else raster.flat_corners(corners)
+                                                       for corners in (uvs, normals, colors, positions))
+    for corners_flat in (uv_flat, normal_flat, color_flat, position_flat):
+        if corners_flat is not None:
+            flat &= corners_flat
     any_varying = not bool(np.all(flat))
     counts = np.add.reduceat(length, np.flatnonzero(first))  # (K,) fragments per triangle
-    groups = None  # texel-palette groups (normals (G, 3), group (K,)) and the triangles they serve
-    if any_varying and uvs is not None and material.main_tex_filter is TextureFilter.Point:
-        candidates = ~uv_flat if normal_flat is None else ~uv_flat & normal_flat
+    groups = None  # texel-palette groups (normals (G, 3), colours, group (K,)) and the triangles they serve
+    if (any_varying and uvs is not None and material.main_tex_filter is TextureFilter.Point
+            and state.mips is None and positions is None):
+        candidates = ~uv_flat
+        for constant in (normal_flat, color_flat):
+            if constant is not None:
+                candidates = candidates & constant
         if np.any(candidates):
-            groups = _texel_groups(state, candidates, normals, counts)
+            groups = _texel_groups(state, candidates, normals, colors, counts)
             tabled = candidates
     want_depth = state.depth_needed(rows, start, stop)
     frags = raster.rasterize_rows(rows, start, stop, state.width, bary=want_depth or any_varying)
@@ -158,18 +169,28 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
     row_flat = flat[run_of_row]
     constant = None if not any_varying else np.repeat(row_flat, length)
 
-    def shade_at(uv: np.ndarray | None, normal: np.ndarray | None, count: int) -> np.ndarray:
+    def shade_at(uv: np.ndarray | None, normal: np.ndarray | None, color: np.ndarray | None,
+                 position: np.ndarray | None, count: int, lod: np.ndarray | None = None) -> np.ndarray:
         uv = np.zeros((count, 2), dtype=np.float64) if uv is None else uv
         normal = np.zeros((count, 3), dtype=np.float64) if normal is None else normal
-        return shade.shade(material, texels, state.lights, state.color_space, uv, normal)
+        if lod is None:
+            return shade.shade(material, texels, state.lights, state.color_space, uv, normal, color, position)
+        tex = mips.sample_mipmapped(state.mips, shade.texture_uv(material, uv), lod, material.main_tex_filter,
+                                    material.main_tex_wrap)
+        return shade.shade_texels(material, tex, state.lights, state.color_space, normal, color, position)
+
+    def first_corner(corners: np.ndarray | None, index: np.ndarray) -> np.ndarray | None:
+        return None if corners is None else corners[index, 0]
 
     if np.any(flat):
+        # Constant inputs: a flat-UV triangle samples at level 0 with or without mipmaps (§7).
         const_tris = np.nonzero(flat)[0]
-        colors = shade_at(None if uvs is None else uvs[const_tris, 0],
-                          None if normals is None else normals[const_tris, 0], const_tris.size)
+        const_colors = shade_at(first_corner(uvs, const_tris), first_corner(normals, const_tris),
+                                first_corner(colors, const_tris), first_corner(positions, const_tris),
+                                const_tris.size)
         # Triangles of one colour (an unlit mesh, a flat-lit plane) share one palette entry.
-        colors, inverse = distinct_colors(colors)
-        palettes.append(colors)
+        const_colors, inverse = distinct_colors(const_colors)
+        palettes.append(const_colors)
         slot = np.full(tris.size, -1, dtype=np.int32)
         slot[const_tris] = inverse.reshape(-1)
         ids = np.repeat(slot[run_of_row], length)
@@ -184,7 +205,7 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
         uv = None if uvs is None else raster.interpolate_runs(w, uvs[keep], counts[keep], uv_flat[keep],
                                                               channels_first=True)
         if groups is not None:
-            palette_normals, group = groups
+            palette_normals, palette_colors, group = groups
             first_texel, of_texel = texels.distinct()
             by_texel = np.repeat(tabled[keep], counts[keep])
             every_texel = bool(by_texel.all())
@@ -201,16 +222,23 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
                 if ids is None:
                     ids = np.full(n, -1, dtype=np.int32)
                 ids[places[by_texel]] = texel
-            palettes.append(shade.texel_palette(material, texels, state.lights, state.color_space, palette_normals))
+            palettes.append(shade.texel_palette(material, texels, state.lights, state.color_space, palette_normals,
+                                                palette_colors))
             keep = ~flat & ~tabled
             shaded = ~by_texel
             at = places[shaded]
             w = w[:, shaded]
             uv = uv[:, shaded]
         if w.shape[1]:
-            normal = None if normals is None else raster.interpolate_runs(
-                w, normals[keep], counts[keep], normal_flat[keep], channels_first=True).T
-            rgba[at] = shade_at(None if uv is None else uv.T, normal, w.shape[1])
+            def varying(corners: np.ndarray | None, corner_flat: np.ndarray | None) -> np.ndarray | None:
+                return None if corners is None else raster.interpolate_runs(
+                    w, corners[keep], counts[keep], corner_flat[keep], channels_first=True).T
+
+            lod = None
+            if state.mips is not None and uv is not None:  # one LOD per 2x2 quad (§7, "Mipmaps")
+                lod = mips.quad_lod(setup, frags.tri[at], frags.pix[at], state.width, material, texels.shape[:2])
+            rgba[at] = shade_at(None if uv is None else uv.T, varying(normals, normal_flat),
+                                varying(colors, color_flat), varying(positions, position_flat), w.shape[1], lod)
     palette = None
     if palettes:
         palette = palettes[0] if len(palettes) == 1 else np.concatenate(palettes)

@@ -18,6 +18,7 @@ from dataclasses import replace
 import numpy as np
 
 from . import fragment, raster, shade, vertex
+from .outline import outline_key
 from .prepare import Member, PreparedCall
 from .records import DrawState, ShadedFragments
 from .scene import SceneMemo
@@ -42,7 +43,8 @@ def _constant_color(prepared: PreparedCall, memo: SceneMemo | None = None) -> np
     material = state.material
     if prepared.shade is not fragment.shade_chunk:  # already specialised (a colourless pass)
         return None
-    if material.lighting is not Lighting.Unlit or state.texels is not None or state.pass_state.alpha_test:
+    if (material.lighting is not Lighting.Unlit or state.texels is not None or state.pass_state.alpha_test
+            or prepared.setup.object_colors is not None):
         return None
 
     def compute() -> np.ndarray:  # what shade_chunk's flat path computes for each of the call's triangles
@@ -92,8 +94,11 @@ def fuse_constant_calls(prepared: list[PreparedCall], memo: SceneMemo | None = N
 
 def _concatenated(group: list[PreparedCall]) -> tuple[object, raster.Rows, np.ndarray, np.ndarray]:
     """The setups, rows and Cull-kept triangles of ``group``'s calls in order, as one call's:
-    (setup, rows, selected, each call's first triangle (G,) int64 in the setup)."""
-    setup = vertex.concatenate_setups([pr.setup for pr in group])
+    (setup, rows, selected, each call's first triangle (G,) int64 in the setup). World positions
+    come along when shading reads them (Lambert under a point or spot light)."""
+    first = group[0]
+    positions = first.state.lights.positional and first.setup.object_normals is not None
+    setup = vertex.concatenate_setups([pr.setup for pr in group], positions=positions)
     counts = np.array([pr.setup.count for pr in group], dtype=np.int64)
     offsets = np.cumsum(counts) - counts
     rows = raster.Rows(**{name: np.concatenate([getattr(pr.rows, name) + offset if name == "tri"
@@ -127,7 +132,8 @@ def _fused(group: list[tuple[PreparedCall, np.ndarray]]) -> PreparedCall:
 
 def _shading_key(prepared: PreparedCall, memo: SceneMemo | None = None) -> tuple | None:
     """Calls with equal keys shade every fragment alike and interpolate depth alike: the same
-    texels and :func:`shade.shading_key`, the same Offset, setups with the same corner arrays.
+    texels, mip chain, lights (a ForwardAdd draw's own light) and :func:`shade.shading_key`, the
+    same Offset and vertex program, setups with the same corner arrays.
     None: the call is not fused (specialised shading, or a big mesh that would be copied).
     ``memo``: where materials' keys are kept across renders."""
     if prepared.shade is not fragment.shade_chunk or prepared.setup.count > FUSE_TRIANGLES:
@@ -137,8 +143,8 @@ def _shading_key(prepared: PreparedCall, memo: SceneMemo | None = None) -> tuple
     material = state.material
     key = shade.shading_key(material) if memo is None else memo.lookup("shading key", material,
                                                                          lambda: shade.shading_key(material))
-    return (id(state.texels), key, float(p.offset_factor), float(p.offset_units),
-            setup.object_normals is None, setup.object_uvs is None)
+    return (id(state.texels), id(state.mips), id(state.lights), key, float(p.offset_factor), float(p.offset_units),
+            outline_key(p), setup.object_normals is None, setup.object_uvs is None, setup.object_colors is None)
 
 
 def fuse_shared_shading(prepared: list[PreparedCall], memo: SceneMemo | None = None) -> list[PreparedCall]:

@@ -285,10 +285,15 @@ def _shaded_per_fragment(prepared: PreparedCall) -> bool:
     if prepared.shade is not fragment.shade_chunk:
         return False
     material = prepared.state.material
-    if material.main_tex is not None and material.main_tex_filter is not TextureFilter.Point:
+    if material.main_tex is not None and (material.main_tex_filter is not TextureFilter.Point
+                                          or material.main_tex_mipmaps):
+        return True
+    if prepared.setup.object_colors is not None:  # vertex colours: varying unless flat
         return True
     if material.lighting is Lighting.Unlit:
         return False
+    if prepared.state.lights.positional:  # a point or spot light's direction varies
+        return True
     calls = [prepared.call] if prepared.members is None else [m.state.call for m in prepared.members]
     for call in calls:
         normals = np.asarray(call.renderer.mesh.normals)

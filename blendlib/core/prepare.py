@@ -16,18 +16,19 @@ import functools
 import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from . import fragment, raster, shade, vertex
+from . import colorspace, fragment, lights, mips, raster, shade, vertex
 from .drawlist import DrawCall
 from .fragment import ChunkShader
 from .merger import BlendTables, FrameBuffers
+from .outline import outline_key
 from .records import DrawState
 from .scene import Camera, SceneMemo
 from .vertex import TriangleSetup
-from .vocabulary import ColorSpace, CompareFunction, Lighting, Material, Pass
+from .vocabulary import ColorSpace, CompareFunction, Lighting, Material, Pass, VertexColor
 
 
 @dataclass(eq=False)
@@ -57,6 +58,8 @@ class FrameContext:
     keep_setups: bool = False
     warnings: list[str] = field(default_factory=list)
     degenerate: list[tuple[str, int]] = field(default_factory=list)  # (object, zero-area triangles)
+    #: The shading-space lights of ForwardAdd draws, by light: id → (light, :class:`shade.Lights`).
+    call_lights: dict = field(default_factory=dict)
 
     @property
     def width(self) -> int:
@@ -83,6 +86,56 @@ class FrameContext:
         if texture is None:
             return None
         return self.memo.lookup(("texels", color_space), texture, lambda: shade.texture_texels(texture, color_space))
+
+    def inputs_of(self, call: DrawCall) -> CallInputs:
+        """What shading reads of a draw call besides its triangles (main thread only): its texture's
+        texels and, with ``main_tex_mipmaps``, mip chain (once per memo per texture, colour space
+        and Preserve Coverage cutoff), and its lights (a ForwardAdd draw's own, once per render)."""
+        material = call.renderer.material
+        texels = self.texels_of(material)
+        chain = None
+        if texels is not None and material.main_tex_mipmaps:
+            preserve = bool(material.main_tex_preserve_coverage)
+            cutoff = float(material.cutoff) if preserve else None
+            chain = self.memo.lookup(("mips", self.color_space, cutoff), material.main_tex,
+                                     lambda: mips.build_chain(texels, preserve, cutoff or 0.0))
+        light = call.light
+        if light is None:
+            return CallInputs(texels, chain, self.lights)
+        if id(light) not in self.call_lights:
+            self.call_lights[id(light)] = (light, replace(self.lights, add=lights.add_light(light, self.color_space)))
+        return CallInputs(texels, chain, self.call_lights[id(light)][1])
+
+    def vertex_colors_of(self, renderer) -> np.ndarray | None:
+        """The renderer's vertex colours in shading space (T, 3, 4) float64 when its material reads
+        them, converted once per memo and colour space as texels are (§7), else None."""
+        mesh = renderer.mesh
+        if renderer.material.vertex_color is VertexColor.Off or mesh.colors is None:
+            return None
+        return self.memo.lookup(("vertex colours", self.color_space), mesh,
+                                lambda: vertex_colors(mesh, self.color_space))
+
+
+def vertex_colors(mesh, color_space: ColorSpace) -> np.ndarray:
+    """A mesh's corner colours (T, 3, 4) float64 in shading space: RGB of ``sRGB``-encoded colours
+    as is in Gamma and decoded in Linear, of ``Linear`` ones encoded in Gamma and as is in Linear;
+    alpha as is (docs/pipeline.md §7)."""
+    values = np.asarray(mesh.colors, dtype=np.float32).astype(np.float64)
+    if mesh.color_encoding == "sRGB" and color_space is ColorSpace.Linear:
+        values[..., :3] = colorspace.decode_array(values[..., :3])
+    elif mesh.color_encoding == "Linear" and color_space is ColorSpace.Gamma:
+        values[..., :3] = colorspace.encode_array(values[..., :3])
+    return values
+
+
+@dataclass(frozen=True, eq=False)
+class CallInputs:
+    """What :meth:`FrameContext.inputs_of` finds for a draw call: texels (or None), mip chain (or
+    None) and shading-space lights."""
+
+    texels: object
+    mips: object
+    lights: shade.Lights
 
 
 @dataclass(eq=False)
@@ -129,11 +182,23 @@ def chunk_shading(p: Pass) -> ChunkShader:
     return fragment.shade_chunk
 
 
-def setup_input(renderer) -> vertex.SetupInput:
-    """What the vertex setup of ``renderer`` needs: normals only for lit shading, UVs only with a texture."""
+def setup_input(renderer, colors: np.ndarray | None = None, program: Pass | None = None) -> vertex.SetupInput:
+    """What the vertex setup of ``renderer`` needs: normals only for lit shading, UVs only with a
+    texture, its vertex colours in shading space when shading reads them
+    (:meth:`FrameContext.vertex_colors_of`), and the pass whose outline program moves its
+    vertices (None: none)."""
     material = renderer.material
     return vertex.SetupInput(renderer.mesh, renderer.matrix_world, need_normals=material.lighting is not Lighting.Unlit,
-                             need_uvs=material.main_tex is not None)
+                             need_uvs=material.main_tex is not None, colors=colors, program=program)
+
+
+def _programs(run: list[DrawCall]) -> dict:
+    """The vertex programs of a renderer's draw calls: :func:`.outline.outline_key` → the first
+    pass with it (None: the plain vertex stage), in order. Each needs its own vertex setup."""
+    programs: dict = {}
+    for call in run:
+        programs.setdefault(outline_key(call.state), call.state)
+    return programs
 
 
 def _setup_notes(renderer, setup) -> tuple[list[str], tuple[str, int] | None]:
@@ -180,17 +245,19 @@ def _kept_geometry(frame: FrameContext, renderer) -> dict | None:
     return frame.memo.lookup("geometry", renderer, dict)
 
 
-def _setups(frame: FrameContext, renderers: list, pool=None, parts: int = 1) -> list[_Geometry]:
-    """The geometry of each of ``renderers`` through the frame's camera: kept ones from the memo,
-    the others set up together (:func:`vertex.setup_renderers`: each equals its own setup) and
-    kept for the next frame."""
-    key = frame.camera_key
-    kept = [_kept_geometry(frame, r) for r in renderers]
-    out = [None if k is None else k.get(key) for k in kept]
+def _setups(frame: FrameContext, items: list[tuple], pool=None, parts: int = 1) -> list[_Geometry]:
+    """The geometry through the frame's camera of each of ``items`` (renderer, its vertex colours
+    or None, the pass of its vertex program or None): kept ones from the memo, the others set up
+    together (:func:`vertex.setup_renderers`: each equals its own setup) and kept for the next
+    frame. Setups with a vertex program (outlines) are not kept; ones with vertex colours are kept
+    per colour space too."""
+    kept = [None if program is not None else _kept_geometry(frame, r) for r, _, program in items]
+    keys = [frame.camera_key if colors is None else (frame.camera_key, frame.color_space)
+            for _, colors, _ in items]
+    out = [None if k is None else k.get(key) for k, key in zip(kept, keys, strict=True)]
     todo = [i for i, g in enumerate(out) if g is None]
     if todo:
-        made = vertex.setup_renderers([setup_input(renderers[i]) for i in todo], frame.camera, pool=pool,
-                                      parts=parts)
+        made = vertex.setup_renderers([setup_input(*items[i]) for i in todo], frame.camera, pool=pool, parts=parts)
         held = None  # triangles whose setups the memo holds (counted once something is to be kept)
         for i, setup in zip(todo, made, strict=True):
             out[i] = _Geometry(setup)
@@ -198,25 +265,19 @@ def _setups(frame: FrameContext, renderers: list, pool=None, parts: int = 1) -> 
                 continue
             if held is None:
                 held = sum(r.mesh.triangle_count * len(d) for r, d in frame.memo.entries("geometry"))
-            triangles = renderers[i].mesh.triangle_count
+            triangles = items[i][0].mesh.triangle_count
             if len(kept[i]) >= MEMO_CAMERAS:  # the oldest camera goes
                 kept[i].pop(next(iter(kept[i])))
                 held -= triangles
             if held + triangles <= MEMO_SETUP_BUDGET:
-                kept[i][key] = out[i]
+                kept[i][keys[i]] = out[i]
                 held += triangles
     if frame.band is not None:  # a band's rows are its own (the cut moves frame to frame): not kept
         out = [_Geometry(g.setup) for g in out]
     return out
 
 
-def _setup(frame: FrameContext, renderer, pool, parts: int) -> tuple[_Geometry, list[str], tuple[str, int] | None]:
-    """Vertex setup of one renderer (shared by its passes) and what to tell the user about it."""
-    geometry = _setups(frame, [renderer], pool, parts)[0]
-    return (geometry, *_setup_notes(renderer, geometry.setup))
-
-
-def _draw_state(frame: FrameContext, call: DrawCall, setup, texels,
+def _draw_state(frame: FrameContext, call: DrawCall, setup, inputs: CallInputs,
                 selected: np.ndarray | None = None) -> tuple[DrawState, np.ndarray]:
     """A draw call's derived state and the triangles its Cull keeps (``selected`` when known)."""
     p = call.state
@@ -224,18 +285,19 @@ def _draw_state(frame: FrameContext, call: DrawCall, setup, texels,
     if (not p.zwrite and p.ztest in (CompareFunction.Less, CompareFunction.LEqual)
             and not (frame.reads_depth is not None and frame.reads_depth(call))):
         zbound = raster.depth_upper_codes(setup, p.offset_factor, p.offset_units)
-    state = DrawState(call, call.renderer.material, texels, frame.lights, frame.color_space, frame.hdr,
-                      frame.width, observed=frame.observed, zbound=zbound)
+    state = DrawState(call, call.renderer.material, inputs.texels, inputs.lights, frame.color_space, frame.hdr,
+                      frame.width, observed=frame.observed, zbound=zbound, mips=inputs.mips)
     return state, vertex.cull_select(setup, p.cull) if selected is None else selected
 
 
-def _prepare(frame: FrameContext, call: DrawCall, geometry: _Geometry, texels, pool, parts: int) -> PreparedCall:
+def _prepare(frame: FrameContext, call: DrawCall, geometry: _Geometry, inputs: CallInputs, pool,
+             parts: int) -> PreparedCall:
     """Cull, coverage and derived state of one draw call. Passes of a renderer with one Cull
     cover the same pixels: their rows are computed once (``geometry.rows``; in a memo across
     frames when the frame is whole)."""
     setup, cull = geometry.setup, call.state.cull
     known = geometry.rows.get(cull)
-    state, selected = _draw_state(frame, call, setup, texels, selected=None if known is None else known[0])
+    state, selected = _draw_state(frame, call, setup, inputs, selected=None if known is None else known[0])
     shade = chunk_shading(call.state)
     if known is not None:
         return PreparedCall(call, setup, selected, raster.Rows(**vars(known[1])), state, shade)
@@ -244,16 +306,35 @@ def _prepare(frame: FrameContext, call: DrawCall, geometry: _Geometry, texels, p
     return PreparedCall(call, setup, selected, rows, state, shade)
 
 
-def _prepare_together(frame: FrameContext, runs: list[list[DrawCall]], texels) -> list[PreparedCall]:
+def _run_geometries(frame: FrameContext, runs: list[list[DrawCall]], colors: list, pool=None,
+                    parts: int = 1) -> tuple[list[dict], list[tuple]]:
+    """Per renderer run, its geometries by vertex program key (:func:`_programs`), set up together,
+    and what to tell the user about each renderer (:func:`_setup_notes` of its plain setup, or of
+    its first)."""
+    programs = [_programs(run) for run in runs]
+    items = [(run[0].renderer, run_colors, None if key is None else p)
+             for run, run_colors, found in zip(runs, colors, programs, strict=True) for key, p in found.items()]
+    made = iter(_setups(frame, items, pool, parts))
+    out, notes = [], []
+    for run, found in zip(runs, programs, strict=True):
+        by_key = {key: next(made) for key in found}
+        notes.append(_setup_notes(run[0].renderer, by_key.get(None, next(iter(by_key.values()))).setup))
+        out.append(by_key)
+    return out, notes
+
+
+def _prepare_together(frame: FrameContext, runs: list[list[DrawCall]], inputs, colors) -> list[PreparedCall]:
     """Prepare many small renderers' draw calls with one vertex setup and one coverage pass for
     all of them (per-call array work on a few hundred triangles is mostly fixed cost)."""
-    geometries = _setups(frame, [run[0].renderer for run in runs])
+    geometries, notes = _run_geometries(frame, runs, colors)
+    for found in notes:
+        frame.record(*found)
     items = []  # (call, geometry, state, selected, kept rows or None)
-    for run, geometry, run_texels in zip(runs, geometries, texels, strict=True):
-        frame.record(*_setup_notes(run[0].renderer, geometry.setup))
-        for call, tex in zip(run, run_texels, strict=True):
+    for run, by_key, run_inputs in zip(runs, geometries, inputs, strict=True):
+        for call, found in zip(run, run_inputs, strict=True):
+            geometry = by_key[outline_key(call.state)]
             known = geometry.rows.get(call.state.cull)
-            state, selected = _draw_state(frame, call, geometry.setup, tex,
+            state, selected = _draw_state(frame, call, geometry.setup, found,
                                           selected=None if known is None else known[0])
             items.append((call, geometry, state, selected, None if known is None else known[1]))
     todo = [k for k, item in enumerate(items) if item[4] is None]
@@ -278,22 +359,23 @@ def prepare_batch(frame: FrameContext, runs: list[list[DrawCall]]) -> list[Prepa
     """Prepare a batch's draw calls in draw order: renderers in parallel on the pool, or one
     renderer with its per-vertex and per-triangle work split over the pool."""
     runs = [run for run in runs if run[0].renderer.mesh.triangle_count > 0]
-    texels = [[frame.texels_of(call.renderer.material) for call in run] for run in runs]
+    inputs = [[frame.inputs_of(call) for call in run] for run in runs]
+    colors = [frame.vertex_colors_of(run[0].renderer) for run in runs]
 
     def prepare_run(k: int, pool, parts: int):
-        geometry, notes, degenerate = _setup(frame, runs[k][0].renderer, pool, parts)
-        return notes, degenerate, [_prepare(frame, call, geometry, tex, pool, parts)
-                                   for call, tex in zip(runs[k], texels[k], strict=True)]
+        (by_key,), (notes,) = _run_geometries(frame, [runs[k]], [colors[k]], pool, parts)
+        return notes, [_prepare(frame, call, by_key[outline_key(call.state)], found, pool, parts)
+                       for call, found in zip(runs[k], inputs[k], strict=True)]
 
     triangles = sum(int(run[0].renderer.mesh.triangle_count) for run in runs)
     if len(runs) > 1 and triangles < PARALLEL_PREPARE_TRIANGLES:
-        return _prepare_together(frame, runs, texels)
+        return _prepare_together(frame, runs, inputs, colors)
     if frame.pool is None or len(runs) <= 1:
         results = [prepare_run(k, frame.pool, frame.workers) for k in range(len(runs))]
     else:
         results = list(frame.pool.map(lambda k: prepare_run(k, None, 1), range(len(runs))))
     prepared: list[PreparedCall] = []
-    for notes, degenerate, items in results:
-        frame.record(notes, degenerate)
+    for notes, items in results:
+        frame.record(*notes)
         prepared.extend(items)
     return prepared

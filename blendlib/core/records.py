@@ -69,6 +69,8 @@ class DrawState:
     #: per-fragment depth there (a hierarchical-Z test per row, exact). None: not applicable.
     zbound: np.ndarray | None = None
     zfloor: np.ndarray | None = None
+    #: The texture's mip chain (:class:`.mips.MipChain`) when the material samples through one.
+    mips: object | None = None
 
     @property
     def pass_state(self) -> Pass:

@@ -36,6 +36,11 @@ class Mesh:
     - ``loop_triangles``: (T,) integer index of each triangle in the evaluated mesh's
       ``loop_triangles`` (a material slot takes a subset), or None (the triangle's own index).
 
+    - ``colors``: (T, 3, 4) float32 vertex colours (``i.color``) per corner, RGBA, or None (white):
+      the mesh's active colour attribute. ``color_encoding`` says what the RGB values are, as
+      :class:`~.vocabulary.Texture`'s ``encoding``: ``"sRGB"`` (encoded values: a Blender byte
+      colour attribute, k/255) or ``"Linear"`` (a float colour attribute). Alpha is never converted.
+
     ``polygons`` and ``loop_triangles`` only name triangles for the frame debugger.
     """
 
@@ -45,6 +50,8 @@ class Mesh:
     uvs: np.ndarray | None = None
     polygons: np.ndarray | None = None
     loop_triangles: np.ndarray | None = None
+    colors: np.ndarray | None = None
+    color_encoding: str = "sRGB"
 
     @property
     def triangle_count(self) -> int:
@@ -321,6 +328,13 @@ def _validate_renderer(r: Renderer) -> list[str]:
         raise SceneError(f"{label}: normals must be (T, 3, 3), got {np.asarray(mesh.normals).shape}")
     if mesh.uvs is not None and np.asarray(mesh.uvs).shape != (t, 3, 2):
         raise SceneError(f"{label}: uvs must be (T, 3, 2), got {np.asarray(mesh.uvs).shape}")
+    if mesh.colors is not None and np.asarray(mesh.colors).shape != (t, 3, 4):
+        raise SceneError(f"{label}: vertex colours must be (T, 3, 4), got {np.asarray(mesh.colors).shape}")
+    if mesh.color_encoding not in ("sRGB", "Linear"):
+        raise SceneError(f"{label}: vertex colour encoding must be sRGB or Linear, got {mesh.color_encoding!r}")
+    for k, p in enumerate(r.material.draw_passes):
+        if not (math.isfinite(p.outline_width) and math.isfinite(p.outline_max_distance)):
+            raise SceneError(f"{label}: pass {k} ({p.name!r}): the outline width and max distance must be finite")
     for name in ("polygons", "loop_triangles"):
         ids = getattr(mesh, name)
         if ids is not None and np.asarray(ids).shape != (t,):
@@ -366,8 +380,9 @@ def _same_texture(a: Texture, b: Texture) -> bool:
 
 
 def _same_mesh(a: Mesh, b: Mesh) -> bool:
-    return all(_same_array(getattr(a, name), getattr(b, name))
-               for name in ("positions", "triangles", "normals", "uvs", "polygons", "loop_triangles"))
+    return a.color_encoding == b.color_encoding and all(
+        _same_array(getattr(a, name), getattr(b, name))
+        for name in ("positions", "triangles", "normals", "uvs", "polygons", "loop_triangles", "colors"))
 
 
 def _same_value(x, y) -> bool:

@@ -12,8 +12,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import colorspace
+from .lights import AddLight, light_terms
 from .scene import DrawScene
-from .vocabulary import ColorSpace, Lighting, Material, Texture, TextureFilter, TextureWrap
+from .vocabulary import ColorSpace, Lighting, Material, Texture, TextureFilter, TextureWrap, VertexColor
 
 
 def gamma_color_to_shading(rgb, color_space: ColorSpace) -> tuple[float, ...]:
@@ -32,11 +33,18 @@ def linear_color_to_shading(rgb, color_space: ColorSpace) -> tuple[float, ...]:
 
 @dataclass(frozen=True)
 class Lights:
-    """Shading-space lighting constants of a frame."""
+    """Shading-space lighting constants of a draw call: the frame's ambient and main light
+    (ForwardBase), or with ``add`` the one light of a ForwardAdd draw (:mod:`.lights`)."""
 
     ambient: tuple[float, float, float]
     light: tuple[float, float, float]
     direction: tuple[float, float, float]
+    add: AddLight | None = None
+
+    @property
+    def positional(self) -> bool:
+        """Whether Lambert shading reads the fragment's world position (a point or spot light)."""
+        return self.add is not None and self.add.positional
 
 
 def frame_lights(scene: DrawScene) -> Lights:
@@ -249,8 +257,9 @@ def shading_key(material: Material) -> tuple:
     """What of ``material`` :func:`shade` reads (its texture aside), numbers by their bytes:
     materials with equal keys give a fragment the same colour bit for bit (-0.0 and 0.0 apart)."""
     numbers = np.array([*material.color, *material.main_tex_tiling, *material.main_tex_offset,
-                        material.alpha_scale], dtype=np.float64)
-    return material.lighting, material.main_tex_filter, material.main_tex_wrap, numbers.tobytes()
+                        material.alpha_scale, *material.tint_color], dtype=np.float64)
+    return (material.lighting, material.main_tex_filter, material.main_tex_wrap, material.vertex_color,
+            numbers.tobytes())
 
 
 def shade(
@@ -260,60 +269,41 @@ def shade(
     color_space: ColorSpace,
     uv: np.ndarray,
     normal: np.ndarray,
+    color: np.ndarray | None = None,
+    position: np.ndarray | None = None,
 ) -> np.ndarray:
     """Fragment colours (N, 4) float64 in shading space, straight alpha.
 
-    ``uv`` (N, 2) float64 interpolated mesh UVs; ``normal`` (N, 3) float64
-    interpolated (unnormalised) world normals; ``texels`` (:class:`Texels`) from :func:`texture_texels`.
+    ``uv`` (N, 2) float64 interpolated mesh UVs; ``normal`` (N, 3) float64 interpolated
+    (unnormalised) world normals; ``texels`` (:class:`Texels`) from :func:`texture_texels`, sampled
+    at the base level (a mipmapped texture's levels are sampled by :mod:`.mips`); ``color`` and
+    ``position``: as :func:`shade_texels`.
     """
     tex = None
     if texels is not None:
         tex = sample(texels, texture_uv(material, uv), material.main_tex_filter, material.main_tex_wrap)
-    return shade_texels(material, tex, lights, color_space, normal)
+    return shade_texels(material, tex, lights, color_space, normal, color, position)
 
 
 def texel_palette(
     material: Material, texels: Texels, lights: Lights, color_space: ColorSpace, normals: np.ndarray,
+    colors: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Point filtering's colours for every (normal, distinct texel): (G * D, 4) float64, row
+    """Point filtering's colours for every (group, distinct texel): (G * D, 4) float64, row
     ``g * D + of_texel[t]`` (:meth:`Texels.distinct`) = what :func:`shade` gives a fragment with
-    normal ``normals[g]`` (G, 3) float64 whose :func:`point_texel_index` is ``t`` (the same
-    arithmetic per element, so equal bit for bit)."""
+    normal ``normals[g]`` (G, 3) float64 and vertex colour ``colors[g]`` (G, 4) float64 (None: no
+    vertex colour) whose :func:`point_texel_index` is ``t`` (the same arithmetic per element, so
+    equal bit for bit)."""
     first, _ = texels.distinct()
     tex = np.tile(texels.fetch(first), (normals.shape[0], 1))
-    return shade_texels(material, tex, lights, color_space, np.repeat(normals, first.size, axis=0))
+    color = None if colors is None else np.repeat(colors, first.size, axis=0)
+    return shade_texels(material, tex, lights, color_space, np.repeat(normals, first.size, axis=0), color)
 
 
-def shade_texels(
-    material: Material, tex: np.ndarray | None, lights: Lights, color_space: ColorSpace, normal: np.ndarray,
-) -> np.ndarray:
-    """The fragment program after the texture fetch: ``tex`` (N, 4) float64 sampled texels
-    (None: no texture), ``normal`` (N, 3) float64 → colours (N, 4) float64, straight alpha.
-
-    Per fragment: ``albedo = tex.rgb * color.rgb``, ``alpha = (tex.a * color.a) * _AlphaScale``,
-    ``n = normal / sqrt((x*x + y*y) + z*z)`` (0 for a zero normal), ``ndl = max(0, (n.x*l.x +
-    n.y*l.y) + n.z*l.z)``, ``rgb = ambient*albedo + (light*albedo)*ndl``. Lighting is computed one
-    channel at a time on contiguous arrays, each operation as written (the same rounding).
-    """
-    n = normal.shape[0]
-    color = gamma_color_to_shading(material.color[:3], color_space) + (float(material.color[3]),)
-    out = np.empty((n, 4), dtype=np.float64)
-    if tex is None:
-        # tex = (1, 1, 1, 1): 1.0 * c == c exactly, so albedo and alpha are the material's.
-        out[:, 3] = color[3] * float(material.alpha_scale)
-    else:
-        out[:, 3] = (tex[:, 3] * color[3]) * float(material.alpha_scale)
-
-    def albedo(c: int) -> np.ndarray:
-        if tex is None:
-            return np.full(n, color[c], dtype=np.float64)
-        return np.multiply(tex[:, c], color[c])
-
-    if material.lighting is Lighting.Unlit:
-        for c in range(3):
-            out[:, c] = albedo(c)
-        return out
-    # (A channels-first normal, passed as its transposed view, gives contiguous columns.)
+def _unit_normals(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``n = normal / sqrt((x*x + y*y) + z*z)`` per fragment (0 for a zero normal), as three (N,)
+    float64 arrays (the columns of ``normal`` (N, 3); a channels-first normal passed as its
+    transposed view gives contiguous ones)."""
     nx, ny, nz = (normal[:, k] for k in range(3))
     length = nx * nx
     scratch = ny * ny
@@ -322,23 +312,102 @@ def shade_texels(
     length += scratch
     np.sqrt(length, out=length)
     if np.all(length > 0):
-        nx, ny, nz = (np.divide(v, length) for v in (nx, ny, nz))
-    else:  # a zero normal shades as n = 0
-        safe = length > 0
-        divisor = np.where(safe, length, 1.0)
-        nx, ny, nz = (np.divide(v, divisor) for v in (nx, ny, nz))
-        for v in (nx, ny, nz):
-            v[~safe] = 0.0
-    lx, ly, lz = lights.direction
+        return tuple(np.divide(v, length) for v in (nx, ny, nz))
+    safe = length > 0  # a zero normal shades as n = 0
+    divisor = np.where(safe, length, 1.0)
+    out = tuple(np.divide(v, divisor) for v in (nx, ny, nz))
+    for v in out:
+        v[~safe] = 0.0
+    return out
+
+
+def shade_texels(
+    material: Material, tex: np.ndarray | None, lights: Lights, color_space: ColorSpace, normal: np.ndarray,
+    color: np.ndarray | None = None, position: np.ndarray | None = None,
+) -> np.ndarray:
+    """The fragment program after the texture fetch: ``tex`` (N, 4) float64 sampled texels
+    (None: no texture), ``normal`` (N, 3) float64, ``color`` (N, 4) float64 the interpolated
+    vertex colour in shading space (None: white), ``position`` (N, 3) float64 the interpolated
+    world position (read only for a point or spot light's ForwardAdd draw) → colours (N, 4)
+    float64, straight alpha (docs/pipeline.md §7).
+
+    Per fragment, the albedo and alpha by ``vertex_color``: ``Off``: ``albedo = tex.rgb *
+    color.rgb``, ``alpha = (tex.a * color.a) * _AlphaScale``; ``Multiply``: those × ``i.color``
+    (``albedo * vc.rgb``, ``alpha * vc.a``); ``Particle``: ``((2 * vc) * _TintColor) * tex`` for rgb
+    and alpha (``_Color`` and ``_AlphaScale`` unused, as the particle shaders have neither). Then
+    Lambert with ``n = normal / sqrt((x*x + y*y) + z*z)`` (0 for a zero normal) and ``ndl =
+    max(0, (n.x*l.x + n.y*l.y) + n.z*l.z)``: ``rgb = ambient*albedo + (light*albedo)*ndl``, or for
+    a ForwardAdd draw (``lights.add``) ``rgb = ((light*albedo)*ndl)*atten`` (:mod:`.lights`). Lighting
+    is computed one channel at a time on contiguous arrays, each operation as written (the same
+    rounding).
+    """
+    n = normal.shape[0]
+    mode = material.vertex_color
+    out = np.empty((n, 4), dtype=np.float64)
+    if mode is VertexColor.Particle:
+        tint = gamma_color_to_shading(material.tint_color[:3], color_space) + (float(material.tint_color[3]),)
+
+        def base(c: int) -> np.ndarray:  # (2 * i.color) * _TintColor, white when there is no colour
+            if color is None:
+                return np.full(n, 2.0 * tint[c], dtype=np.float64)
+            v = np.multiply(color[:, c], 2.0)
+            v *= tint[c]
+            return v
+
+        def albedo(c: int) -> np.ndarray:
+            v = base(c)
+            if tex is not None:
+                v *= tex[:, c]
+            return v
+
+        out[:, 3] = albedo(3)
+    else:
+        col = gamma_color_to_shading(material.color[:3], color_space) + (float(material.color[3]),)
+        if tex is None:
+            # tex = (1, 1, 1, 1): 1.0 * c == c exactly, so albedo and alpha are the material's.
+            out[:, 3] = col[3] * float(material.alpha_scale)
+        else:
+            out[:, 3] = (tex[:, 3] * col[3]) * float(material.alpha_scale)
+        tinted = mode is VertexColor.Multiply and color is not None
+        if tinted:
+            out[:, 3] *= color[:, 3]
+
+        def albedo(c: int) -> np.ndarray:
+            v = np.full(n, col[c], dtype=np.float64) if tex is None else np.multiply(tex[:, c], col[c])
+            if tinted:
+                v *= color[:, c]
+            return v
+
+    if material.lighting is Lighting.Unlit:
+        for c in range(3):
+            out[:, c] = albedo(c)
+        return out
+    nx, ny, nz = _unit_normals(normal)
+    add = lights.add
+    atten = None
+    if add is None:
+        lx, ly, lz = lights.direction
+        light = lights.light
+    elif add.positional:
+        lx, ly, lz, atten = light_terms(add, position[:, 0], position[:, 1], position[:, 2])
+        light = add.color
+    else:
+        (lx, ly, lz), light = add.direction, add.color
     ndl = np.multiply(nx, lx, out=nx)
     ndl += np.multiply(ny, ly, out=ny)
     ndl += np.multiply(nz, lz, out=nz)
     np.maximum(0.0, ndl, out=ndl)
     for c in range(3):
         a = albedo(c)
-        term = np.multiply(a, lights.ambient[c])
-        np.multiply(a, lights.light[c], out=a)
-        a *= ndl
-        term += a
+        if add is None:
+            term = np.multiply(a, lights.ambient[c])
+            np.multiply(a, light[c], out=a)
+            a *= ndl
+            term += a
+        else:
+            term = np.multiply(a, light[c], out=a)
+            term *= ndl
+            if atten is not None:
+                term *= atten
         out[:, c] = term
     return out

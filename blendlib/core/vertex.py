@@ -12,9 +12,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .outline import outline_clip
 from .parts import PIECE, run_parts
 from .scene import Camera, Mesh, cofactors3_many
-from .vocabulary import Cull
+from .vocabulary import Cull, Pass
 
 SUBPIXEL = 256
 HALF = SUBPIXEL // 2
@@ -84,6 +85,12 @@ class TriangleSetup:
       None when shading does not read normals; ``object_uvs`` (T, 3, 2) or None. World
       normals and float64 UVs are made on demand for the triangles that produce fragments
       (:meth:`world_normals_of`, :meth:`uvs_of`).
+    - ``object_colors`` (T, 3, 4) float64 vertex colours in shading space, or None when shading
+      does not read them (:meth:`colors_of`).
+    - ``placement``: the mesh's (positions (V, 3), triangles (T, 3), matrix_world (4, 4)), from
+      which :meth:`world_positions_of` makes world positions on demand (an outline's corners
+      light as the mesh's own: its program moves only the clip position); ``world_corners``
+      (T, 3, 3) float64 precomputed world positions instead (concatenated setups), or None.
     """
 
     X: np.ndarray
@@ -101,6 +108,24 @@ class TriangleSetup:
     skipped_nonfinite: int = 0
     degenerate: int = 0
     _slope: np.ndarray | None = None
+    object_colors: np.ndarray | None = None
+    placement: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+    world_corners: np.ndarray | None = None
+
+    def world_positions_of(self, src: np.ndarray) -> np.ndarray:
+        """World-space corner positions (K, 3, 3) float64 of source triangles ``src`` (K,): §1's
+        ``((M[i][0]*x + M[i][1]*y) + M[i][2]*z) + M[i][3]``."""
+        if self.world_corners is not None:
+            return self.world_corners[src]
+        positions, triangles, matrix = self.placement
+        corners = np.asarray(positions, dtype=np.float64)[np.asarray(triangles)[src].reshape(-1)]  # (3K, 3)
+        cols = np.ascontiguousarray(corners.T)
+        out = _affine_rows(np.asarray(matrix, dtype=np.float64)[:3], cols[0], cols[1], cols[2], 3)
+        return out.T.reshape(-1, 3, 3)
+
+    def colors_of(self, src: np.ndarray) -> np.ndarray:
+        """Shading-space corner vertex colours (K, 3, 4) float64 of source triangles ``src`` (K,)."""
+        return self.object_colors[src]
 
     def world_normals_of(self, src: np.ndarray) -> np.ndarray:
         """World-space corner normals (K, 3, 3) float64 of source triangles ``src`` (K,)."""
@@ -132,20 +157,22 @@ class TriangleSetup:
 
 def _source_count(setup: TriangleSetup) -> int:
     """How many source triangles ``setup.src`` numbers: its corner arrays' length, else max + 1."""
-    for corners in (setup.object_uvs, setup.object_normals):
+    for corners in (setup.object_uvs, setup.object_normals, setup.object_colors, setup.world_corners):
         if corners is not None:
             return int(corners.shape[0])
     return int(setup.src.max()) + 1 if setup.count else 0
 
 
-def concatenate_setups(setups: list[TriangleSetup]) -> TriangleSetup:
-    """The triangles of ``setups`` (all with normals or none, all with UVs or none) as one
-    setup, in order: several draw calls drawn as one (pipeline's fused calls).
+def concatenate_setups(setups: list[TriangleSetup], positions: bool = False) -> TriangleSetup:
+    """The triangles of ``setups`` (all with normals or none, all with UVs or none, all with
+    vertex colours or none) as one setup, in order: several draw calls drawn as one (pipeline's
+    fused calls).
 
     Source triangles are renumbered past the setups before them, so ``src`` stays distinct
     between setups and indexes the concatenated corner arrays. World normals are computed here
     for every source triangle (each setup has its own normal matrix; the arithmetic per
-    triangle is the same, so the values are equal bit for bit), and ``normal_matrix`` is None.
+    triangle is the same, so the values are equal bit for bit), and ``normal_matrix`` is None;
+    so are world positions when ``positions`` (shading reads them: a point or spot light).
     """
     counts = [_source_count(s) for s in setups]
     offsets = np.cumsum([0, *counts[:-1]]).astype(np.int64)
@@ -164,10 +191,14 @@ def concatenate_setups(setups: list[TriangleSetup]) -> TriangleSetup:
                                   _world_normals(s.object_normals, s.normal_matrix) for s in setups])
     if setups[0].object_uvs is not None:
         uvs = cat("object_uvs")
+    colors = cat("object_colors") if setups[0].object_colors is not None else None
+    world = None
+    if positions:
+        world = np.concatenate([s.world_positions_of(np.arange(n)) for s, n in zip(setups, counts, strict=True)])
     return TriangleSetup(X=cat("X"), Y=cat("Y"), zw=cat("zw"), iw=cat("iw"), area2=cat("area2"),
                          src=np.concatenate([s.src + o for s, o in zip(setups, offsets, strict=True)]),
                          weights=weights, clipped=cat("clipped"), front=cat("front"), object_normals=normals,
-                         normal_matrix=None, object_uvs=uvs)
+                         normal_matrix=None, object_uvs=uvs, object_colors=colors, world_corners=world)
 
 
 def _plane_distance(v: np.ndarray, plane: int, guard: np.ndarray | None = None) -> np.ndarray:
@@ -268,26 +299,32 @@ def _world_normals(normals: np.ndarray, nmat: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class SetupInput:
-    """One renderer for :func:`setup_renderers`: its mesh, object → world matrix (4, 4), and
-    whether shading reads normals (Lambert) and UVs (a texture)."""
+    """One renderer for :func:`setup_renderers`: its mesh, object → world matrix (4, 4), whether
+    shading reads normals (Lambert) and UVs (a texture), its vertex colours in shading space
+    ((T, 3, 4) float64, or None when shading does not read them) and the pass whose outline
+    vertex program moves its corners (:func:`.outline.outline_clip`; None: the vertices as they are)."""
 
     mesh: Mesh
     matrix_world: np.ndarray
     need_normals: bool = True
     need_uvs: bool = True
+    colors: np.ndarray | None = None
+    program: Pass | None = None
 
 
 def setup_triangles(
     mesh: Mesh, matrix_world: np.ndarray, camera: Camera, need_normals: bool = True, need_uvs: bool = True,
-    pool=None, parts: int = 1,
+    pool=None, parts: int = 1, colors: np.ndarray | None = None, program: Pass | None = None,
 ) -> TriangleSetup:
     """Vertex stage, clipping, viewport and snapping for one renderer (docs/pipeline.md §1–§4).
 
     ``need_normals`` / ``need_uvs``: whether shading reads them (Lambert; a texture).
     Attributes not needed are left out (``object_normals`` / ``object_uvs`` None).
     ``pool`` / ``parts``: a thread pool to split per-vertex and per-triangle work over.
+    ``colors``, ``program``: as :class:`SetupInput`'s.
     """
-    return setup_renderers([SetupInput(mesh, matrix_world, need_normals, need_uvs)], camera, pool, parts)[0]
+    return setup_renderers([SetupInput(mesh, matrix_world, need_normals, need_uvs, colors, program)], camera,
+                           pool, parts)[0]
 
 
 def setup_renderers(items: list[SetupInput], camera: Camera, pool=None, parts: int = 1) -> list[TriangleSetup]:
@@ -301,26 +338,35 @@ def setup_renderers(items: list[SetupInput], camera: Camera, pool=None, parts: i
     worlds = np.array([np.asarray(item.matrix_world, dtype=np.float64) for item in items]).reshape(-1, 4, 4)
     mvps = matmul4_many(camera.projection, matmul4_many(camera.view_matrix, worlds))
     nmats, dets = normal_matrices(worlds)
-    v_counts = np.array([item.mesh.positions.shape[0] for item in items], dtype=np.int64)
-    t_counts = np.array([item.mesh.triangles.shape[0] for item in items], dtype=np.int64)
+    # A vertex program (an outline) moves each corner on its own: its renderer's vertices are its
+    # corners (3t + k), their clip coordinates the program's (overwriting the plain transform).
+    vertices = [np.asarray(item.mesh.positions) if item.program is None
+                else np.asarray(item.mesh.positions)[np.asarray(item.mesh.triangles).reshape(-1)] for item in items]
+    triangles = [np.asarray(item.mesh.triangles) if item.program is None
+                 else np.arange(3 * item.mesh.triangle_count, dtype=np.int64).reshape(-1, 3) for item in items]
+    v_counts = np.array([v.shape[0] for v in vertices], dtype=np.int64)
+    t_counts = np.array([t.shape[0] for t in triangles], dtype=np.int64)
     v_offsets = np.concatenate([[0], np.cumsum(v_counts)])
     t_offsets = np.concatenate([[0], np.cumsum(t_counts)])
     v_count, t_count = int(v_offsets[-1]), int(t_offsets[-1])
+    programs = [(int(v_offsets[k]), int(v_offsets[k + 1]), outline_clip(item.mesh, item.matrix_world, camera,
+                                                                          item.program))
+                for k, item in enumerate(items) if item.program is not None]
 
     # Per-vertex work first (V <= 3T), gathered per corner afterwards. Coordinates are kept
     # channels first ((3, V) positions, (4, V) clip coordinates): every column contiguous.
     pos_columns = np.empty((3, v_count), dtype=np.float64)
-    for k, item in enumerate(items):  # converted while copied: one pass, no float64 temporary
-        pos_columns[:, v_offsets[k]:v_offsets[k + 1]] = np.asarray(item.mesh.positions).T
+    for k, v in enumerate(vertices):  # converted while copied: one pass, no float64 temporary
+        pos_columns[:, v_offsets[k]:v_offsets[k + 1]] = v.T
     # Vertex indices per triangle (T, 3), and per corner (3, T): gathers through a strided index
     # array (a column of the former) cost markedly more on large meshes.
     if len(items) == 1:
-        tris = np.asarray(items[0].mesh.triangles, dtype=np.int64)
-        corners = np.ascontiguousarray(np.asarray(items[0].mesh.triangles).T, dtype=np.int64)
+        tris = np.asarray(triangles[0], dtype=np.int64)
+        corners = np.ascontiguousarray(triangles[0].T, dtype=np.int64)
     else:
         tris = np.empty((t_count, 3), dtype=np.int64)
-        for k, item in enumerate(items):
-            np.add(item.mesh.triangles, v_offsets[k], out=tris[t_offsets[k]:t_offsets[k + 1]], dtype=np.int64)
+        for k, t in enumerate(triangles):
+            np.add(t, v_offsets[k], out=tris[t_offsets[k]:t_offsets[k + 1]], dtype=np.int64)
         corners = np.ascontiguousarray(tris.T)
     clip_v = np.empty((4, v_count), dtype=np.float64)
     finite_v = np.empty(v_count, dtype=bool)
@@ -339,6 +385,9 @@ def setup_renderers(items: list[SetupInput], camera: Camera, pool=None, parts: i
         p = pos_columns[:, lo:hi]
         m = mvps[0] if entries is None else entries[:, :, lo:hi]
         _affine_rows(m, p[0], p[1], p[2], 4, out=clip_v[:, lo:hi])
+        for a, b, clip in programs:
+            if a < hi and lo < b:
+                clip_v[:, max(a, lo):min(b, hi)] = clip[:, max(a, lo) - a:min(b, hi) - a]
         cv = clip_v[:, lo:hi].T  # (n, 4) view with contiguous columns
         finite = np.isfinite(clip_v[0, lo:hi])
         for k in range(1, 4):
@@ -492,7 +541,8 @@ def setup_renderers(items: list[SetupInput], camera: Camera, pool=None, parts: i
             object_normals=np.asarray(mesh.normals).reshape(n, 3, 3) if item.need_normals else None,
             normal_matrix=nmats[k],
             object_uvs=np.asarray(mesh.uvs).reshape(n, 3, 2) if item.need_uvs and mesh.uvs is not None else None,
-            skipped_nonfinite=int(skipped[k]), degenerate=int(degenerate[k]),
+            skipped_nonfinite=int(skipped[k]), degenerate=int(degenerate[k]), object_colors=item.colors,
+            placement=(mesh.positions, mesh.triangles, worlds[k]),
         ))
     return setups
 

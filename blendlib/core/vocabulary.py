@@ -183,6 +183,28 @@ class LightRenderMode(_Named):
     NotImportant = "NotImportant"
 
 
+class OutlineMode(_Named):
+    """A pass's outline vertex program (MToon's outline pass, SPEC §11.6): vertices pushed out along
+    their normal before projection. ``Off``: the vertices as they are (every pass that is not an
+    outline); ``World``: by a width in scene units; ``Screen``: in clip space, by a share of the
+    screen height (docs/pipeline.md §1, "Outline vertex program")."""
+
+    Off = "Off"
+    World = "World"
+    Screen = "Screen"
+
+
+class OutlineFormula(_Named):
+    """Which MToon's outline arithmetic :class:`OutlineMode` follows: ``MToon0x`` (VRM 0.x's
+    ``VRM/MToon``: world offsets of ``0.01 × width`` in object space, screen offsets capped by
+    ``_OutlineScaledMaxDistance``) or ``MToon10`` (VRM 1.0's ``VRM10/MToon10``: world offsets of
+    ``width`` metres along the world normal, screen offsets of ``2 × width`` capped by the
+    projection's ``P[1][1]``)."""
+
+    MToon0x = "MToon0x"
+    MToon10 = "MToon10"
+
+
 #: The MSAA sample counts of Unity's Quality settings (Disabled, 2x, 4x, 8x).
 MSAA_SAMPLES = (1, 2, 4, 8)
 
@@ -297,6 +319,15 @@ class Pass:
     alpha_test_comp: CompareFunction = CompareFunction.GEqual
     #: The pass's ``LightMode`` tag: which passes draw (SPEC §11.2).
     light_mode: LightMode = LightMode.ForwardBase
+    #: The outline vertex program (MToon's outline pass); ``Off`` draws the vertices as they are.
+    outline_mode: OutlineMode = OutlineMode.Off
+    #: MToon's ``_OutlineWidth`` (0.x: centimetres in World mode, % of the screen height in Screen
+    #: mode; 1.0's ``outlineWidthFactor``: metres, or a share of the screen height).
+    outline_width: float = 0.0
+    outline_formula: OutlineFormula = OutlineFormula.MToon0x
+    #: MToon 0.x's ``_OutlineScaledMaxDistance`` (Screen mode: the clip w beyond which the outline
+    #: stops growing with distance).
+    outline_max_distance: float = 1.0
 
     def __post_init__(self) -> None:
         if self.ztest is CompareFunction.Never:

@@ -64,8 +64,13 @@ def _rgba_json(values) -> list[float]:
 def _call_json(call: DrawCall) -> dict:
     r = call.renderer
     return {"index": call.index, "object": r.name, "slot": r.slot, "material": r.material.name,
-            "pass": call.pass_index, "pass_name": call.state.name, "queue": call.queue,
+            "pass": call.pass_index, "pass_name": call.state.name, "light": _light_name(call), "queue": call.queue,
             "distance": float(call.distance), "state": pass_state_text(call.state)}
+
+
+def _light_name(call: DrawCall) -> str | None:
+    """The name of the light a ForwardAdd draw is for (one draw per per-pixel light), else None."""
+    return None if call.light is None else call.light.name
 
 
 # ------------------------------------------------------------------ draw list
@@ -178,7 +183,8 @@ class PixelFragment:
         return {
             "draw": call.index, "object": call.renderer.name, "slot": call.renderer.slot,
             "material": call.renderer.material.name, "pass": call.pass_index, "pass_name": call.state.name,
-            "triangle": self.triangle, "polygon": self.polygon, "depth": float32_json(self.depth),
+            "light": _light_name(call), "triangle": self.triangle, "polygon": self.polygon,
+            "depth": float32_json(self.depth),
             "source": _rgba_json(self.source), "before": _rgba_json(self.before), "after": _rgba_json(self.after),
             "depth_before": float32_json(self.depth_before), "depth_after": float32_json(self.depth_after),
             "stencil_before": self.stencil_before, "stencil_after": self.stencil_after, "result": self.result,

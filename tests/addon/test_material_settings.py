@@ -65,6 +65,11 @@ PASS_SPEC = {
     "light_mode": ("ENUM", "ForwardBase", {"Always", "ForwardBase", "ForwardAdd", "Vertex", "VertexLM",
                                            "VertexLMRGBM", "ShadowCaster", "ShadowCollector", "Meta", "Deferred",
                                            "PrepassBase", "PrepassFinal", "MotionVectors", "Other"}),
+    # the outline vertex program (issue 28)
+    "outline_mode": ("ENUM", "Off", {"Off", "World", "Screen"}),
+    "outline_width": ("FLOAT", 0.0, None),
+    "outline_formula": ("ENUM", "MToon0x", {"MToon0x", "MToon10"}),
+    "outline_max_distance": ("FLOAT", 1.0, None),
 }
 FACTORS = {"One", "Zero", "SrcColor", "SrcAlpha", "DstColor", "DstAlpha", "OneMinusSrcColor", "OneMinusSrcAlpha",
            "OneMinusDstColor", "OneMinusDstAlpha", "SrcAlphaSaturate"}

@@ -47,6 +47,9 @@ ENUM_NUMBERS = {
         "light_mode": {"Always": 0, "ForwardBase": 1, "ForwardAdd": 2, "Vertex": 3, "VertexLM": 4, "VertexLMRGBM": 5,
                        "ShadowCaster": 6, "ShadowCollector": 7, "Meta": 8, "Deferred": 9, "PrepassBase": 10,
                        "PrepassFinal": 11, "MotionVectors": 12, "Other": 13},
+        # the outline vertex program (issue 28), appended in version 3
+        "outline_mode": {"Off": 0, "World": 1, "Screen": 2},
+        "outline_formula": {"MToon0x": 0, "MToon10": 1},
     },
     "material": {
         "queue": {"Background": 0, "Geometry": 1, "AlphaTest": 2, "Transparent": 3, "Overlay": 4},

@@ -25,7 +25,8 @@ FILES = sorted(p.name for p in FIXTURES.glob("*.blend"))
 #: Settings schema version 3 added (SPEC §12), with the defaults that draw as 0.1 drew.
 V3_MATERIAL = {"main_tex_mipmaps": False, "main_tex_preserve_coverage": False, "vertex_color": "Off",
                "tint_color": [0.5, 0.5, 0.5, 0.5]}
-V3_PASS = {"alpha_to_mask": False, "alpha_test_comp": "GEqual", "light_mode": "ForwardBase"}
+V3_PASS = {"alpha_to_mask": False, "alpha_test_comp": "GEqual", "light_mode": "ForwardBase", "outline_mode": "Off",
+           "outline_width": 0.0, "outline_formula": "MToon0x", "outline_max_distance": 1.0}
 V3_SCENE = {"msaa": 1, "pixel_light_count": 4}
 
 

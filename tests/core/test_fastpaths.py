@@ -272,9 +272,9 @@ def test_point_texture_palette_equals_reference(lighting, hdr, blend, monkeypatc
     palettes = []
     original = shade.texel_palette
 
-    def counting(material, texels, lights, color_space, normals):
+    def counting(material, texels, lights, color_space, normals, *colors):
         palettes.append(normals.shape[0])
-        return original(material, texels, lights, color_space, normals)
+        return original(material, texels, lights, color_space, normals, *colors)
 
     monkeypatch.setattr(shade, "texel_palette", counting)
     p = Pass(cull=Cull.Off, zwrite=False, blend=blend, src_blend=BlendFactor.SrcAlpha,

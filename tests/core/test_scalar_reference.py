@@ -63,6 +63,20 @@ def test_random_scenes_distinct_triangles_equal_reference(scene):
     assert_same(scene)
 
 
+@settings(PROPERTY, max_examples=100)
+@given(scenes(features=True))
+def test_random_scenes_with_lights_vertex_colours_mipmaps_and_outlines_equal_reference(scene):
+    """SPEC §12's features and the outline vertex program: ForwardAdd draws per light (directional,
+    point, spot), every LightMode, vertex colours Off / Multiply / Particle, mipmapped textures with
+    every filter and Preserve Coverage, outlines in World and Screen mode of both MToon formulas."""
+    assert_same(scene)
+
+
+@pytest.mark.parametrize("seed", range(0, 240, 4))
+def test_seeded_scenes_with_features_equal_reference(seed):
+    assert_same(seeded_scene(seed, shared=False, features=True))
+
+
 @pytest.mark.parametrize("seed", range(0, 400, 8))
 def test_seeded_scenes_equal_reference(seed):
     """A fixed batch as well (stable across runs; the hypothesis tests explore new scenes)."""

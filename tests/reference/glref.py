@@ -39,6 +39,7 @@ import math
 
 import numpy as np
 
+from blendlib.core.outline import outline_key
 from blendlib.core.scene import DrawScene, validate_scene
 from blendlib.core.vocabulary import (
     LAST_OPAQUE_QUEUE,
@@ -49,12 +50,17 @@ from blendlib.core.vocabulary import (
     CompareFunction,
     Cull,
     Lighting,
+    LightType,
     Queue,
     SortMode,
     StencilOp,
     TextureFilter,
     TextureWrap,
+    VertexColor,
 )
+
+from .scalar import renderer_calls
+from .scalar_shading import build_mips, outline_clip
 
 DMAX = 2**24 - 1
 
@@ -174,14 +180,23 @@ _VERTEX_SHADER = """
 in vec4 in_clip;
 in vec2 in_uv;
 in vec3 in_nw;
+in vec4 in_vc;
+in vec3 in_wp;
 out vec2 v_uv;
 out vec3 v_nw;
+out vec4 v_vc;
+out vec3 v_wp;
 void main() {
     v_uv = in_uv;
     v_nw = in_nw;
+    v_vc = in_vc;
+    v_wp = in_wp;
     gl_Position = in_clip;
 }
 """
+#: Per-corner vertex records: clip position, mesh uv, world normal, vertex colour (shading space,
+#: white without one), world position.
+VERTEX_FORMAT = ("4f 2f 3f 4f 3f", "in_clip", "in_uv", "in_nw", "in_vc", "in_wp")
 
 #: The alpha test's comparisons by the number the fragment shader's ``alpha_comp`` holds.
 ALPHA_COMPS = (CompareFunction.GEqual, CompareFunction.Greater, CompareFunction.Less, CompareFunction.LEqual,
@@ -191,6 +206,17 @@ _FRAGMENT_SHADER = """
 #version 330
 in vec2 v_uv;
 in vec3 v_nw;
+in vec4 v_vc;
+in vec3 v_wp;
+uniform int vc_mode;
+uniform vec4 tint;
+uniform int add_type;
+uniform vec3 add_color;
+uniform vec3 add_dir;
+uniform vec3 add_pos;
+uniform vec3 add_axis;
+uniform float add_range2;
+uniform float add_tan_half;
 uniform vec4 color;
 uniform vec2 tiling;
 uniform vec2 uv_offset;
@@ -210,6 +236,14 @@ void main() {
     vec4 t = has_tex ? texture(tex, uv) : vec4(1.0);
     vec3 albedo = t.rgb * color.rgb;
     float alpha = (t.a * color.a) * alpha_scale;
+    if (vc_mode == 1) {  // Multiply
+        albedo *= v_vc.rgb;
+        alpha *= v_vc.a;
+    } else if (vc_mode == 2) {  // Particle: 2 * i.color * _TintColor * tex
+        vec4 c = 2.0 * v_vc * tint * t;
+        albedo = c.rgb;
+        alpha = c.a;
+    }
     if (alpha_test) {
         bool survives = alpha_comp == 0 ? !(alpha - cutoff < 0.0)
             : alpha_comp == 1 ? alpha > cutoff : alpha_comp == 2 ? alpha < cutoff
@@ -221,8 +255,31 @@ void main() {
     if (lambert) {
         float len = length(v_nw);
         vec3 n = len > 0.0 ? v_nw / len : vec3(0.0);
-        float ndl = max(0.0, dot(n, ldir));
-        rgb = ambient * albedo + (light * albedo) * ndl;
+        if (add_type < 0) {
+            float ndl = max(0.0, dot(n, ldir));
+            rgb = ambient * albedo + (light * albedo) * ndl;
+        } else {  // a ForwardAdd draw's light: 0 directional, 1 point, 2 spot
+            vec3 l = add_dir;
+            float atten = 1.0;
+            if (add_type > 0) {
+                vec3 d = v_wp - add_pos;
+                float d2 = dot(d, d);
+                float dl = sqrt(d2);
+                l = dl > 0.0 ? -d / dl : vec3(0.0);
+                float r2 = d2 / add_range2;
+                atten = r2 >= 1.0 ? 0.0 : (1.0 / (1.0 + 25.0 * r2)) * min(1.0, (1.0 - r2) / 0.36);
+                if (add_type == 2) {
+                    float z = dot(d, add_axis);
+                    float cone = 0.0;
+                    if (z > 0.0) {
+                        float rho = sqrt(max(d2 - z * z, 0.0)) / (z * add_tan_half);
+                        cone = clamp((1.0 - rho) / 0.28125, 0.0, 1.0);
+                    }
+                    atten *= cone;
+                }
+            }
+            rgb = ((add_color * albedo) * max(0.0, dot(n, l))) * atten;
+        }
     }
     frag = vec4(rgb, alpha);
 }
@@ -318,9 +375,10 @@ def _matmul4(a, b):
     return out
 
 
-def vertex_data(scene: DrawScene, r) -> tuple[np.ndarray, bool, int]:
-    """Per-corner float32 vertex records ``clip(4) uv(2) nw(3)`` (3 rows per triangle), whether the object is mirrored,
-    and the number of non-finite triangles left out."""
+def vertex_data(scene: DrawScene, r, program=None) -> tuple[np.ndarray, bool, int]:
+    """Per-corner float32 vertex records (:data:`VERTEX_FORMAT`, 3 rows per triangle), whether the
+    object is mirrored, and the number of non-finite triangles left out. ``program``: a pass whose
+    outline vertex program moves the corners (the scalar reference's arithmetic, per corner)."""
     V = np.asarray(scene.camera.view_matrix, np.float64)
     P = np.asarray(scene.camera.projection, np.float64)
     M = np.asarray(r.matrix_world, np.float64)
@@ -337,14 +395,44 @@ def vertex_data(scene: DrawScene, r) -> tuple[np.ndarray, bool, int]:
     tri = np.asarray(mesh.triangles, dtype=np.int64).reshape(-1, 3)
     pos = np.asarray(mesh.positions, dtype=np.float64)[tri]  # (T, 3, 3)
     x, y, z = pos[..., 0], pos[..., 1], pos[..., 2]
-    clip = np.stack([((mvp[i, 0] * x + mvp[i, 1] * y) + mvp[i, 2] * z) + mvp[i, 3] for i in range(4)], axis=-1)
     n = np.asarray(mesh.normals, dtype=np.float64).reshape(-1, 3, 3)
+    if program is None:
+        clip = np.stack([((mvp[i, 0] * x + mvp[i, 1] * y) + mvp[i, 2] * z) + mvp[i, 3] for i in range(4)], axis=-1)
+    else:
+        lists = [M.tolist(), V.tolist(), P.tolist()]
+        clip = np.array([[outline_clip(program, pos[t, k].tolist(), n[t, k].tolist(), *lists) for k in range(3)]
+                         for t in range(tri.shape[0])], dtype=np.float64).reshape(-1, 3, 4)
     nw = np.stack([(N[i, 0] * n[..., 0] + N[i, 1] * n[..., 1]) + N[i, 2] * n[..., 2] for i in range(3)], axis=-1)
     t = tri.shape[0]
     uv = np.zeros((t, 3, 2)) if mesh.uvs is None else np.asarray(mesh.uvs, dtype=np.float64).reshape(-1, 3, 2)
+    vc = np.ones((t, 3, 4))
+    if mesh.colors is not None:
+        vc = np.asarray(mesh.colors, np.float32).astype(np.float64)
+        linear = scene.color_space is ColorSpace.Linear
+        if mesh.color_encoding == "sRGB" and linear:
+            vc[..., :3] = decode(vc[..., :3])
+        elif mesh.color_encoding == "Linear" and not linear:
+            vc[..., :3] = encode(vc[..., :3])
+    wp = np.stack([((M[i, 0] * x + M[i, 1] * y) + M[i, 2] * z) + M[i, 3] for i in range(3)], axis=-1)
     finite = np.all(np.isfinite(clip), axis=(1, 2))
-    rec = np.concatenate([clip, uv, nw], axis=-1)[finite].reshape(-1, 9)
+    rec = np.concatenate([clip, uv, nw, vc, wp], axis=-1)[finite].reshape(-1, 16)
     return np.ascontiguousarray(rec, dtype=np.float32), bool(det < 0), int(t - finite.sum())
+
+
+def _light_uniforms(scene: DrawScene, light) -> dict:
+    """The ``add_*`` uniforms of a ForwardAdd draw's light (None: the main light, ``add_type`` -1)."""
+    if light is None:
+        return {"add_type": -1}
+    linear = scene.color_space is ColorSpace.Linear
+    lamp = np.asarray(light.color, np.float64)
+    lamp = lamp if linear else encode(lamp)
+    axis = np.asarray(light.axis, np.float64)
+    axis = axis / math.sqrt((axis[0] * axis[0] + axis[1] * axis[1]) + axis[2] * axis[2])
+    kinds = {LightType.Directional: 0, LightType.Point: 1, LightType.Spot: 2}
+    return {"add_type": kinds[light.type], "add_color": tuple((lamp * float(light.intensity)).tolist()),
+            "add_dir": tuple(axis.tolist()), "add_pos": tuple(float(v) for v in light.position),
+            "add_axis": tuple((-axis).tolist()), "add_range2": float(light.range) ** 2,
+            "add_tan_half": math.tan(math.radians(float(light.spot_angle)) / 2.0)}
 
 
 class _Shading:
@@ -371,6 +459,7 @@ class _Shading:
             length = math.sqrt((d[0] * d[0] + d[1] * d[1]) + d[2] * d[2])
             self.ldir = tuple((d / length if length else d * 0).tolist())
         self.texels = None
+        self.levels = []  # mip levels 1.. (float32), when the material has mipmaps
         tex = material.main_tex
         if tex is not None:
             px = np.asarray(tex.pixels, np.float32).astype(np.float64)
@@ -380,6 +469,12 @@ class _Shading:
             elif tex.encoding == "Linear" and not linear:
                 rgb = encode(rgb)
             self.texels = np.ascontiguousarray(np.concatenate([rgb, px[..., 3:]], axis=-1), dtype=np.float32)
+            if material.main_tex_mipmaps:  # the chain of docs/pipeline.md §7, by the scalar reference
+                chain = build_mips(np.concatenate([rgb, px[..., 3:]], axis=-1).tolist(),
+                                   material.main_tex_preserve_coverage, float(material.cutoff))
+                self.levels = [np.asarray(level, np.float32) for level in chain[1:]]
+        tint = np.asarray(material.tint_color, np.float64)
+        self.tint = tuple(np.concatenate([from_gamma(tint[:3]), tint[3:]]).tolist())
 
 
 class GLRenderer:
@@ -392,7 +487,7 @@ class GLRenderer:
         self.ctx, self.gl = ctx, gl
         if "program" not in cache:
             cache["program"] = ctx.program(vertex_shader=_VERTEX_SHADER, fragment_shader=_FRAGMENT_SHADER)
-        self.program = prog = cache["program"]
+        self.program = cache["program"]
         cam = scene.camera
         self.W, self.H = int(cam.width), int(cam.height)
         self.hdr = bool(scene.hdr)
@@ -402,7 +497,6 @@ class GLRenderer:
         self._peeling = None  # render_sorted's selection targets, made on first use
 
         # Framebuffer: colour texture + DEPTH24_STENCIL8 renderbuffer on a raw FBO.
-        import moderngl
 
         size = (self.W, self.H)
         if self.hdr:
@@ -435,35 +529,32 @@ class GLRenderer:
         self._peel_vaos = {}  # (program, vertex buffer) → vertex array of render_sorted's programs
         number = 0
         for r in draw_order(scene):
+            calls = renderer_calls(scene, r)
+            number += len(calls)
             data, mirrored, skipped = vertex_data(scene, r)
             if skipped:
                 self.warnings.append(f"object {r.name!r} slot {r.slot}: {skipped} non-finite triangle(s) skipped")
-            number += len(r.material.draw_passes)
             if len(data) == 0:
                 continue
-            vbo = ctx.buffer(data.tobytes())
-            vao = ctx.vertex_array(prog, [(vbo, "4f 2f 3f", "in_clip", "in_uv", "in_nw")])
-            self._resources += [vao, vbo]
+            buffers = {None: self._vertex_buffer(data)}
             mat = r.material
             sh = _Shading(scene, mat)
-            tex = None
-            if sh.texels is not None:
-                th, tw = sh.texels.shape[:2]
-                tex = ctx.texture((tw, th), 4, sh.texels.tobytes(), dtype="f4")
-                f = moderngl.NEAREST if mat.main_tex_filter is TextureFilter.Point else moderngl.LINEAR
-                tex.filter = (f, f)
-                rep = mat.main_tex_wrap is TextureWrap.Repeat
-                tex.repeat_x = tex.repeat_y = rep
-                self._resources.append(tex)
+            tex = None if sh.texels is None else self._texture(sh, mat)
             uniforms = {
                 "color": sh.color, "tiling": tuple(map(float, mat.main_tex_tiling)),
                 "uv_offset": tuple(map(float, mat.main_tex_offset)), "alpha_scale": float(mat.alpha_scale),
                 "cutoff": float(mat.cutoff), "lambert": mat.lighting is Lighting.Lambert,
                 "has_tex": tex is not None, "ambient": sh.ambient, "light": sh.light, "ldir": sh.ldir,
+                "vc_mode": {VertexColor.Off: 0, VertexColor.Multiply: 1, VertexColor.Particle: 2}[mat.vertex_color],
+                "tint": sh.tint,
             }
-            for k, p in enumerate(mat.draw_passes):
-                self.calls.append((vao, len(data), mirrored, tex, uniforms, p))
-                self.call_numbers.append(number - len(mat.draw_passes) + k + 1)
+            for k, (p, light) in enumerate(calls):
+                key = outline_key(p)
+                if key not in buffers:
+                    buffers[key] = self._vertex_buffer(vertex_data(scene, r, p)[0])
+                vbo, vao, count = buffers[key]
+                self.calls.append((vao, count, mirrored, tex, {**uniforms, **_light_uniforms(scene, light)}, p))
+                self.call_numbers.append(number - len(calls) + k + 1)
                 self.call_queues.append(mat.render_queue)
                 self._call_buffers.append(vbo)
 
@@ -471,6 +562,37 @@ class GLRenderer:
         if self.linear:
             clear = np.concatenate([decode(clear[:3]), clear[3:]])
         self.clear = tuple(float(c) for c in clear)
+
+    def _vertex_buffer(self, data: np.ndarray):
+        """(vertex buffer, vertex array for the main program, vertex count) of vertex records."""
+        vbo = self.ctx.buffer(data.tobytes())
+        vao = self.ctx.vertex_array(self.program, [(vbo, *VERTEX_FORMAT)], skip_errors=True)
+        self._resources += [vao, vbo]
+        return vbo, vao, len(data)
+
+    def _texture(self, sh: _Shading, mat):
+        """The material's texture: level 0 and, with mipmaps, the chain's other levels, filtered as
+        the material's filter says (with mipmaps: GL_NEAREST_MIPMAP_NEAREST, GL_LINEAR_MIPMAP_NEAREST,
+        GL_LINEAR_MIPMAP_LINEAR)."""
+        import moderngl
+
+        th, tw = sh.texels.shape[:2]
+        tex = self.ctx.texture((tw, th), 4, sh.texels.tobytes(), dtype="f4")
+        point = mat.main_tex_filter is TextureFilter.Point
+        mag = moderngl.NEAREST if point else moderngl.LINEAR
+        if sh.levels:
+            tex.build_mipmaps(0, len(sh.levels))
+            for level, values in enumerate(sh.levels, start=1):
+                tex.write(np.ascontiguousarray(values).tobytes(), level=level)
+            minify = {TextureFilter.Point: moderngl.NEAREST_MIPMAP_NEAREST,
+                      TextureFilter.Bilinear: moderngl.LINEAR_MIPMAP_NEAREST,
+                      TextureFilter.Trilinear: moderngl.LINEAR_MIPMAP_LINEAR}[mat.main_tex_filter]
+            tex.filter = (minify, mag)
+        else:
+            tex.filter = (mag, mag)
+        tex.repeat_x = tex.repeat_y = mat.main_tex_wrap is TextureWrap.Repeat
+        self._resources.append(tex)
+        return tex
 
     # -------------------------------------------------------------- drawing
 
@@ -626,7 +748,7 @@ class GLRenderer:
             vbo = self._call_buffers[k]
             vao = self._peel_vaos.get((prog.glo, vbo.glo))
             if vao is None:
-                vao = self.ctx.vertex_array(prog, [(vbo, "4f 2f 3f", "in_clip", "in_uv", "in_nw")], skip_errors=True)
+                vao = self.ctx.vertex_array(prog, [(vbo, *VERTEX_FORMAT)], skip_errors=True)
                 self._peel_vaos[(prog.glo, vbo.glo)] = vao
                 self._resources.append(vao)
         self._use_material(prog, tex, uniforms, p)

@@ -10,16 +10,23 @@ Cull / ZTest / BlendFactor / BlendOp / ColorMask / StencilOp / comparison, separ
 alpha, polygon offset, alpha test, textures of 1..4 x 1..4 texels with both
 filters, both wraps and all three encodings, Gamma / Linear, LDR / HDR, every sort
 mode, with and without a light.
+
+With ``features`` (SPEC §12 and the outline of §11.6; drawn after everything above, so a seed's
+scene without them stays the scene it always was): forward lights (directional, point and spot,
+every render mode) drawing ForwardAdd passes, every LightMode, vertex colours (both encodings) with
+Off / Multiply / Particle, textures up to 8 x 8 with mipmaps (every filter, Preserve Coverage) and
+outline vertex programs (World / Screen, MToon 0.x / 1.0).
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 from hypothesis import strategies as st
 
-from blendlib.core.scene import Camera, DrawScene, Light, Renderer
+from blendlib.core.scene import Camera, DrawScene, ForwardLight, Light, Renderer
 from blendlib.core.vocabulary import (
     CHANNELS,
     ZTEST_FUNCTIONS,
@@ -29,7 +36,12 @@ from blendlib.core.vocabulary import (
     CompareFunction,
     Cull,
     Lighting,
+    LightMode,
+    LightRenderMode,
+    LightType,
     Material,
+    OutlineFormula,
+    OutlineMode,
     Pass,
     Queue,
     SortMode,
@@ -37,6 +49,7 @@ from blendlib.core.vocabulary import (
     Texture,
     TextureFilter,
     TextureWrap,
+    VertexColor,
     pass_state_text,
 )
 
@@ -137,6 +150,62 @@ def _material(pick, index: int) -> Material:
     )
 
 
+def _featured_pass(pick, p: Pass) -> Pass:
+    """``p`` with a LightMode (ForwardAdd often) and maybe an outline vertex program."""
+    modes = [LightMode.ForwardBase, LightMode.ForwardAdd, LightMode.ForwardAdd, LightMode.Always,
+             LightMode.ShadowCaster, LightMode.Vertex]
+    kw = dict(light_mode=pick.choice(modes))
+    if pick.chance(0.25):
+        formula = pick.choice(OutlineFormula)
+        mode = pick.choice([OutlineMode.World, OutlineMode.Screen])
+        if mode is OutlineMode.World:
+            width = pick.real(0, 20, 40) if formula is OutlineFormula.MToon0x else pick.real(0, 0.2, 40)
+        else:
+            width = pick.real(0, 10, 40) if formula is OutlineFormula.MToon0x else pick.real(0, 0.05, 40)
+        kw.update(outline_mode=mode, outline_formula=formula, outline_width=width,
+                  outline_max_distance=pick.real(1, 10, 9))
+    return replace(p, **kw)
+
+
+def _featured_material(pick, m: Material) -> Material:
+    """``m`` with vertex colour use, a tint, and maybe a mipmapped texture of up to 8 x 8 texels."""
+    kw = dict(vertex_color=pick.choice(VertexColor), tint_color=_color(pick),
+              passes=tuple(_featured_pass(pick, p) for p in m.passes))
+    if pick.chance(0.6):
+        w, h = pick.int(1, 8), pick.int(1, 8)
+        px = np.array([[_color(pick) for _ in range(w)] for _ in range(h)], dtype=np.float32)
+        kw.update(main_tex=Texture(px, encoding=pick.choice(["sRGB", "Linear", "Data"]), name="mip"),
+                  main_tex_mipmaps=pick.chance(0.8), main_tex_preserve_coverage=pick.chance(0.4),
+                  main_tex_tiling=(pick.real(-3, 4, 28), pick.real(-3, 4, 28)))
+    return replace(m, **kw)
+
+
+def _featured_lights(pick) -> tuple[ForwardLight, ...]:
+    lights = []
+    for k in range(pick.int(0, 3)):
+        kind = pick.choice(LightType)
+        axis = (pick.real(-1, 1, 20), pick.real(-1, 1, 20), pick.choice([-1.0, 1.0]))
+        lights.append(ForwardLight(
+            name=f"L{k}", type=kind, position=(pick.real(-2, 2, 40), pick.real(-2, 2, 40), pick.real(-2, 2, 40)),
+            axis=axis, color=_color(pick)[:3], intensity=pick.real(0, 2, 20), range=pick.real(0.5, 6, 22),
+            spot_angle=pick.real(20, 150, 26),
+            render_mode=pick.choice([LightRenderMode.Auto, LightRenderMode.Auto, LightRenderMode.Important,
+                                     LightRenderMode.NotImportant])))
+    return tuple(lights)
+
+
+def _featured_renderer(pick, r: Renderer) -> Renderer:
+    """``r`` with the material's features and maybe vertex colours."""
+    mesh = r.mesh
+    if pick.chance(0.7):
+        t = mesh.triangle_count
+        colors = np.array([[_color(pick) for _ in range(3)] for _ in range(t)], dtype=np.float32)
+        if pick.chance(0.3):  # one colour per triangle: flat inputs
+            colors[:, 1:] = colors[:, :1]
+        mesh = replace(mesh, colors=colors, color_encoding=pick.choice(["sRGB", "Linear"]))
+    return replace(r, mesh=mesh, material=_featured_material(pick, r.material))
+
+
 def _matrix(pick) -> np.ndarray:
     m = np.eye(4)
     angle = pick.real(-math.pi, math.pi, 64)
@@ -188,14 +257,23 @@ def _camera(pick) -> Camera:
     return Camera(look_at(eye), proj, w, h, orthographic=ortho)
 
 
-def build(pick, shared: bool = True) -> DrawScene:
-    """A random scene; ``shared=False`` gives every triangle its own three vertices."""
+def build(pick, shared: bool = True, features: bool = False) -> DrawScene:
+    """A random scene; ``shared=False`` gives every triangle its own three vertices; ``features``
+    adds lights, vertex colours, mipmaps and outlines (module docstring)."""
     cam = _camera(pick)
     renderers = tuple(_renderer(pick, k, shared) for k in range(pick.int(1, 4)))
     light = None
     if pick.chance(0.7):
         light = Light(direction=(pick.real(-1, 1, 20), pick.real(-1, 1, 20), pick.real(0.1, 1, 20)),
                       color=_color(pick)[:3], energy=pick.real(0, 3, 30))
+    scene = _scene(pick, cam, renderers, light)
+    if not features:
+        return scene
+    return replace(scene, renderers=tuple(_featured_renderer(pick, r) for r in scene.renderers),
+                   lights=_featured_lights(pick), pixel_light_count=pick.int(0, 3))
+
+
+def _scene(pick, cam, renderers, light) -> DrawScene:
     return DrawScene(
         camera=cam,
         renderers=renderers,
@@ -211,14 +289,14 @@ def build(pick, shared: bool = True) -> DrawScene:
 
 
 @st.composite
-def scenes(draw, shared: bool = True) -> DrawScene:
+def scenes(draw, shared: bool = True, features: bool = False) -> DrawScene:
     """Hypothesis strategy: a small random draw scene."""
-    return build(_HypothesisPick(draw), shared)
+    return build(_HypothesisPick(draw), shared, features)
 
 
-def seeded_scene(seed: int, shared: bool = True) -> DrawScene:
+def seeded_scene(seed: int, shared: bool = True, features: bool = False) -> DrawScene:
     """The same kind of scene from a numpy seed (stable, for aggregate statistics)."""
-    return build(_RngPick(seed), shared)
+    return build(_RngPick(seed), shared, features)
 
 
 def describe(scene: DrawScene) -> str:
@@ -229,6 +307,7 @@ def describe(scene: DrawScene) -> str:
         f"proj={cam.projection.tolist()}",
         f"color_space={scene.color_space} hdr={scene.hdr} clear={scene.clear_color} ambient={scene.ambient} "
         f"linear_ambient={scene.ambient_is_linear} light={scene.light} sort={scene.sort_mode} {scene.sort_axis}",
+        f"lights={scene.lights} pixel_light_count={scene.pixel_light_count}",
     ]
     for r in scene.renderers:
         mat = r.material
@@ -236,7 +315,10 @@ def describe(scene: DrawScene) -> str:
         lines.append(f"  positions={np.asarray(r.mesh.positions).tolist()} triangles={r.mesh.triangles.tolist()}")
         lines.append(f"  material queue={mat.render_queue} color={mat.color} lighting={mat.lighting} "
                      f"tex={None if mat.main_tex is None else mat.main_tex.pixels.shape} "
-                     f"{mat.main_tex_filter} {mat.main_tex_wrap} cutoff={mat.cutoff}")
+                     f"{mat.main_tex_filter} {mat.main_tex_wrap} cutoff={mat.cutoff} mips={mat.main_tex_mipmaps} "
+                     f"preserve={mat.main_tex_preserve_coverage} vertex_color={mat.vertex_color} tint={mat.tint_color} "
+                     f"colors={None if r.mesh.colors is None else r.mesh.color_encoding}")
         for p in mat.draw_passes:
-            lines.append(f"  pass {pass_state_text(p)}")
+            lines.append(f"  pass {pass_state_text(p)} {p.light_mode} outline={p.outline_mode} "
+                         f"{p.outline_formula} {p.outline_width} {p.outline_max_distance}")
     return "\n".join(lines)

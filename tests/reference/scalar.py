@@ -16,59 +16,46 @@ returns ``color`` (H, W, 4) float32, ``depth`` (H, W) float32 and ``stencil``
 from __future__ import annotations
 
 import math
-import struct
 
 import numpy as np
 
+from blendlib.core.drawlist import pixel_lights
 from blendlib.core.scene import DrawScene, validate_scene
 from blendlib.core.vocabulary import (
     LAST_OPAQUE_QUEUE,
+    ONCE,
+    PER_LIGHT,
     BlendFactor,
     BlendOp,
     ColorSpace,
     CompareFunction,
     Cull,
-    Lighting,
+    OutlineMode,
+    Pass,
     SortMode,
     StencilOp,
-    TextureFilter,
-    TextureWrap,
+    VertexColor,
+    pass_draws,
 )
+
+from . import scalar_shading as sh
+from .scalar_shading import Shader, decode, div, encode, f32, to_list  # noqa: F401  (the reference's helpers)
 
 S = 256  # sub-pixel steps per pixel
 HALF = S // 2
 DMAX = 2**24 - 1
 GUARD = 4.0
-EXP = 1.0 / 2.4
 
 
 # ---------------------------------------------------------------- small helpers
 
 
-def f32(x: float) -> float:
-    """The float32 nearest to ``x`` (round to nearest even; overflow gives +-inf)."""
-    try:
-        return struct.unpack("<f", struct.pack("<f", x))[0]
-    except OverflowError:
-        return math.copysign(math.inf, x)
 
 
-def div(a: float, b: float) -> float:
-    """IEEE division (numpy semantics: x/0 is +-inf or nan instead of an exception)."""
-    try:
-        return a / b
-    except ZeroDivisionError:
-        if a != a or a == 0.0:
-            return math.nan
-        return math.copysign(math.inf, a) * math.copysign(1.0, b)
 
 
-def encode(x: float) -> float:
-    return x * 12.92 if x <= 0.0031308 else 1.055 * x**EXP - 0.055
 
 
-def decode(x: float) -> float:
-    return x / 12.92 if x <= 0.04045 else ((x + 0.055) / 1.055) ** 2.4
 
 
 def clamp01(x: float) -> float:
@@ -82,9 +69,6 @@ def matmul4(a, b):
     ]
 
 
-def to_list(m) -> list:
-    """A numpy array (any float dtype) as nested lists of Python floats (float64)."""
-    return np.asarray(m, dtype=np.float64).tolist()
 
 
 def compare(func: CompareFunction, a: int, b: int) -> bool:
@@ -192,101 +176,6 @@ def clip_triangle(verts: list) -> list:
 
 
 # ---------------------------------------------------------------- §7 shading helpers
-
-
-class Shader:
-    """The material's fragment program in shading space."""
-
-    def __init__(self, scene: DrawScene, material):
-        linear = scene.color_space is ColorSpace.Linear
-        self.linear = linear
-
-        def from_gamma(c):  # COLOR_GAMMA colour
-            return decode(c) if linear else c
-
-        def from_linear(c):  # linear Blender colour
-            return c if linear else encode(c)
-
-        self.color = [from_gamma(float(c)) for c in material.color[:3]] + [float(material.color[3])]
-        self.tiling = [float(v) for v in material.main_tex_tiling]
-        self.offset = [float(v) for v in material.main_tex_offset]
-        self.alpha_scale = float(material.alpha_scale)
-        self.cutoff = float(material.cutoff)
-        self.lambert = material.lighting is Lighting.Lambert
-        self.point = material.main_tex_filter is TextureFilter.Point
-        self.repeat = material.main_tex_wrap is TextureWrap.Repeat
-        amb = [float(c) for c in scene.ambient]
-        self.ambient = [from_linear(c) if scene.ambient_is_linear else from_gamma(c) for c in amb]
-        if scene.light is None:
-            self.light = [0.0, 0.0, 0.0]
-            self.ldir = [0.0, 0.0, 0.0]
-        else:
-            energy = float(scene.light.energy)
-            self.light = [from_linear(float(c)) * energy for c in scene.light.color]
-            self.ldir = normalise([float(v) for v in scene.light.direction])
-        tex = material.main_tex
-        self.tex = None
-        if tex is not None:
-            rows = to_list(np.asarray(tex.pixels, dtype=np.float32))
-            if tex.encoding == "sRGB":
-                conv = decode if linear else (lambda c: c)
-            elif tex.encoding == "Linear":
-                conv = (lambda c: c) if linear else encode
-            else:
-                conv = lambda c: c  # noqa: E731
-            self.tex = [[[conv(t[0]), conv(t[1]), conv(t[2]), t[3]] for t in row] for row in rows]
-            self.th = len(rows)
-            self.tw = len(rows[0])
-
-    def wrap(self, i: int, n: int) -> int:
-        return i % n if self.repeat else min(max(i, 0), n - 1)
-
-    def sample(self, u: float, v: float) -> list:
-        if self.tex is None:
-            return [1.0, 1.0, 1.0, 1.0]
-        T, w, h = self.tex, self.tw, self.th
-        if not (math.isfinite(u) and math.isfinite(v)):
-            return list(T[0][0])
-        if self.point:
-            i = self.wrap(math.floor(u * w), w)
-            j = self.wrap(math.floor(v * h), h)
-            return list(T[j][i])
-        fu = u * w - 0.5
-        fv = v * h - 0.5
-        i0 = math.floor(fu)
-        j0 = math.floor(fv)
-        au = fu - i0
-        av = fv - j0
-        i1, j1 = self.wrap(i0 + 1, w), self.wrap(j0 + 1, h)
-        i0, j0 = self.wrap(i0, w), self.wrap(j0, h)
-        out = []
-        for c in range(4):
-            lo = T[j0][i0][c] * (1 - au) + T[j0][i1][c] * au
-            hi = T[j1][i0][c] * (1 - au) + T[j1][i1][c] * au
-            out.append(lo * (1 - av) + hi * av)
-        return out
-
-    def shade(self, uv: list, nw: list) -> list:
-        """rgba of the fragment in shading space (before clamping)."""
-        u = uv[0] * self.tiling[0] + self.offset[0]
-        v = uv[1] * self.tiling[1] + self.offset[1]
-        tex = self.sample(u, v)
-        albedo = [tex[c] * self.color[c] for c in range(3)]
-        alpha = (tex[3] * self.color[3]) * self.alpha_scale
-        if not self.lambert:
-            return albedo + [alpha]
-        n = normalise(nw)
-        l = self.ldir
-        ndl = max(0.0, (n[0] * l[0] + n[1] * l[1]) + n[2] * l[2])
-        rgb = [self.ambient[c] * albedo[c] + (self.light[c] * albedo[c]) * ndl for c in range(3)]
-        return rgb + [alpha]
-
-
-def normalise(v: list) -> list:
-    length = math.sqrt((v[0] * v[0] + v[1] * v[1]) + v[2] * v[2])
-    if length == 0:
-        return [0.0, 0.0, 0.0]
-    return [v[0] / length, v[1] / length, v[2] / length]
 
 
 # ---------------------------------------------------------------- §8 blending
@@ -447,6 +336,33 @@ def render_reference(scene: DrawScene, warnings: list | None = None, max_calls: 
     return buf.arrays()
 
 
+def renderer_calls(scene, r) -> list:
+    """The draw calls of renderer ``r`` as (pass, light): its passes in order as the forward path
+    draws them (:func:`pass_draws`), a ForwardAdd pass once per per-pixel light (:func:`pixel_lights`)."""
+    passes = r.material.draw_passes
+    calls = []
+    for p in passes:
+        how, _ = pass_draws(p, passes)
+        if how == ONCE:
+            calls.append((p, None))
+        elif how == PER_LIGHT:
+            calls.extend((p, light) for light in pixel_lights(scene, r))
+    return calls
+
+
+def corner_colors(scene, mesh) -> list | None:
+    """The mesh's corner vertex colours in shading space (§7: converted as texels are), or None."""
+    if mesh.colors is None:
+        return None
+    linear = scene.color_space is ColorSpace.Linear
+    if mesh.color_encoding == "sRGB":
+        conv = decode if linear else (lambda c: c)
+    else:
+        conv = (lambda c: c) if linear else encode
+    return [[[conv(c[0]), conv(c[1]), conv(c[2]), c[3]] for c in tri]
+            for tri in to_list(np.asarray(mesh.colors, dtype=np.float32))]
+
+
 def draw_renderer(scene, r, V, P, buf: Buffers, warnings, budget, log: FragmentLog | None = None) -> None:
     M = to_list(r.matrix_world)
     MVP = matmul4(P, matmul4(V, M))
@@ -467,49 +383,73 @@ def draw_renderer(scene, r, V, P, buf: Buffers, warnings, budget, log: FragmentL
     triangles = np.asarray(r.mesh.triangles).tolist()
     normals = to_list(r.mesh.normals)
     uvs = to_list(r.mesh.uvs) if r.mesh.uvs is not None else None
+    colors = corner_colors(scene, r.mesh) if r.material.vertex_color is not VertexColor.Off else None
 
     def clip_of(vtx):
         x, y, z = vtx
         return [((MVP[i][0] * x + MVP[i][1] * y) + MVP[i][2] * z) + MVP[i][3] for i in range(4)]
 
-    # Vertex stage once per renderer: the same for every pass.
-    prims = []  # per source triangle: (clipped triangles, uv corners, normal corners)
-    skipped = 0
-    for t, tri in enumerate(triangles):
-        clips = [clip_of(positions[k]) for k in tri]
-        if not all(math.isfinite(c) for v in clips for c in v):
-            skipped += 1
-            continue
-        nws = [[(N[i][0] * n[0] + N[i][1] * n[1]) + N[i][2] * n[2] for i in range(3)] for n in normals[t]]
-        uv = uvs[t] if uvs is not None else [[0.0, 0.0]] * 3
-        unit = ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0])
-        verts = [clips[k] + list(unit[k]) for k in range(3)]
-        prims.append((t, clip_triangle(verts), uv, nws))
+    def world_of(vtx):  # §1's world position (a ForwardAdd draw's point or spot light reads it)
+        x, y, z = vtx
+        return [((M[i][0] * x + M[i][1] * y) + M[i][2] * z) + M[i][3] for i in range(3)]
+
+    def vertex_stage(p):
+        """Per source triangle: (index, clipped triangles, whether clipped, corner attributes)."""
+        prims = []
+        skipped = 0
+        for t, tri in enumerate(triangles):
+            if p.outline_mode is OutlineMode.Off:
+                clips = [clip_of(positions[k]) for k in tri]
+            else:  # the outline vertex program, per corner
+                clips = [sh.outline_clip(p, positions[k], normals[t][c], M, V, P) for c, k in enumerate(tri)]
+            if not all(math.isfinite(c) for v in clips for c in v):
+                skipped += 1
+                continue
+            nws = [[(N[i][0] * n[0] + N[i][1] * n[1]) + N[i][2] * n[2] for i in range(3)] for n in normals[t]]
+            attrs = {"uv": uvs[t] if uvs is not None else [[0.0, 0.0]] * 3, "nw": nws,
+                     "vc": None if colors is None else colors[t], "wp": [world_of(positions[k]) for k in tri]}
+            unit = ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0])
+            verts = [clips[k] + list(unit[k]) for k in range(3)]
+            clipped = clip_triangle(verts)
+            prims.append((t, clipped, not (len(clipped) == 1 and clipped[0] is verts), attrs))
+        return prims, skipped
+
+    # Vertex stage once per vertex program: the same for every pass with it.
+    stages = {}
+    plain, skipped = vertex_stage(Pass())
+    stages[None] = plain
     if skipped and warnings is not None:
         warnings.append(f"object {r.name!r} slot {r.slot}: {skipped} non-finite triangle(s) skipped")
 
     shader = Shader(scene, r.material)
-    for p in r.material.draw_passes:
+    linear = scene.color_space is ColorSpace.Linear
+    for p, light in renderer_calls(scene, r):
         if budget[0] <= 0:
             return
         budget[0] -= 1
         budget[1] += 1
         where = None if log is None else [budget[1], 0]
+        key = None if p.outline_mode is OutlineMode.Off else (p.outline_mode, p.outline_formula,
+                                                               p.outline_width, p.outline_max_distance)
+        if key not in stages:
+            stages[key] = vertex_stage(p)[0]
+        shader.for_light(light, linear)
         drawn = 0
-        for t, tris, uv, nws in prims:
+        for t, tris, clipped, attrs in stages[key]:
             if where is not None:
                 where[1] = t
             hit = False
             for tri in tris:
-                hit = raster_triangle(tri, uv, nws, mirrored, p, shader, buf, log, where) or hit
+                hit = raster_triangle(tri, attrs, clipped, mirrored, p, shader, buf, log, where) or hit
             drawn += hit
         if log is not None:
             log.triangles[budget[1]] = drawn
 
 
-def raster_triangle(tri, uv, nws, mirrored: bool, p, shader: Shader, buf: Buffers,
+def raster_triangle(tri, attrs, clipped: bool, mirrored: bool, p, shader: Shader, buf: Buffers,
                     log: FragmentLog | None = None, where: list | None = None) -> bool:
-    """Rasterise one (clipped) triangle; returns whether it was drawn (not culled, not zero-area)."""
+    """Rasterise one (clipped) triangle with its source triangle's corner attributes ``attrs``;
+    returns whether it was drawn (not culled, not zero-area)."""
     W, H = buf.W, buf.H
     # §3 viewport and snapping
     win = []
@@ -554,6 +494,25 @@ def raster_triangle(tri, uv, nws, mirrored: bool, p, shader: Shader, buf: Buffer
         dzdy = ((zws[2] - zws[0]) * (x1 - x0) - (zws[1] - zws[0]) * (x2 - x0)) / fa
         bias = float(p.offset_factor) * max(abs(dzdx), abs(dzdy)) + float(p.offset_units) * 2**-24
 
+    def uv_at(qx: int, qy: int) -> tuple[float, float]:
+        """Texture coordinates at pixel centre (qx, qy), covered or not (§7 "Mipmaps": helper
+        pixels): §4's edge functions over the signed area, §6's weights and interpolation."""
+        Qx, Qy = qx * S + HALF, qy * S + HALF
+        sign = 1 if area2 > 0 else -1
+        Xs, Ys = (X0, X1, X2), (Y0, Y1, Y2)
+        bary = []
+        for k in range(3):
+            a, b = (k + 1) % 3, (k + 2) % 3
+            e = (Xs[b] - Xs[a]) * (Qy - Ys[a]) - (Ys[b] - Ys[a]) * (Qx - Xs[a])
+            bary.append(float(e * sign) / A)
+        t = [bary[k] * win[k][3] for k in range(3)]
+        s_ = (t[0] + t[1]) + t[2]
+        o = [div(tk, s_) for tk in t]
+        if clipped:
+            B = [win[k][4] for k in range(3)]
+            o = [(o[0] * B[0][j] + o[1] * B[1][j]) + o[2] * B[2][j] for j in range(3)]
+        return shader.texture_uv(lerp3(o, attrs["uv"], 2))
+
     xs = (X0, X1, X2)
     ys = (Y0, Y1, Y2)
     xlo = max(0, (min(xs) - HALF) // S)
@@ -575,7 +534,7 @@ def raster_triangle(tri, uv, nws, mirrored: bool, p, shader: Shader, buf: Buffer
                 bw = (ba, bb, bc)
             else:  # order (v0, v2, v1): a = v0, b = v2, c = v1
                 bw = (ba, bc, bb)
-            fragment(px, py, bw, win, zws, bias, use_offset, uv, nws, p, shader, buf, log, where)
+            fragment(px, py, bw, win, zws, bias, use_offset, attrs, p, shader, buf, log, where, uv_at)
     return True
 
 
@@ -586,8 +545,21 @@ def lerp3(o: list, corners: list, n: int) -> list:
     return [(o[0] * corners[0][c] + o[1] * corners[1][c]) + o[2] * corners[2][c] for c in range(n)]
 
 
-def fragment(px, py, bw, win, zws, bias, use_offset, uv, nws, p, shader: Shader, buf: Buffers,
-             log: FragmentLog | None = None, where: list | None = None) -> None:
+def quad_lod(px: int, py: int, uv_at, w: int, h: int) -> float:
+    """§7 "Mipmaps": the LOD of the 2x2 quad of pixel (px, py) (y up) for a w x h base level."""
+    x0, y0 = px & ~1, py & ~1
+    u00, v00 = uv_at(x0, y0)
+    u10, v10 = uv_at(x0 + 1, y0)
+    u01, v01 = uv_at(x0, y0 + 1)
+    a, b = (u10 - u00) * w, (v10 - v00) * h
+    rx = a * a + b * b
+    a, b = (u01 - u00) * w, (v01 - v00) * h
+    ry = a * a + b * b
+    return sh.log2_lod(sh.nmax(rx, ry))
+
+
+def fragment(px, py, bw, win, zws, bias, use_offset, attrs, p, shader: Shader, buf: Buffers,
+             log: FragmentLog | None = None, where: list | None = None, uv_at=None) -> None:
     b0, b1, b2 = bw
     # §5 depth
     z = (b0 * zws[0] + b1 * zws[1]) + b2 * zws[2]
@@ -601,10 +573,15 @@ def fragment(px, py, bw, win, zws, bias, use_offset, uv, nws, p, shader: Shader,
     pk = [div(tk, s) for tk in t]
     B = [win[k][4] for k in range(3)]
     o = [(pk[0] * B[0][j] + pk[1] * B[1][j]) + pk[2] * B[2][j] for j in range(3)]
-    uvf = lerp3(o, uv, 2)
-    nwf = lerp3(o, nws, 3)
+    uvf = lerp3(o, attrs["uv"], 2)
+    nwf = lerp3(o, attrs["nw"], 3)
+    vcf = None if attrs["vc"] is None else lerp3(o, attrs["vc"], 4)
+    wpf = lerp3(o, attrs["wp"], 3) if shader.lambert and shader.add is not None else None
+    lod = None
+    if shader.mips is not None:
+        lod = quad_lod(px, py, uv_at, shader.tw, shader.th)
     # §7 shading and alpha test
-    rgba = shader.shade(uvf, nwf)
+    rgba = shader.shade(uvf, nwf, vcf, wpf, lod)
     if p.alpha_test and not alpha_survives(rgba[3], shader.cutoff, p.alpha_test_comp):
         result = "alpha_test"
     elif buf.collect is not None:  # sorted reference, step 2: kept for the per-pixel sort

@@ -1,0 +1,151 @@
+"""The light of a ForwardAdd draw (docs/pipeline.md §7, "ForwardAdd: one additional light"), vectorised.
+
+A ``ForwardAdd`` pass draws once per per-pixel light of its renderer (:func:`.drawlist.pixel_lights`)
+and shades with that light only, as the book's ForwardAdd pass does (chapter 9,
+``Chapter9-ForwardRendering.shader``): ``rgb = ((light × albedo) × max(0, N·L)) × atten``, no
+ambient. :func:`add_light` brings a :class:`~.scene.ForwardLight` to shading space once per draw
+call; :func:`light_terms` gives the per-fragment direction towards the light and attenuation:
+
+- directional: ``L`` the lamp's +Z axis, ``atten = 1``;
+- point: ``L`` from the fragment's world position towards the light, ``atten =``
+  :func:`falloff` of ``r2 = d² / range²`` (Unity's built-in falloff as its Lightweight pipeline
+  states it: ``1 / (1 + 25 r2)``, faded linearly to 0 between 80 % of the range and the range);
+- spot: the point light's terms × the cone (:func:`spot_cone`): zero behind the lamp
+  (``lightCoord.z > 0``), fully lit within 46/64 of the cone's radius at the fragment's depth
+  along the spot's axis, falling linearly to 0 at the cone's edge — our approximation of Unity's
+  default spot cookie (a soft disc whose pixels are not public; 46/64 is the inner cone Unity's
+  own lightmapper derives from it, ``ExtractInnerCone``).
+
+Every step is an IEEE float64 array operation in the order written in docs/pipeline.md §7, so the
+scalar reference (tests/reference/scalar.py) gives the same bits.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import colorspace
+from .scene import ForwardLight
+from .vocabulary import ColorSpace, LightType
+
+#: Unity's built-in falloff: the quadratic term of ``1 / (1 + 25 r2)`` and where the linear fade to
+#: the range starts (80 % of the range: r2 = 0.64).
+QUADRATIC = 25.0
+FADE_START = 0.64
+#: The default spot cookie is fully lit within this share of the cone's radius (Unity's
+#: ``ExtractInnerCone``: ``tan(inner / 2) = tan(outer / 2) × (64 − 18) / 64``).
+SPOT_INNER = 46.0 / 64.0
+SPOT_FADE = 1.0 - SPOT_INNER  # 18/64, exact in binary
+
+
+@dataclass(frozen=True)
+class AddLight:
+    """A ForwardAdd draw's light in shading space (made once per draw call by :func:`add_light`).
+
+    ``color`` (3 floats): ``lamp_c × intensity`` with the lamp colour brought to shading space as
+    the main light's (encoded in Gamma, linear in Linear). ``direction``: a directional light's unit
+    vector towards the light. ``position``: a point or spot light's world position. ``spot_axis``: the
+    unit vector a spot shines along (the lamp's −Z). ``range2``: ``range × range``; ``tan_half``:
+    ``tan(spot_angle / 2)``.
+    """
+
+    type: LightType
+    color: tuple[float, float, float]
+    direction: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    position: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    spot_axis: tuple[float, float, float] = (0.0, 0.0, -1.0)
+    range2: float = 1.0
+    tan_half: float = 1.0
+
+    @property
+    def positional(self) -> bool:
+        """Whether the light's direction and attenuation depend on the fragment's position."""
+        return self.type is not LightType.Directional
+
+
+def _unit(v) -> tuple[float, float, float]:
+    x, y, z = (float(c) for c in v)
+    length = math.sqrt((x * x + y * y) + z * z)
+    return (x / length, y / length, z / length) if length > 0 else (0.0, 0.0, 0.0)
+
+
+def add_light(light: ForwardLight, color_space: ColorSpace) -> AddLight:
+    """The shading-space constants of ``light`` for a ForwardAdd draw."""
+    if color_space is ColorSpace.Gamma:
+        lamp = [colorspace.encode(float(c)) for c in light.color]
+    else:
+        lamp = [float(c) for c in light.color]
+    intensity = float(light.intensity)
+    color = (lamp[0] * intensity, lamp[1] * intensity, lamp[2] * intensity)
+    axis = _unit(light.axis)
+    range_ = float(light.range)
+    return AddLight(type=light.type, color=color, direction=axis,
+                    position=tuple(float(c) for c in light.position),
+                    spot_axis=(-axis[0], -axis[1], -axis[2]), range2=range_ * range_,
+                    tan_half=math.tan(math.radians(float(light.spot_angle)) / 2.0))
+
+
+def falloff(r2: np.ndarray) -> np.ndarray:
+    """Unity's built-in point/spot falloff (N,) float64 at ``r2`` (N,) float64 = (distance / range)²:
+    ``(1 / (1 + 25 r2)) × min(1, (1 − r2) / (1 − 0.64))``, and 0 where ``r2 >= 1`` (the same
+    arithmetic as :func:`.drawlist.light_falloff`, NaN propagating)."""
+    out = np.multiply(r2, QUADRATIC)
+    out += 1.0
+    np.divide(1.0, out, out=out)
+    fade = np.subtract(1.0, r2)
+    fade /= 1.0 - FADE_START
+    np.minimum(1.0, fade, out=fade)
+    out *= fade
+    out[r2 >= 1.0] = 0.0
+    return out
+
+
+def spot_cone(light: AddLight, z: np.ndarray, d2: np.ndarray) -> np.ndarray:
+    """The spot's cone term (N,) float64 of fragments at depth ``z`` (N,) along the spot's axis and
+    squared distance ``d2`` (N,) from the lamp: 0 where ``z <= 0``, else with ``rho = sqrt(max(d2 −
+    z·z, 0)) / (z · tan_half)`` (the distance from the axis as a share of the cone's radius there),
+    ``min(1, max(0, (1 − rho) / (18/64)))``."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        q2 = np.multiply(z, z)
+        np.subtract(d2, q2, out=q2)
+        np.maximum(q2, 0.0, out=q2)
+        rho = np.sqrt(q2, out=q2)
+        rho /= np.multiply(z, light.tan_half)
+        cone = np.subtract(1.0, rho, out=rho)
+        cone /= SPOT_FADE
+        np.maximum(cone, 0.0, out=cone)
+        np.minimum(cone, 1.0, out=cone)
+    cone[~(z > 0.0)] = 0.0
+    return cone
+
+
+def light_terms(light: AddLight, px: np.ndarray, py: np.ndarray,
+                pz: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per fragment at world positions ``px, py, pz`` (N,) float64 of a point or spot light: the unit
+    vector towards the light ``(lx, ly, lz)`` (0 at the lamp itself) and the attenuation ``atten``,
+    each (N,) float64. With ``d = p − lamp``: ``d2 = (dx·dx + dy·dy) + dz·dz``, ``l = −d / sqrt(d2)``,
+    ``atten = falloff(d2 / range2)``, times :func:`spot_cone` for a spot
+    (``z = (dx·ax + dy·ay) + dz·az`` along its axis)."""
+    ox, oy, oz = light.position
+    dx, dy, dz = np.subtract(px, ox), np.subtract(py, oy), np.subtract(pz, oz)
+    d2 = np.multiply(dx, dx)
+    d2 += np.multiply(dy, dy)
+    d2 += np.multiply(dz, dz)
+    length = np.sqrt(d2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        unit = [np.divide(np.negative(v), length) for v in (dx, dy, dz)]
+    at_lamp = length == 0.0
+    if np.any(at_lamp):
+        for v in unit:
+            v[at_lamp] = 0.0
+    atten = falloff(np.divide(d2, light.range2))
+    if light.type is LightType.Spot:
+        ax, ay, az = light.spot_axis
+        z = np.multiply(dx, ax)
+        z += np.multiply(dy, ay)
+        z += np.multiply(dz, az)
+        atten = np.multiply(spot_cone(light, z, d2), atten)
+    return unit[0], unit[1], unit[2], atten

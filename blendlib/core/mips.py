@@ -1,0 +1,256 @@
+"""Mipmaps (docs/pipeline.md §7, "Mipmaps"): a texture's mip chain, the level of detail of each
+fragment's 2×2 pixel quad, and sampling through the chain with the three filters.
+
+- :func:`build_chain`: level 0 is the texture in shading space (:class:`.shade.Texels`); each
+  further level is the 2×2 box average of the level above, ``float32((((a + b) + c) + d) * 0.25)``
+  (an RGBA32F texture's values: the OpenGL reference uploads the same numbers), down to 1×1;
+  optionally with Unity's "Mip Maps Preserve Coverage" (:func:`coverage_scale`).
+- :func:`quad_lod`: the LOD per 2×2 quad from the texture coordinates' screen derivatives, as the
+  GL specification defines it (§8.14) and llvmpipe evaluates it: from the quad's top-left pixel
+  in window coordinates (x and y even, y up), ``ddx`` to the next pixel of its row and ``ddy`` to
+  the next of its column, each texture coordinate evaluated from the triangle's plane at those
+  pixel centres (covered or not: helper pixels), ``λ = 0.5 × log2(ρ²)`` with
+  ``ρ² = max((du/dx·w)² + (dv/dx·h)², (du/dy·w)² + (dv/dy·h)²)``. llvmpipe replaces log2 by a
+  piecewise-linear ``fast_log2`` (exact at powers of two): its LOD differs from this by up to 0.043.
+- :func:`sample_mipmapped`: ``Point`` = GL_NEAREST_MIPMAP_NEAREST, ``Bilinear`` =
+  GL_LINEAR_MIPMAP_NEAREST (the nearest level, sampled bilinearly), ``Trilinear`` =
+  GL_LINEAR_MIPMAP_LINEAR (two levels blended by the LOD's fraction).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import raster, shade
+from .vertex import HALF, SUBPIXEL, TriangleSetup
+from .vocabulary import Material, TextureFilter, TextureWrap
+
+#: Output rows of a level computed per step while building a chain (bounds the temporaries).
+ROWS = 256
+#: Preserve Coverage's search: the scale starts at 1 and is bisected within [0, 4], at most this
+#: many evaluations (NVIDIA Texture Tools' ``scaleAlphaToCoverage`` constants).
+COVERAGE_STEPS = 10
+
+
+@dataclass(eq=False)
+class MipChain:
+    """A texture's levels in shading space: ``levels[0]`` the texture's own :class:`.shade.Texels`,
+    ``levels[L]`` ``max(1, h >> L) × max(1, w >> L)`` texels, down to 1×1."""
+
+    levels: list[shade.Texels]
+
+    @property
+    def last(self) -> int:
+        """The last level's number (GL's q)."""
+        return len(self.levels) - 1
+
+
+def _downsample(rows, h: int, w: int) -> np.ndarray:
+    """The next level (max(1, h//2), max(1, w//2), 4) float32 of a level of h × w texels whose rows
+    ``[lo, hi)`` ``rows(lo, hi)`` gives as (hi - lo, w, 4) float64: each texel the box average
+    ``(((T[r0][c0] + T[r0][c1]) + T[r1][c0]) + T[r1][c1]) * 0.25`` of rows r0 = 2j, r1 = 2j + 1 and
+    columns c0 = 2i, c1 = 2i + 1 (a side of one texel repeats it; a last odd row or column of the
+    larger level is left out)."""
+    h2, w2 = max(1, h // 2), max(1, w // 2)
+    out = np.empty((h2, w2, 4), dtype=np.float32)
+    c0 = np.arange(w2) * 2
+    c1 = c0 + 1 if w > 1 else c0
+    for lo in range(0, h2, ROWS):
+        hi = min(h2, lo + ROWS)
+        block = rows(2 * lo, min(h, 2 * hi))  # the source rows of output rows [lo, hi)
+        r0 = np.arange(hi - lo) * 2
+        r1 = r0 + 1 if h > 1 else r0
+        top, bottom = block[r0], block[r1]
+        acc = top[:, c0] + top[:, c1]
+        acc += bottom[:, c0]
+        acc += bottom[:, c1]
+        acc *= 0.25
+        out[lo:hi] = acc
+    return out
+
+
+def _coverage_count(alpha: np.ndarray, scale: float, cutoff: float) -> int:
+    """Texels whose ``min(max(alpha * scale, 0), 1) >= cutoff`` (alpha (N,) float64)."""
+    a = np.multiply(alpha, scale)
+    np.maximum(a, 0.0, out=a)
+    np.minimum(a, 1.0, out=a)
+    return int(np.count_nonzero(a >= cutoff))
+
+
+def coverage_scale(alpha: np.ndarray, cutoff: float, target: tuple[int, int]) -> float:
+    """Preserve Coverage's alpha scale of a level whose alpha is ``alpha`` (N,) float64: the scale
+    ``s`` whose coverage (the share of texels with ``min(max(a·s, 0), 1) >= cutoff``, the test of
+    ``clip(a - _Cutoff)``) is nearest level 0's, ``target`` = (covered, texels). Searched as NVIDIA
+    Texture Tools does: ``s = 1``, then up to :data:`COVERAGE_STEPS` evaluations bisecting within
+    [0, 4] (too little coverage: raise, too much: lower, equal: stop); of the scales evaluated, the
+    one with the smallest coverage error, ties to the one nearest 1 (exact: counts compared over a
+    common denominator)."""
+    covered0, texels0 = target
+    n = alpha.size
+    low, high, s = 0.0, 4.0, 1.0
+    best = None
+    for _ in range(COVERAGE_STEPS):
+        count = _coverage_count(alpha, s, cutoff)
+        diff = count * texels0 - covered0 * n  # sign of (coverage - target), exactly
+        key = (abs(diff), abs(s - 1.0))
+        if best is None or key < best[0]:
+            best = (key, s)
+        if diff < 0:
+            low = s
+        elif diff > 0:
+            high = s
+        else:
+            break
+        s = (low + high) * 0.5
+    return best[1]
+
+
+def build_chain(base: shade.Texels, preserve_coverage: bool = False, cutoff: float = 0.5) -> MipChain:
+    """The mip chain of a texture whose level 0 is ``base`` (module docstring). With
+    ``preserve_coverage`` each level L >= 1 is built from the unscaled level above, then its alpha
+    becomes ``float32(min(max(a * s, 0), 1))`` with ``s`` = :func:`coverage_scale` against level 0's
+    coverage at ``cutoff``."""
+    h, w = base.shape[:2]
+
+    def base_rows(lo: int, hi: int) -> np.ndarray:
+        return base.fetch(np.arange(lo * w, hi * w, dtype=np.int64)).reshape(hi - lo, w, 4)
+
+    target = None
+    if preserve_coverage:
+        alpha0 = np.concatenate([base_rows(lo, min(h, lo + ROWS))[..., 3].reshape(-1) for lo in range(0, h, ROWS)])
+        target = (_coverage_count(alpha0, 1.0, float(cutoff)), alpha0.size)
+    levels = [base]
+    rows, size = base_rows, (h, w)
+    while size != (1, 1):
+        values = _downsample(rows, *size)
+        size = values.shape[:2]
+        kept = values
+        if target is not None:
+            kept = values.copy()
+            alpha = values[..., 3].astype(np.float64).reshape(-1)
+            scaled = np.multiply(alpha, coverage_scale(alpha, float(cutoff), target))
+            np.maximum(scaled, 0.0, out=scaled)
+            np.minimum(scaled, 1.0, out=scaled)
+            kept[..., 3] = scaled.reshape(size)
+        levels.append(shade.Texels(kept, None))
+
+        def rows(lo: int, hi: int, values=values) -> np.ndarray:  # the unscaled level feeds the next
+            return values[lo:hi].astype(np.float64)
+    return MipChain(levels)
+
+
+def level_of(chain: MipChain, index: int) -> np.ndarray:
+    """Level ``index``'s texels (h, w, 4) float64 in shading space (for tests and references)."""
+    texels = chain.levels[index]
+    h, w = texels.shape[:2]
+    return texels.fetch(np.arange(h * w, dtype=np.int64)).reshape(h, w, 4)
+
+
+def _texture_uv_at(setup: TriangleSetup, tri: np.ndarray, corners: np.ndarray, flat: np.ndarray,
+                   material: Material, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Texture coordinates (u', v') (N,) float64 at pixel centres (x, y) (N,) int64 of setup
+    triangles ``tri`` (N,), covered or not: docs/pipeline.md §4's edge functions at the pixel
+    centre divided by the doubled area (the sign taken to the numerator, as for a clockwise
+    triangle's coverage order), §6's perspective-correct weights and interpolation (``flat``
+    triangles take their corner value), then ``_MainTex``'s tiling and offset."""
+    X, Y = setup.X[tri], setup.Y[tri]
+    area = setup.area2[tri]
+    sign = np.where(area < 0, -1, 1)
+    farea = np.abs(area).astype(np.float64)
+    px = x * SUBPIXEL + HALF
+    py = y * SUBPIXEL + HALF
+    bary = []
+    for k in range(3):  # the edge opposite vertex k runs from vertex k+1 to vertex k+2
+        p, q = (k + 1) % 3, (k + 2) % 3
+        e = (X[:, q] - X[:, p]) * (py - Y[:, p]) - (Y[:, q] - Y[:, p]) * (px - X[:, p])
+        bary.append(np.divide((e * sign).astype(np.float64), farea))
+    iw = setup.iw[tri]
+    t = [bary[k] * iw[:, k] for k in range(3)]
+    s = (t[0] + t[1]) + t[2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        o = [np.divide(t[k], s) for k in range(3)]
+    if setup.weights is not None:
+        clipped = setup.clipped[tri]
+        if np.any(clipped):
+            wts = setup.weights[tri[clipped]]  # (M, 3 vertices, 3 source corners)
+            oc = [v[clipped] for v in o]
+            mixed = (oc[0][:, None] * wts[:, 0] + oc[1][:, None] * wts[:, 1]) + oc[2][:, None] * wts[:, 2]
+            for k in range(3):
+                o[k][clipped] = mixed[:, k]
+    uv = []
+    for c in range(2):
+        a = np.multiply(o[0], corners[:, 0, c])
+        a += o[1] * corners[:, 1, c]
+        a += o[2] * corners[:, 2, c]
+        a[flat] = corners[flat, 0, c]
+        uv.append(a)
+    return shade.texture_uv_of(material, uv[0], uv[1])
+
+
+def quad_lod(setup: TriangleSetup, tri: np.ndarray, pix: np.ndarray, width: int, material: Material,
+             size: tuple[int, int]) -> np.ndarray:
+    """The LOD λ (N,) float64 of fragments of setup triangles ``tri`` (N,) int64 at window pixels
+    ``pix`` (N,) int64 (``y * width + x``, y up) of a texture whose level 0 is ``size`` = (h, w)
+    texels (module docstring; λ = −inf where the coordinates do not change, NaN where they are not
+    finite)."""
+    h, w = size
+    x, y = pix % width, pix // width
+    x0, y0 = x & ~1, y & ~1
+    corners = setup.uvs_of(setup.src[tri])
+    flat = raster.flat_corners(corners)
+    u00, v00 = _texture_uv_at(setup, tri, corners, flat, material, x0, y0)
+    u10, v10 = _texture_uv_at(setup, tri, corners, flat, material, x0 + 1, y0)
+    u01, v01 = _texture_uv_at(setup, tri, corners, flat, material, x0, y0 + 1)
+    with np.errstate(invalid="ignore", over="ignore"):
+        a = (u10 - u00) * w
+        b = (v10 - v00) * h
+        rx = a * a + b * b
+        a = (u01 - u00) * w
+        b = (v01 - v00) * h
+        ry = a * a + b * b
+        rho2 = np.maximum(rx, ry)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return 0.5 * np.log2(rho2)
+
+
+def _sample_levels(chain: MipChain, u: np.ndarray, v: np.ndarray, level: np.ndarray, filt: TextureFilter,
+                   wrap: TextureWrap) -> np.ndarray:
+    """Each fragment's texel sample (N, 4) float64 at (u, v) in its level ``level`` (N,) int64."""
+    out = np.empty((u.size, 4), dtype=np.float64)
+    for index in np.unique(level).tolist():
+        at = np.flatnonzero(level == index)
+        uv = np.stack([u[at], v[at]], axis=1)
+        out[at] = shade.sample(chain.levels[index], uv, filt, wrap)
+    return out
+
+
+def sample_mipmapped(chain: MipChain, uv: np.ndarray, lod: np.ndarray, filt: TextureFilter,
+                     wrap: TextureWrap) -> np.ndarray:
+    """Sample (N, 4) float64 at texture coordinates ``uv`` (N, 2) float64 (after tiling and offset)
+    with LOD ``lod`` (N,) float64 (GL 4.5 §8.14.3; a NaN LOD samples level 0):
+
+    - ``Point`` / ``Bilinear``: the nearest level ``d`` (0 unless λ > 0.5, then ``ceil(λ + 0.5) − 1``,
+      at most the last), sampled with the nearest texel / bilinearly (§7);
+    - ``Trilinear``: level 0 bilinearly unless λ > 0; then ``d = floor(λ)``: the last level alone
+      when ``d`` reaches it, else ``t0 * (1 − f) + t1 * f`` of levels ``d`` and ``d + 1`` sampled
+      bilinearly, ``f = λ − d``.
+    """
+    u, v = uv[:, 0], uv[:, 1]
+    last = chain.last
+    level = np.zeros(u.size, dtype=np.int64)
+    if filt is not TextureFilter.Trilinear:
+        far = np.flatnonzero(lod > 0.5)
+        level[far] = np.minimum(np.ceil(lod[far] + 0.5) - 1.0, float(last)).astype(np.int64)
+        return _sample_levels(chain, u, v, level, filt, wrap)
+    minified = np.flatnonzero(lod > 0.0)
+    floor = np.floor(lod[minified])
+    level[minified] = np.minimum(floor, float(last)).astype(np.int64)
+    out = _sample_levels(chain, u, v, level, filt, wrap)
+    mixed = minified[floor < last]
+    if mixed.size:
+        f = (lod[mixed] - floor[floor < last])[:, None]
+        upper = _sample_levels(chain, u[mixed], v[mixed], level[mixed] + 1, filt, wrap)
+        out[mixed] = out[mixed] * (1.0 - f) + upper * f
+    return out

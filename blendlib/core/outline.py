@@ -1,0 +1,159 @@
+"""The outline vertex program (docs/pipeline.md §1, "Outline vertex program"): MToon's outline pass
+pushes each vertex out along its normal before projection (SPEC §11.6; UniVRM's
+``MToonCore.cginc`` ``CalculateOutlineVertexClipPosition`` for VRM 0.x and
+``vrmc_materials_mtoon_geometry_vertex.hlsl`` ``MToon_GetOutlineVertex`` for VRM 1.0).
+
+:func:`outline_clip` gives the clip coordinates of every triangle corner of a mesh for a pass
+with an :class:`~.vocabulary.OutlineMode`; the vertex stage (:func:`.vertex.setup_renderers`) then
+clips, snaps and rasterises them like any vertex. The program runs per corner, since a vertex's
+corners may carry different normals (hard edges split the outline, as a GPU's split vertices do).
+MToon's outline-width texture is not read (its default, white: ×1). Every value is float64, each
+sum and product in the order written below, so the scalar reference gives the same bits.
+
+With ``n`` the corner's object normal normalised (``n / sqrt((x*x + y*y) + z*z)``, 0 for a zero
+normal), ``N``/``det`` the sign-corrected cofactors of the object matrix (§1: ``N·n`` is ``|det|``
+times ``M⁻ᵀ n``), ``MVP``/``VP`` the products of §1 and ``w`` the clip w of the corner's own position:
+
+- MToon 0.x, World: in object space, ``p' = p + ((0.01 * width) * (len(N·n) / |det|)) * n``,
+  ``clip = MVP · p'`` (``0.01 * _OutlineWidth * worldNormalLength * v.normal``).
+- MToon 1.0, World: in world space, ``p' = M·p + (N·n / len(N·n)) * width``, ``clip = VP · p'``.
+- Screen (both): ``clip = MVP · p``; the view normal ``v = Nv·n`` (``Nv`` the sign-corrected
+  cofactors of ``MV``: the direction of ``IT_MV · n``); its clip xy
+  ``c = ((P[i][0]*vx + P[i][1]*vy) + P[i][2]*vz)`` for i = 0, 1; ``d = c / sqrt(cx*cx + cy*cy)``
+  (no offset when that length is 0); MToon 0.x: ``d *= min(w, _OutlineScaledMaxDistance)``,
+  ``d.x *= aspect``, ``clip.xy += ((0.01 * width) * d) * saturate(1 - |vz / len(v)|)``;
+  MToon 1.0: ``d *= (2 * width) * min(w, P[1][1])``, ``d.x *= aspect``,
+  ``clip.xy += d * saturate(1 - (vz/len(v))²)``. ``aspect = |P[0][0] / P[1][1]|`` (MToon's
+  ``nearUpperRight`` ratio ``tan(fovY/2) / tan(fovX/2)``, for a projection without lens shift).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .scene import Camera, Mesh, cofactors3_many
+from .vocabulary import OutlineFormula, OutlineMode, Pass
+
+
+def outline_key(p: Pass) -> tuple | None:
+    """The pass's vertex program as a hashable key (None: the vertices as they are). Passes with
+    equal keys share one vertex setup."""
+    if p.outline_mode is OutlineMode.Off:
+        return None
+    return (p.outline_mode, p.outline_formula, float(p.outline_width), float(p.outline_max_distance))
+
+
+def _matmul4(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """docs/pipeline.md §1's ``matmul4``, (4, 4) float64."""
+    out = np.empty((4, 4), dtype=np.float64)
+    for i in range(4):
+        for j in range(4):
+            out[i, j] = ((a[i, 0] * b[0, j] + a[i, 1] * b[1, j]) + a[i, 2] * b[2, j]) + a[i, 3] * b[3, j]
+    return out
+
+
+def _signed_cofactors(m: np.ndarray) -> tuple[np.ndarray, float]:
+    """§1's normal matrix of ``m``'s upper 3x3 (cofactors, negated for a negative determinant) and
+    the determinant."""
+    c, det = cofactors3_many(m[None])
+    c, det = c[0], float(det[0])
+    return (-c if det < 0 else c), det
+
+
+def _rows(m: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray, affine: bool) -> list[np.ndarray]:
+    """``((m[i,0]*x + m[i,1]*y) + m[i,2]*z) (+ m[i,3])`` for each row i of ``m``."""
+    out = []
+    for row in m:
+        v = np.multiply(row[0], x)
+        v += np.multiply(row[1], y)
+        v += np.multiply(row[2], z)
+        if affine:
+            v += row[3]
+        out.append(v)
+    return out
+
+
+def _length(x: np.ndarray, y: np.ndarray, z: np.ndarray | None = None) -> np.ndarray:
+    s = np.multiply(x, x)
+    s += np.multiply(y, y)
+    if z is not None:
+        s += np.multiply(z, z)
+    return np.sqrt(s)
+
+
+def _normalised(*v: np.ndarray) -> list[np.ndarray]:
+    """``v / len(v)`` componentwise, 0 where the length is 0 (2 or 3 components)."""
+    length = _length(*v)
+    zero = length == 0.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = [np.divide(c, length) for c in v]
+    if np.any(zero):
+        for c in out:
+            c[zero] = 0.0
+    return out
+
+
+def outline_clip(mesh: Mesh, matrix_world: np.ndarray, camera: Camera, p: Pass) -> np.ndarray:
+    """Clip coordinates (4, 3T) float64 of every corner of ``mesh``'s T triangles (corner k of
+    triangle t at column 3t + k) under pass ``p``'s outline program (module docstring)."""
+    m = np.asarray(matrix_world, dtype=np.float64)
+    view = np.asarray(camera.view_matrix, dtype=np.float64)
+    proj = np.asarray(camera.projection, dtype=np.float64)
+    tri = np.asarray(mesh.triangles, dtype=np.int64).reshape(-1)
+    pos = np.asarray(mesh.positions, dtype=np.float64)[tri]  # (3T, 3)
+    px, py, pz = (np.ascontiguousarray(pos[:, k]) for k in range(3))
+    normal = np.asarray(mesh.normals, dtype=np.float64).reshape(-1, 3)
+    nx, ny, nz = _normalised(*(np.ascontiguousarray(normal[:, k]) for k in range(3)))
+    width = float(p.outline_width)
+    mv = _matmul4(view, m)
+    mvp = _matmul4(proj, mv)
+    old = p.outline_formula is OutlineFormula.MToon0x
+    if p.outline_mode is OutlineMode.World:
+        nmat, det = _signed_cofactors(m)
+        wx, wy, wz = _rows(nmat, nx, ny, nz, affine=False)
+        if old:
+            scale = _length(wx, wy, wz)
+            scale /= abs(det)
+            scale *= 0.01 * width
+            px, py, pz = (np.add(a, np.multiply(scale, b)) for a, b in ((px, nx), (py, ny), (pz, nz)))
+            return np.array(_rows(mvp, px, py, pz, affine=True))
+        ux, uy, uz = _normalised(wx, wy, wz)
+        world = _rows(m[:3], px, py, pz, affine=True)
+        moved = [np.add(a, np.multiply(b, width)) for a, b in zip(world, (ux, uy, uz), strict=True)]
+        return np.array(_rows(_matmul4(proj, view), *moved, affine=True))
+    clip = np.array(_rows(mvp, px, py, pz, affine=True))
+    vmat, _ = _signed_cofactors(mv)
+    vx, vy, vz = _rows(vmat, nx, ny, nz, affine=False)
+    cx, cy = _rows(proj[:2, :3], vx, vy, vz, affine=False)
+    length = _length(cx, cy)
+    dx, dy = _normalised(cx, cy)
+    w = clip[3]
+    aspect = abs(float(proj[0, 0]) / float(proj[1, 1]))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        view_z = np.divide(vz, _length(vx, vy, vz))
+    if old:
+        reach = np.minimum(w, float(p.outline_max_distance))
+        dx *= reach
+        dy *= reach
+        dx *= aspect
+        facing = np.subtract(1.0, np.abs(view_z))
+        k = 0.01 * width
+        dx, dy = np.multiply(k, dx), np.multiply(k, dy)
+    else:
+        reach = np.minimum(w, float(proj[1, 1]))
+        reach *= 2.0 * width
+        dx *= reach
+        dy *= reach
+        dx *= aspect
+        facing = np.subtract(1.0, np.multiply(view_z, view_z))
+    np.maximum(facing, 0.0, out=facing)
+    np.minimum(facing, 1.0, out=facing)
+    dx *= facing
+    dy *= facing
+    none = length == 0.0
+    if np.any(none):
+        dx[none] = 0.0
+        dy[none] = 0.0
+    clip[0] += dx
+    clip[1] += dy
+    return clip
