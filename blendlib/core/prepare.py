@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import fragment, raster, shade, vertex
+from . import fragment, msaa, raster, shade, vertex
 from .drawlist import DrawCall
 from .fragment import ChunkShader
 from .merger import BlendTables, FrameBuffers
@@ -54,6 +54,17 @@ class FrameContext:
     keep_setups: bool = False
     warnings: list[str] = field(default_factory=list)
     degenerate: list[tuple[str, int]] = field(default_factory=list)  # (object, zero-area triangles)
+
+    @property
+    def samples(self) -> int:
+        """MSAA samples per pixel (the buffers')."""
+        return self.buf.samples
+
+    @functools.cached_property
+    def sample_offsets(self) -> np.ndarray | None:
+        """(N, 2) int64 sample positions for the coverage of MSAA rows (:func:`.msaa.sample_offsets`),
+        None without MSAA (coverage at pixel centres)."""
+        return None if self.samples == 1 else msaa.sample_offsets(self.samples)
 
     @property
     def width(self) -> int:
@@ -158,7 +169,7 @@ MEMO_SETUP_BUDGET = 1 << 21
 @dataclass(eq=False)
 class _Geometry:
     """A renderer's triangle setup through one camera and, in whole frames, its passes' rows
-    by Cull ((selected triangles, rows)), kept in a memo (:data:`MEMO_SETUP_TRIANGLES`)."""
+    by (Cull, MSAA samples) ((selected triangles, rows)), kept in a memo (:data:`MEMO_SETUP_TRIANGLES`)."""
 
     setup: TriangleSetup
     rows: dict = field(default_factory=dict)
@@ -221,7 +232,7 @@ def _draw_state(frame: FrameContext, call: DrawCall, setup, texels,
     if not p.zwrite and p.ztest in (CompareFunction.Less, CompareFunction.LEqual):
         zbound = raster.depth_upper_codes(setup, p.offset_factor, p.offset_units)
     state = DrawState(call, call.renderer.material, texels, frame.lights, frame.color_space, frame.hdr,
-                      frame.width, observed=frame.observed, zbound=zbound)
+                      frame.width, observed=frame.observed, zbound=zbound, samples=frame.samples)
     return state, vertex.cull_select(setup, p.cull) if selected is None else selected
 
 
@@ -229,14 +240,15 @@ def _prepare(frame: FrameContext, call: DrawCall, geometry: _Geometry, texels, p
     """Cull, coverage and derived state of one draw call. Passes of a renderer with one Cull
     cover the same pixels: their rows are computed once (``geometry.rows``; in a memo across
     frames when the frame is whole)."""
-    setup, cull = geometry.setup, call.state.cull
-    known = geometry.rows.get(cull)
+    setup, key = geometry.setup, (call.state.cull, frame.samples)  # rows by Cull (and MSAA: other rows)
+    known = geometry.rows.get(key)
     state, selected = _draw_state(frame, call, setup, texels, selected=None if known is None else known[0])
     shade = chunk_shading(call.state)
     if known is not None:
         return PreparedCall(call, setup, selected, raster.Rows(**vars(known[1])), state, shade)
-    rows = raster.coverage_rows(setup, selected, frame.width, frame.height, pool=pool, parts=parts, band=frame.band)
-    geometry.rows[cull] = (selected, rows)
+    rows = raster.coverage_rows(setup, selected, frame.width, frame.height, pool=pool, parts=parts, band=frame.band,
+                                samples=frame.sample_offsets)
+    geometry.rows[key] = (selected, rows)
     return PreparedCall(call, setup, selected, rows, state, shade)
 
 
@@ -248,18 +260,18 @@ def _prepare_together(frame: FrameContext, runs: list[list[DrawCall]], texels) -
     for run, geometry, run_texels in zip(runs, geometries, texels, strict=True):
         frame.record(*_setup_notes(run[0].renderer, geometry.setup))
         for call, tex in zip(run, run_texels, strict=True):
-            known = geometry.rows.get(call.state.cull)
+            known = geometry.rows.get((call.state.cull, frame.samples))
             state, selected = _draw_state(frame, call, geometry.setup, tex,
                                           selected=None if known is None else known[0])
             items.append((call, geometry, state, selected, None if known is None else known[1]))
     todo = [k for k, item in enumerate(items) if item[4] is None]
     made = raster.coverage_rows_many([(items[k][1].setup, items[k][3]) for k in todo], frame.width,
-                                     frame.height, frame.band) if todo else []
+                                     frame.height, frame.band, frame.sample_offsets) if todo else []
     rows = [item[4] for item in items]
     for k, r in zip(todo, made, strict=True):
         rows[k] = r
         call, geometry, _, selected, _ = items[k]
-        geometry.rows.setdefault(call.state.cull, (selected, r))
+        geometry.rows.setdefault((call.state.cull, frame.samples), (selected, r))
     return [PreparedCall(call, geometry.setup, selected, r if kept is None else raster.Rows(**vars(r)), state,
                          chunk_shading(call.state))
             for (call, geometry, state, selected, kept), r in zip(items, rows, strict=True)]

@@ -96,18 +96,20 @@ def band_cuts(parts: list[Rows], bands: int, height: int) -> np.ndarray | None:
 
 def coverage_rows(
     setup: TriangleSetup, selected: np.ndarray, width: int, height: int, pool=None, parts: int = 1,
-    band: tuple[int, int] | None = None,
+    band: tuple[int, int] | None = None, samples: np.ndarray | None = None,
 ) -> Rows:
     """Per-row spans of exactly the covered pixels of the selected triangles (docs/pipeline.md §4).
 
     ``selected`` is covered in contiguous pieces of at most ``PIECE`` triangles (their arrays
     stay in cache), on a thread ``pool`` when given, joined in order (rows stay in draw order).
-    ``band`` (y0, y1): only pixel rows ``y0 <= y < y1``.
+    ``band`` (y0, y1): only pixel rows ``y0 <= y < y1``. ``samples`` (N, 2) int64 sample
+    positions (:func:`.msaa.sample_offsets`; MSAA): each row's span is then the smallest one
+    holding every pixel with a covered sample (:func:`_spans`).
     """
     results: dict[int, Rows] = {}
 
     def part(lo: int, hi: int) -> None:
-        results[lo] = _coverage_rows(setup, selected[lo:hi], width, height, band)
+        results[lo] = _coverage_rows(setup, selected[lo:hi], width, height, band, samples)
 
     run_parts(pool, parts, selected.size, part, piece=PIECE)
     if len(results) == 1:
@@ -117,14 +119,14 @@ def coverage_rows(
 
 
 def coverage_rows_many(passes: list[tuple[TriangleSetup, np.ndarray]], width: int, height: int,
-                       band: tuple[int, int] | None = None) -> list[Rows]:
+                       band: tuple[int, int] | None = None, samples: np.ndarray | None = None) -> list[Rows]:
     """:func:`coverage_rows` of several passes at once: (setup, selected triangles) each → its Rows.
 
     The spans of a triangle depend on that triangle alone, so the selected triangles of all
     passes are concatenated and covered in one pass of array operations (many small draw
     calls cost one set of array operations, not one each), then cut per pass. Passes that
     select the same triangles of the same setup (two passes of one material with one Cull)
-    share one computation: their Rows hold the same arrays.
+    share one computation: their Rows hold the same arrays. ``samples``: as :func:`coverage_rows`'s.
     """
     unique: list[tuple[TriangleSetup, np.ndarray]] = []
     slot = []  # each pass's index in ``unique``
@@ -137,14 +139,14 @@ def coverage_rows_many(passes: list[tuple[TriangleSetup, np.ndarray]], width: in
             slot.append(len(unique))
             unique.append((setup, selected))
     if len(unique) < len(passes):
-        computed = coverage_rows_many(unique, width, height, band)
+        computed = coverage_rows_many(unique, width, height, band, samples)
         out, given = [], set()
         for k in slot:  # a repeated pass gets its own Rows over the same arrays
             out.append(computed[k] if k not in given else Rows(**vars(computed[k])))
             given.add(k)
         return out
     if len(passes) == 1:
-        return [_coverage_rows(passes[0][0], passes[0][1], width, height, band)]
+        return [_coverage_rows(passes[0][0], passes[0][1], width, height, band, samples)]
     counts = np.array([sel.size for _, sel in passes], dtype=np.int64)
     offsets = np.concatenate([[0], np.cumsum(counts)])
     gathered = [np.concatenate([np.take(getattr(setup, name), sel, axis=0) for setup, sel in passes])
@@ -152,7 +154,7 @@ def coverage_rows_many(passes: list[tuple[TriangleSetup, np.ndarray]], width: in
     # Rows come out labelled with their position in the concatenation: ascending, so each
     # pass's rows are one contiguous range; the labels then become the pass's own triangles.
     labels = np.arange(int(offsets[-1]), dtype=np.int64)
-    rows = _spans(*gathered, labels, width, height, band)
+    rows = _spans(*gathered, labels, width, height, band, samples)
     cuts = np.searchsorted(rows.tri, offsets)
     local = np.concatenate([sel for _, sel in passes]).astype(np.int64, copy=False)
     out = []
@@ -165,14 +167,14 @@ def coverage_rows_many(passes: list[tuple[TriangleSetup, np.ndarray]], width: in
 
 
 def _coverage_rows(setup: TriangleSetup, selected: np.ndarray, width: int, height: int,
-                   band: tuple[int, int] | None = None) -> Rows:
+                   band: tuple[int, int] | None = None, samples: np.ndarray | None = None) -> Rows:
     """:func:`coverage_rows` for one contiguous part."""
     return _spans(np.take(setup.X, selected, axis=0), np.take(setup.Y, selected, axis=0),
-                  np.take(setup.area2, selected), selected, width, height, band)
+                  np.take(setup.area2, selected), selected, width, height, band, samples)
 
 
 def _spans(X: np.ndarray, Y: np.ndarray, area2: np.ndarray, selected: np.ndarray, width: int,
-           height: int, band: tuple[int, int] | None = None) -> Rows:
+           height: int, band: tuple[int, int] | None = None, samples: np.ndarray | None = None) -> Rows:
     """The spans of triangles with snapped corners ``X``, ``Y`` (n, 3) int64 and twice their
     signed areas ``area2`` (n,) int64, labelled ``selected`` (n,) in the rows' ``tri``; within
     pixel rows ``band`` (y0, y1) when given, else all ``height`` rows.
@@ -182,6 +184,12 @@ def _spans(X: np.ndarray, Y: np.ndarray, area2: np.ndarray, selected: np.ndarray
     ``dy_k*Px <= rhs_k`` with ``rhs_k = c_k - bias_k``. With ``q = (rhs_k - (S/2)*dy_k) //
     (S*|dy_k|)``, that is ``x <= q`` when ``dy_k > 0`` and ``x >= -q`` when ``dy_k < 0``
     (one exact floor division per edge); a horizontal edge keeps or empties the row.
+
+    With ``samples`` (N, 2) int64 (MSAA sample positions from the pixel's lower-left corner),
+    the same test runs at each sample position ``(x*S + ox, y*S + oy)`` and a row's span is the
+    smallest holding every pixel with a covered sample (the union of the samples' spans: each
+    end pixel has one; a pixel inside may have none, on thin slivers). ``c0``/``c1`` stay the
+    edge functions along the row of pixel centres, where fragments are shaded.
     """
     # Bounding boxes first: they do not depend on the vertex order, and most small triangles hold
     # no pixel centre at all, so they are dropped before any per-edge work.
@@ -189,12 +197,19 @@ def _spans(X: np.ndarray, Y: np.ndarray, area2: np.ndarray, selected: np.ndarray
     x_max = np.maximum(np.maximum(X[:, 0], X[:, 1]), X[:, 2])
     y_min = np.minimum(np.minimum(Y[:, 0], Y[:, 1]), Y[:, 2])
     y_max = np.maximum(np.maximum(Y[:, 0], Y[:, 1]), Y[:, 2])
+    # The pixels whose sample points (the centre without MSAA) can fall in the box: x*S + o in
+    # [x_min, x_max] for an offset o between the smallest and largest sample offset.
+    if samples is None:
+        ox_lo = ox_hi = oy_lo = oy_hi = HALF
+    else:
+        ox_lo, oy_lo = (int(v) for v in samples.min(axis=0))
+        ox_hi, oy_hi = (int(v) for v in samples.max(axis=0))
     # Floor and ceiling divisions by S = 2**SHIFT as arithmetic shifts (exact for negatives too).
-    x_lo = np.maximum(-((HALF - x_min) >> _SHIFT), 0)
-    x_hi = np.minimum((x_max - HALF) >> _SHIFT, width - 1)
+    x_lo = np.maximum(-((ox_hi - x_min) >> _SHIFT), 0)
+    x_hi = np.minimum((x_max - ox_lo) >> _SHIFT, width - 1)
     row_lo, row_hi = (0, height) if band is None else band
-    y_lo = np.maximum(-((HALF - y_min) >> _SHIFT), row_lo)
-    y_hi = np.minimum((y_max - HALF) >> _SHIFT, row_hi - 1)
+    y_lo = np.maximum(-((oy_hi - y_min) >> _SHIFT), row_lo)
+    y_hi = np.minimum((y_max - oy_lo) >> _SHIFT, row_hi - 1)
     has = (x_lo <= x_hi) & (y_lo <= y_hi)
     if not np.all(has):
         index = np.flatnonzero(has)
@@ -230,7 +245,11 @@ def _spans(X: np.ndarray, Y: np.ndarray, area2: np.ndarray, selected: np.ndarray
     # corners of the triangles kept: the only ones whose rows are computed).
     reach = max(0, -int(x_min.min(initial=0)), int(x_max.max(initial=0)),
                 -int(y_min.min(initial=0)), int(y_max.max(initial=0)))
-    in_float = 6 * reach * reach + SUBPIXEL * reach + 1 < FLOAT_DIVISION_LIMIT
+    # A sample away from the centre adds dx*(oy - S/2) - dy*(ox - S/2): at most 2*S*L more.
+    in_float = 6 * reach * reach + (1 if samples is None else 3) * SUBPIXEL * reach + 1 < FLOAT_DIVISION_LIMIT
+    if samples is not None:
+        return _sample_spans(ax, ay, bx, by, cx, cy, x0, x1, y, py, each, selected, swap, area2, samples,
+                             in_float)
     # Edges p -> q: b->c (opposite a), c->a (opposite b), a->b (opposite c). Per row of edge k,
     # E = c - dy*Px with c = dx*Py + k; the test E >= bias is dy*Px <= c - bias, i.e. with
     # num = c - bias - (S/2)*dy: x <= num // (S*dy) for dy > 0, x >= -(num // (S*|dy|)) for
@@ -249,13 +268,7 @@ def _spans(X: np.ndarray, Y: np.ndarray, area2: np.ndarray, selected: np.ndarray
             num += each(-(bias_t + HALF * dy_t))
         else:
             num += each(k_t - (bias_t + HALF * dy_t))
-        den_t = SUBPIXEL * np.maximum(np.abs(dy_t), 1)
-        if in_float:
-            q = np.divide(num, each(den_t.astype(np.float64)))
-            np.floor(q, out=q)
-            q = q.astype(np.int64)
-        else:
-            q = num // each(den_t)
+        q = _floor_quotients(num, each(SUBPIXEL * np.maximum(np.abs(dy_t), 1)), in_float)
         np.minimum(x1, q, out=x1, where=dy > 0)
         np.negative(q, out=q)
         np.maximum(x0, q, out=x0, where=dy < 0)
@@ -273,6 +286,66 @@ def _spans(X: np.ndarray, Y: np.ndarray, area2: np.ndarray, selected: np.ndarray
         (c0, c1), (dy0, dy1) = c_rows, dy_rows[:2]
     return Rows(tri=each(selected), y=y, x0=x0, length=length, c0=c0, c1=c1, dy0=dy0,
                 dy1=dy1, swap=each(swap), area=each(np.abs(area2)))
+
+
+def _floor_quotients(num: np.ndarray, den: np.ndarray, in_float: bool) -> np.ndarray:
+    """``num // den`` (int64), in float64 when ``in_float`` (exact there: see :func:`_spans`)."""
+    if in_float:
+        q = np.divide(num, den, dtype=np.float64)
+        np.floor(q, out=q)
+        return q.astype(np.int64)
+    return num // den
+
+
+def _sample_spans(ax, ay, bx, by, cx, cy, x_lo: np.ndarray, x_hi: np.ndarray, y: np.ndarray, py: np.ndarray,
+                  each, selected: np.ndarray, swap: np.ndarray, area2: np.ndarray, samples: np.ndarray,
+                  in_float: bool) -> Rows:
+    """:func:`_spans` with MSAA sample positions ``samples`` (N, 2): the counter-clockwise
+    corners (n,) of the kept triangles, the bounding-box columns ``x_lo``/``x_hi`` (R,), pixel
+    rows ``y`` (R,) and their centres ``py`` (R,) in sub-pixels, ``each`` expanding per-triangle
+    values to rows. Per edge and sample, the bound is the centre's test shifted by the sample's
+    offset from the centre (``E`` there is ``E`` at the centre plus ``dx*(oy - S/2) - dy*(ox -
+    S/2)``); a row's span is the union hull of its samples' spans."""
+    edges = []  # per edge: (dy (R,), num at the centre (R,), den (R,), dx_t (n,), dy_t (n,))
+    c_rows, dy_rows = [], []
+    for edge, (xp, yp, xq, yq) in enumerate(((bx, by, cx, cy), (cx, cy, ax, ay), (ax, ay, bx, by))):
+        dx_t, dy_t = xq - xp, yq - yp
+        bias_t = ((dy_t > 0) | ((dy_t == 0) & (dx_t >= 0))).astype(np.int64)
+        k_t = dy_t * xp - dx_t * yp
+        dy = each(dy_t)
+        c = each(dx_t) * py + each(k_t)
+        if edge < 2:
+            c_rows.append(c)
+            dy_rows.append(dy)
+        edges.append((dy, c - each(bias_t + HALF * dy_t), each(SUBPIXEL * np.maximum(np.abs(dy_t), 1)), dx_t, dy_t))
+    lo = np.full(y.size, np.iinfo(np.int64).max, dtype=np.int64)
+    hi = np.full(y.size, np.iinfo(np.int64).min, dtype=np.int64)
+    for ox, oy in (samples - HALF).tolist():
+        x0, x1 = x_lo.copy(), x_hi.copy()
+        for dy, num_centre, den, dx_t, dy_t in edges:
+            num = num_centre + each(dx_t * oy - dy_t * ox)
+            q = _floor_quotients(num, den, in_float)
+            np.minimum(x1, q, out=x1, where=dy > 0)
+            np.negative(q, out=q)
+            np.maximum(x0, q, out=x0, where=dy < 0)
+            if not np.all(dy_t):  # horizontal edges: the sample row is empty when its points fail them
+                empty = np.flatnonzero((dy == 0) & (num < 0))
+                x1[empty] = x0[empty] - 1
+        some = x1 >= x0
+        np.minimum(lo, x0, out=lo, where=some)
+        np.maximum(hi, x1, out=hi, where=some)
+    keep = np.flatnonzero(hi >= lo)
+    of_row = np.arange(y.size, dtype=np.int64)
+    if keep.size != y.size:
+        y, lo, hi, of_row = (np.take(v, keep) for v in (y, lo, hi, of_row))
+        c_rows = [np.take(v, keep) for v in c_rows]
+        dy_rows = [np.take(v, keep) for v in dy_rows]
+
+    def per_row(per_triangle: np.ndarray) -> np.ndarray:
+        return np.take(each(per_triangle), of_row)
+
+    return Rows(tri=per_row(selected), y=y, x0=lo, length=hi - lo + 1, c0=c_rows[0], c1=c_rows[1],
+                dy0=dy_rows[0], dy1=dy_rows[1], swap=per_row(swap), area=per_row(np.abs(area2)))
 
 
 def row_chunks(rows: Rows, max_candidates: int) -> list[tuple[int, int]]:

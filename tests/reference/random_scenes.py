@@ -9,12 +9,13 @@ the far plane, back faces, overlaps, negative-scale matrices, every Queue, every
 Cull / ZTest / BlendFactor / BlendOp / ColorMask / StencilOp / comparison, separate
 alpha, polygon offset, alpha test, textures of 1..4 x 1..4 texels with both
 filters, both wraps and all three encodings, Gamma / Linear, LDR / HDR, every sort
-mode, with and without a light.
+mode, with and without a light; with ``msaa`` 2, 4 or 8 samples, AlphaToMask on some passes.
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 from hypothesis import strategies as st
@@ -188,8 +189,23 @@ def _camera(pick) -> Camera:
     return Camera(look_at(eye), proj, w, h, orthographic=ortho)
 
 
-def build(pick, shared: bool = True) -> DrawScene:
-    """A random scene; ``shared=False`` gives every triangle its own three vertices."""
+def _with_alpha_to_mask(pick, r: Renderer) -> Renderer:
+    """``r`` with AlphaToMask on some of its passes (drawn after the rest of the scene, so that
+    scenes without MSAA stay those of the same seed before MSAA existed)."""
+    passes = tuple(replace(p, alpha_to_mask=pick.chance(0.4)) for p in r.material.draw_passes)
+    return replace(r, material=replace(r.material, passes=passes))
+
+
+def build(pick, shared: bool = True, msaa: int = 1) -> DrawScene:
+    """A random scene; ``shared=False`` gives every triangle its own three vertices; ``msaa`` > 1:
+    that many samples, and AlphaToMask on some passes."""
+    scene = _build(pick, shared)
+    if msaa == 1:
+        return scene
+    return replace(scene, msaa=msaa, renderers=tuple(_with_alpha_to_mask(pick, r) for r in scene.renderers))
+
+
+def _build(pick, shared: bool) -> DrawScene:
     cam = _camera(pick)
     renderers = tuple(_renderer(pick, k, shared) for k in range(pick.int(1, 4)))
     light = None
@@ -211,14 +227,16 @@ def build(pick, shared: bool = True) -> DrawScene:
 
 
 @st.composite
-def scenes(draw, shared: bool = True) -> DrawScene:
-    """Hypothesis strategy: a small random draw scene."""
-    return build(_HypothesisPick(draw), shared)
+def scenes(draw, shared: bool = True, msaa: int = 1) -> DrawScene:
+    """Hypothesis strategy: a small random draw scene (``msaa`` 0: 2, 4 or 8 samples, drawn)."""
+    if msaa == 0:
+        msaa = draw(st.sampled_from((2, 4, 8)))
+    return build(_HypothesisPick(draw), shared, msaa)
 
 
-def seeded_scene(seed: int, shared: bool = True) -> DrawScene:
+def seeded_scene(seed: int, shared: bool = True, msaa: int = 1) -> DrawScene:
     """The same kind of scene from a numpy seed (stable, for aggregate statistics)."""
-    return build(_RngPick(seed), shared)
+    return build(_RngPick(seed), shared, msaa)
 
 
 def describe(scene: DrawScene) -> str:
@@ -228,7 +246,8 @@ def describe(scene: DrawScene) -> str:
         f"camera {cam.width}x{cam.height} ortho={cam.orthographic} view={cam.view_matrix.tolist()} "
         f"proj={cam.projection.tolist()}",
         f"color_space={scene.color_space} hdr={scene.hdr} clear={scene.clear_color} ambient={scene.ambient} "
-        f"linear_ambient={scene.ambient_is_linear} light={scene.light} sort={scene.sort_mode} {scene.sort_axis}",
+        f"linear_ambient={scene.ambient_is_linear} light={scene.light} sort={scene.sort_mode} {scene.sort_axis} "
+        f"msaa={scene.msaa}",
     ]
     for r in scene.renderers:
         mat = r.material

@@ -25,6 +25,8 @@ class Outcome(IntEnum):
     ALPHA_TEST = 1
     STENCIL = 2
     DEPTH = 3
+    ALPHA_TO_MASK = 4  # MSAA: a covered sample AlphaToMask removed
+    NOT_COVERED = -1  # MSAA: a sample of the pixel the fragment does not cover
 
 
 _COMPARE = {
@@ -72,22 +74,63 @@ def stencil_op(op: StencilOp, s: np.ndarray, ref: int) -> np.ndarray:
     return (s - 1) & 255  # DecrWrap
 
 
+def resolve_colors(stored: np.ndarray, samples: int, hdr: bool, linear: bool) -> np.ndarray:
+    """The resolved pixels (P, 4) of ``stored`` (P, N, 4) samples (uint8 codes, or float32 in HDR),
+    as llvmpipe's resolve blit (``util_make_fs_msaa_resolve``: a float32 sum from 0 in sample
+    order, times 1/N) computes them, measured bit for bit on RGBA8: LDR ``v_s = float32(q_s) *
+    float32(1/255)``, ``avg = (((v_0 + v_1) + ...) * float32(1/N))`` and the code
+    ``rint(float32(avg * 255))`` (ties to even). Linear LDR (an sRGB framebuffer): rgb samples
+    are decoded first (float32 of the exact decode), averaged likewise and encoded exactly, as a
+    resolve with ``GL_FRAMEBUFFER_SRGB`` (and Direct3D's resolve of sRGB formats) does it; alpha
+    as in Gamma. HDR: the float32 average. Returns uint8 codes (P, 4), or float32 in HDR."""
+    f32 = np.float32
+    inverse = f32(1.0 / samples)
+    acc = np.zeros((stored.shape[0], 4), dtype=f32)  # from 0, as the resolve shader (0 + -0.0 is 0.0)
+    if hdr:
+        for s in range(samples):
+            acc += stored[:, s]
+        acc *= inverse
+        return acc
+    values = np.empty(stored.shape, dtype=f32)
+    if linear:
+        values[..., :3] = colorspace.DECODE_LUT[stored[..., :3]]
+        np.multiply(stored[..., 3], f32(1.0 / 255.0), out=values[..., 3], dtype=f32)
+    else:
+        np.multiply(stored, f32(1.0 / 255.0), out=values, dtype=f32)
+    for s in range(samples):
+        acc += values[:, s]
+    acc *= inverse
+    out = np.empty((stored.shape[0], 4), dtype=np.uint8)
+    if linear:
+        out[:, :3] = colorspace.quantize_encoded(acc[:, :3].astype(np.float64))
+        out[:, 3] = np.rint(acc[:, 3] * f32(255.0))
+    else:
+        out[:] = np.rint(acc * f32(255.0))
+    return out
+
+
 class FrameBuffers:
     """Colour, depth and stencil of a frame, flat in window order (index ``y*W + x``, y up).
 
     ``color``: LDR (H*W, 4) uint8 codes (sRGB-encoded rgb in Linear), HDR (H*W, 4) float32.
     ``depth``: (H*W,) int64 in 0..2**24-1. ``stencil``: (H*W,) uint8.
+
+    With ``samples`` N > 1 (MSAA) every pixel holds N samples: index ``(y*W + x)*N + s``, the
+    arrays N times as long, ``depth`` int32 (24-bit codes fit; 8x at 1080p holds 16.6M samples);
+    :meth:`output` resolves them (:func:`resolve_colors`).
     """
 
     def __init__(self, width: int, height: int, hdr: bool, color_space: ColorSpace, clear_rgba,
-                 band: tuple[int, int] | None = None) -> None:
+                 band: tuple[int, int] | None = None, samples: int = 1) -> None:
         """Buffers cleared to ``clear_rgba``, depth 1.0 and stencil 0; with ``band`` (y0, y1)
         only those rows are cleared (a band render never reads the others)."""
         self.width, self.height = int(width), int(height)
         self.hdr = bool(hdr)
         self.linear = color_space is ColorSpace.Linear
-        n = self.width * self.height
-        lo, hi = (0, n) if band is None else (band[0] * self.width, band[1] * self.width)
+        self.samples = int(samples)
+        row = self.width * self.samples  # elements per buffer row
+        n = row * self.height
+        lo, hi = (0, n) if band is None else (band[0] * row, band[1] * row)
         clear = np.array([float(c) for c in clear_rgba], dtype=np.float64)[None, :]
         if self.hdr:
             self.color = np.empty((n, 4), dtype=np.float32)
@@ -95,7 +138,7 @@ class FrameBuffers:
             self.color = np.empty((n, 4), dtype=np.uint8)
         # One fill of whole packed pixels (a (1, 4) broadcast copies byte by byte).
         self.packed()[lo:hi].fill(np.ascontiguousarray(self.encode(clear)).view(self.packed().dtype)[0, 0])
-        self.depth = np.empty(n, dtype=np.int64)
+        self.depth = np.empty(n, dtype=np.int64 if self.samples == 1 else np.int32)
         self.depth[lo:hi] = DEPTH_MAX
         self.stencil = np.empty(n, dtype=np.uint8)
         self.stencil[lo:hi] = 0
@@ -159,19 +202,28 @@ class FrameBuffers:
                                            strict=True):
                 if array.shape != shape or array.dtype != dtype:
                     raise ValueError(f"out array {array.dtype} {array.shape} is not {np.dtype(dtype)} {shape}")
-        src_color = self.color.reshape(self.height, w, 4)[y0:y1][::-1]
-        src_depth = self.depth.reshape(self.height, w)[y0:y1][::-1]
+        n = self.samples
+        # Depth and stencil of a multisampled pixel: its sample 0 (what GL's blit of a
+        # multisampled depth-stencil buffer gives, measured on llvmpipe).
+        src_color = self.color.reshape(self.height, w, n, 4)[y0:y1][::-1]
+        src_depth = self.depth.reshape(self.height, w, n)[y0:y1][::-1, :, 0]
 
         def rows(lo: int, hi: int) -> None:
+            part = src_color[lo:hi]
+            if n > 1:
+                resolved = resolve_colors(part.reshape(-1, n, 4), n, self.hdr, self.linear)
+                part = resolved.reshape(hi - lo, w, 4)
+            else:
+                part = part[:, :, 0]
             if self.hdr:
-                color[lo:hi] = src_color[lo:hi]
+                color[lo:hi] = part
             else:
                 # float32 division of the exact integers equals float32(q / 255.0) for every code
                 # and float32(d / (2**24 - 1)) for every depth code (both checked exhaustively in
                 # tests/core/test_fastpaths.py), cheaper than a table lookup.
-                np.divide(src_color[lo:hi], _FLOAT32_255, out=color[lo:hi], dtype=np.float32)
+                np.divide(part, _FLOAT32_255, out=color[lo:hi], dtype=np.float32)
             np.divide(src_depth[lo:hi], _FLOAT32_DEPTH_MAX, out=depth[lo:hi], dtype=np.float32)
 
         run_parts(pool, parts, h, rows, min_part=64)
-        stencil[...] = self.stencil.reshape(self.height, w)[y0:y1][::-1]
+        stencil[...] = self.stencil.reshape(self.height, w, n)[y0:y1][::-1, :, 0]
         return color, depth, stencil
