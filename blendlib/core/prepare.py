@@ -137,6 +137,14 @@ def chunk_shading(p: Pass) -> ChunkShader:
     return fragment.shade_chunk
 
 
+def _shading_of(frame: FrameContext, p: Pass) -> ChunkShader:
+    """:func:`chunk_shading`, except that under MSAA a pass with AlphaToMask is always shaded: its
+    alpha decides which samples it covers, colour written or not."""
+    if frame.samples > 1 and p.alpha_to_mask:
+        return fragment.shade_chunk
+    return chunk_shading(p)
+
+
 def setup_input(renderer) -> vertex.SetupInput:
     """What the vertex setup of ``renderer`` needs: normals only for lit shading, UVs only with a texture."""
     material = renderer.material
@@ -243,7 +251,7 @@ def _prepare(frame: FrameContext, call: DrawCall, geometry: _Geometry, texels, p
     setup, key = geometry.setup, (call.state.cull, frame.samples)  # rows by Cull (and MSAA: other rows)
     known = geometry.rows.get(key)
     state, selected = _draw_state(frame, call, setup, texels, selected=None if known is None else known[0])
-    shade = chunk_shading(call.state)
+    shade = _shading_of(frame, call.state)
     if known is not None:
         return PreparedCall(call, setup, selected, raster.Rows(**vars(known[1])), state, shade)
     rows = raster.coverage_rows(setup, selected, frame.width, frame.height, pool=pool, parts=parts, band=frame.band,
@@ -273,7 +281,7 @@ def _prepare_together(frame: FrameContext, runs: list[list[DrawCall]], texels) -
         call, geometry, _, selected, _ = items[k]
         geometry.rows.setdefault((call.state.cull, frame.samples), (selected, r))
     return [PreparedCall(call, geometry.setup, selected, r if kept is None else raster.Rows(**vars(r)), state,
-                         chunk_shading(call.state))
+                         _shading_of(frame, call.state))
             for (call, geometry, state, selected, kept), r in zip(items, rows, strict=True)]
 
 
