@@ -5,7 +5,7 @@ With ``DrawScene.msaa`` N > 1 the buffers hold N samples per pixel (sample ``s``
 pixel ``p`` at index ``p*N + s``). A draw call's rows are the pixels where at least one sample
 is covered (:func:`.raster.coverage_rows` with ``samples``); each such pixel is one *pixel
 fragment*, shaded once at the pixel centre, with a coverage mask (bit ``s`` = sample ``s``,
-:func:`coverage_and_depth`) and a depth code per sample. The merger receives one *sample
+:func:`coverage`) and a depth code per sample. The merger receives one *sample
 fragment* per covered sample (:func:`sample_fragments`): each sample is a pixel of its own for
 the depth and stencil tests, blending and primitive order, so the merger's layer machinery
 applies unchanged. :func:`resolve_colors` averages the samples as llvmpipe's resolve does.
@@ -15,9 +15,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .merger import FrameBuffers, Outcome, merge
+from . import raster
+from .merger import FrameBuffers, Outcome, apply_layer, find_table, order_free_depth, primitive_layers
 from .vertex import DEPTH_MAX, HALF, SUBPIXEL, TriangleSetup
-from .vocabulary import Pass
+from .vocabulary import CompareFunction, Pass
 
 #: The standard sample positions (Direct3D's and Vulkan's, Mesa's ``u_sample_positions.c``)
 #: in 1/16 pixel from the pixel's lower-left corner, x right and y up in window coordinates
@@ -68,68 +69,84 @@ def _row_edges(setup: TriangleSetup, rows, start: int, stop: int) -> tuple:
     return dx, dy, bias
 
 
-def coverage_and_depth(setup: TriangleSetup, rows, start: int, stop: int, width: int, samples: int,
-                       depth: bool, offset_factor: float = 0.0, offset_units: float = 0.0,
-                       index: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
-    """Coverage masks and per-sample depth codes of the candidate pixels of rows ``[start, stop)``
-    (in the order :func:`.raster.rasterize_rows` gives them), or of candidates ``index`` (K,) of
-    them only.
-
-    Sample ``s`` at ``(x*S + ox_s, y*S + oy_s)`` is covered when every edge function there is
-    ``> 0``, or ``== 0`` on a top-left edge (docs/pipeline.md §4); ``E_k`` at the sample is
-    ``E_k`` at the pixel centre plus ``dx_k*(oy_s - S/2) - dy_k*(ox_s - S/2)``, all in integers.
-    Depth at a sample: ``b_k = E_k / A`` (the screen barycentrics there) in §5's formula, Offset
-    included. Returns ``mask`` (M,) uint8 (bit s: sample s covered; 0 for a candidate whose
-    samples are all outside) and, with ``depth``, ``codes`` (M, N) int64 (those of samples not
-    covered are computed but meaningless), else None.
-    """
+def _fragment_rows(rows, start: int, stop: int, index: np.ndarray | None):
+    """The candidates of rows ``[start, stop)`` (all, or those at positions ``index``): their x
+    (K,) int64 and a function expanding per-row values (R, ...) of the slice to them."""
     length = rows.length[start:stop]
     first = np.cumsum(length) - length
     if index is None:
         n = int(length.sum())
-        row = np.repeat(np.arange(length.size, dtype=np.int64), length)
-        at = np.arange(n, dtype=np.int64) - np.take(first, row)
-    else:
-        row = np.searchsorted(np.cumsum(length), index, side="right")
-        at = index - np.take(first, row)
+        expand = raster.run_expander(length, n)
+        x = np.arange(n, dtype=np.int64)
+        x += expand(rows.x0[start:stop] - first)
+        return x, expand
+    row = np.searchsorted(np.cumsum(length), index, side="right")
+    return np.take(rows.x0[start:stop] - first, row) + index, lambda values: np.take(values, row, axis=0)
+
+
+def _masks(x: np.ndarray, x0: np.ndarray, x1: np.ndarray, samples: int) -> np.ndarray:
+    """(K,) uint8: bit s set where ``x0[:, s] <= x <= x1[:, s]`` (x (K,), x0/x1 (K, N))."""
+    covered = (x[:, None] >= x0) & (x[:, None] <= x1)
+    return (covered.astype(np.uint8) << np.arange(samples, dtype=np.uint8)).sum(axis=1, dtype=np.uint8)
+
+
+def coverage(rows, start: int, stop: int, samples: int, index: np.ndarray | None = None) -> np.ndarray:
+    """(M,) uint8 coverage masks of the candidate pixels of MSAA rows ``[start, stop)`` (in the
+    order :func:`.raster.rasterize_rows` gives them), or of candidates ``index`` (K,) of them only.
+
+    Sample ``s`` at ``(x*S + ox_s, y*S + oy_s)`` is covered when every edge function there is
+    ``> 0``, or ``== 0`` on a top-left edge (docs/pipeline.md §4): exactly when x lies in the
+    sample's own span of the row (:attr:`.raster.Rows.sample_x0`/``sample_x1``, found by the
+    rasteriser's exact integer division at the sample's position). Pixels inside every sample's
+    span (the most of a large triangle's) are fully covered; only the others are compared
+    sample by sample. 0: the candidate covers no sample (inside a thin sliver)."""
     sl = slice(start, stop)
-    x = np.take(rows.x0[sl], row) + at
+    x, expand = _fragment_rows(rows, start, stop, index)
+    x0, x1 = rows.sample_x0[sl], rows.sample_x1[sl]
+    if index is not None:
+        return _masks(x, expand(x0), expand(x1), samples)
+    inner = (x < expand(x0.max(axis=1))) | (x > expand(x1.min(axis=1)))  # not inside every sample's span
+    mask = np.full(x.size, (1 << samples) - 1, dtype=np.uint8)
+    edge = np.flatnonzero(inner)
+    if edge.size:
+        row = np.searchsorted(np.cumsum(rows.length[sl]), edge, side="right")
+        mask[edge] = _masks(np.take(x, edge), np.take(x0, row, axis=0), np.take(x1, row, axis=0), samples)
+    return mask
+
+
+def sample_depth(setup: TriangleSetup, rows, start: int, stop: int, samples: int, offset_factor: float = 0.0,
+                 offset_units: float = 0.0, index: np.ndarray | None = None) -> np.ndarray:
+    """(M, N) int64 depth codes at every sample of the candidate pixels of MSAA rows ``[start,
+    stop)`` (or of candidates ``index`` of them): §5's formula with the screen barycentrics at
+    the sample, ``b_k = E_k / A``, where ``E_k`` there is ``E_k`` at the pixel centre plus
+    ``dx_k*(oy_s - S/2) - dy_k*(ox_s - S/2)`` (integers), Offset included. The codes of samples
+    a candidate does not cover are computed too, and meaningless."""
+    sl = slice(start, stop)
+    x, expand = _fragment_rows(rows, start, stop, index)
     px = x * SUBPIXEL + HALF
-    e0 = np.take(rows.c0[sl], row) - np.take(rows.dy0[sl], row) * px
-    e1 = np.take(rows.c1[sl], row) - np.take(rows.dy1[sl], row) * px
-    area = np.take(rows.area[sl], row)
-    dx, dy, bias = _row_edges(setup, rows, start, stop)
-    offsets = sample_offsets(samples) - HALF  # (N, 2) from the pixel centre
-    mask = np.zeros(row.size, dtype=np.uint8)
-    codes = np.empty((row.size, samples), dtype=np.int64) if depth else None
-    if depth:
-        zw = setup.zw
-        tri = np.take(rows.tri[sl], row)
-        swap = np.take(rows.swap[sl], row)
-        z0, z1, z2 = (np.take(zw[:, k], tri) for k in range(3))
-        farea = area.astype(np.float64)
-        slope = None
-        if offset_factor != 0.0 or offset_units != 0.0:
-            slope = float(offset_factor) * np.take(setup.slope(), tri) + float(offset_units) * 2.0**-24
-    for s, (ox, oy) in enumerate(offsets.tolist()):
-        # The edge functions at the sample: the centre's plus a per-row step.
-        ea = e0 + np.take(dx[0] * oy - dy[0] * ox, row)
-        eb = e1 + np.take(dx[1] * oy - dy[1] * ox, row)
-        ec = area - ea - eb
-        covered = (ea >= np.take(bias[0], row)) & (eb >= np.take(bias[1], row)) & (ec >= np.take(bias[2], row))
-        mask |= covered.astype(np.uint8) << np.uint8(s)
-        if depth:
-            # Barycentrics in the triangle's own vertex order (a clockwise triangle was covered
-            # as (v0, v2, v1)), as raster.rasterize_rows maps them.
-            b0 = ea / farea
-            b1 = np.where(swap, ec, eb) / farea
-            b2 = np.where(swap, eb, ec) / farea
-            z = (b0 * z0 + b1 * z1) + b2 * z2
-            if slope is not None:
-                z = z + slope
-            z = np.minimum(np.maximum(z, 0.0), 1.0)
-            codes[:, s] = np.floor(z * DEPTH_MAX + 0.5).astype(np.int64)
-    return mask, codes
+    dx, dy, _ = _row_edges(setup, rows, start, stop)
+    ox, oy = (sample_offsets(samples) - HALF).T  # (N,) each, from the pixel centre
+    ea = (expand(rows.c0[sl]) - expand(rows.dy0[sl]) * px)[:, None] + expand(dx[0][:, None] * oy - dy[0][:, None] * ox)
+    eb = (expand(rows.c1[sl]) - expand(rows.dy1[sl]) * px)[:, None] + expand(dx[1][:, None] * oy - dy[1][:, None] * ox)
+    area = expand(rows.area[sl])[:, None]
+    ec = area - ea - eb
+    farea = area.astype(np.float64)
+    tri = expand(rows.tri[sl])
+    swap = expand(rows.swap[sl])[:, None]
+    zw = setup.zw
+    z0, z1, z2 = (np.take(zw[:, k], tri)[:, None] for k in range(3))
+    # Barycentrics in the triangle's own vertex order (a clockwise triangle was covered as
+    # (v0, v2, v1)), as raster.rasterize_rows maps them.
+    z = (ea / farea) * z0
+    z += (np.where(swap, ec, eb) / farea) * z1
+    z += (np.where(swap, eb, ec) / farea) * z2
+    if offset_factor != 0.0 or offset_units != 0.0:
+        z += (float(offset_factor) * np.take(setup.slope(), tri) + float(offset_units) * 2.0**-24)[:, None]
+    np.maximum(z, 0.0, out=z)
+    np.minimum(z, 1.0, out=z)
+    z *= DEPTH_MAX
+    z += 0.5
+    return np.floor(z, out=z).astype(np.int64)
 
 
 def mask_bits(mask: np.ndarray, samples: int) -> np.ndarray:
@@ -143,52 +160,105 @@ def sampled_chunk(shader, setup: TriangleSetup, rows, start: int, stop: int, sta
     union of the samples' spans) once each at the pixel centre — also where the centre itself
     lies outside the triangle, the attributes then extrapolated from its plane, as llvmpipe
     shades — and alpha-tests them; here each gets its coverage mask and, when the depth test
-    or write needs it, a depth code per sample (:func:`coverage_and_depth`). Returns the
+    or write needs it, a depth code per sample (:func:`coverage`, :func:`sample_depth`). Returns the
     chunk's :class:`.records.ShadedFragments` with ``coverage`` and (M, N) ``depth``, or None;
     its fragments stay one per candidate pixel of the rows (the calls of a fused chunk are cut
     by row), those covering no sample (inside thin slivers) with mask 0: they merge nothing."""
     shaded = shader(setup, rows, start, stop, state)  # state.depth_needed is False: no centre depth
     if shaded is None:
         return None
-    p = state.pass_state
-    want = state.sample_depth_needed(rows, start, stop)
-    mask, codes = coverage_and_depth(setup, rows, start, stop, state.width, state.samples, want,
-                                     p.offset_factor, p.offset_units)
-    shaded.coverage = mask
-    shaded.stored_depth = codes
-    shaded.depth_fn = None
-    if codes is None and state.observed:  # an observer reads the depth of a chunk that needs none
-        def depth_fn(index):
-            return coverage_and_depth(setup, rows, start, stop, state.width, state.samples, True, p.offset_factor,
-                                      p.offset_units, index=index)[1]
-
-        shaded.depth_fn = depth_fn
+    p, n = state.pass_state, state.samples
+    shaded.coverage = coverage(rows, start, stop, n)
+    shaded.stored_depth = shaded.depth_fn = None
+    if state.sample_depth_needed(rows, start, stop):
+        shaded.stored_depth = sample_depth(setup, rows, start, stop, n, p.offset_factor, p.offset_units)
+    elif state.observed:  # an observer reads the depth of a chunk that needs none
+        shaded.depth_fn = lambda index: sample_depth(setup, rows, start, stop, n, p.offset_factor, p.offset_units,
+                                                     index=index)
     return shaded
 
 
 def merge_samples(buf: FrameBuffers, p: Pass, frags, tables=None, outcome: np.ndarray | None = None) -> None:
     """Apply MSAA pixel fragments ``frags`` (:class:`.records.ShadedFragments` with ``coverage``,
     alpha test done) of pass ``p``: AlphaToMask narrows each coverage mask (:func:`alpha_to_mask`),
-    then every covered sample is one fragment for the merger (:func:`.merger.merge`) at its
-    sample's place in the buffers (``pix*N + s``) with its own depth and its pixel fragment's
-    colour — pixel fragments in order, their samples in ascending order, so primitive order
-    holds per sample. ``outcome`` (M, N) int8, optional: receives each sample's
+    then every covered sample is one fragment for the merger at its sample's place in the buffers
+    (``s*H*W + pix``: its sample plane) with its own depth and its pixel fragment's colour.
+
+    Primitive order per sample: the pixel fragments are cut into layers of distinct pixels
+    (:func:`.merger.primitive_layers`, draw order kept) and each layer is applied sample plane by
+    sample plane (:func:`.merger.apply_layer`) — a layer's samples are distinct, and every
+    sample sees its fragments in draw order. A fragment that covers every sample of a uniform
+    pixel (:attr:`.merger.FrameBuffers.uniform`) in a pass whose samples all pass alike (no
+    depth test needed, no stencil) gives every sample the same result: it is applied to plane 0
+    alone and the pixel stays uniform. ``outcome`` (M, N) int8, optional: receives each sample's
     :class:`.merger.Outcome` (``NOT_COVERED`` and ``ALPHA_TO_MASK`` included)."""
-    n = buf.samples
+    n, plane = buf.samples, buf.plane
+    full = (1 << n) - 1
     mask = frags.coverage
     if p.alpha_to_mask:
         mask = mask & alpha_to_mask(frags.colors()[:, 3], n)
     if outcome is not None:
-        covered = mask_bits(frags.coverage, n)
-        outcome[:] = np.where(covered, Outcome.ALPHA_TO_MASK, Outcome.NOT_COVERED)
-    which, sample = np.nonzero(mask_bits(mask, n))
-    if which.size == 0:
+        outcome[:] = np.where(mask_bits(frags.coverage, n), Outcome.ALPHA_TO_MASK, Outcome.NOT_COVERED)
+    if frags.count == 0:
         return
-    index = np.take(frags.pix, which) * n + sample
-    depth = None if frags.stored_depth is None else frags.stored_depth[which, sample]
-    rgba = None if frags.rgba is None else np.take(frags.rgba, which, axis=0)
-    ids = None if frags.ids is None else np.take(frags.ids, which)
-    written = None if outcome is None else np.empty(which.size, dtype=np.int8)
-    merge(buf, p, index, depth, rgba, ids, frags.palette, outcome=written, disjoint=frags.disjoint, tables=tables)
-    if outcome is not None:
-        outcome[which, sample] = written
+    pix, depth, rgba, ids = frags.pix, frags.stored_depth, frags.rgba, frags.ids
+
+    def subset(sel: np.ndarray | None, keep: np.ndarray) -> np.ndarray:
+        return np.flatnonzero(keep) if sel is None else sel[keep]
+
+    def apply(idx: np.ndarray | None, s: int, plane_only: bool = False) -> None:
+        """Fragments ``idx`` (None: all) to sample plane ``s`` (``plane_only``: their outcome is
+        every sample's)."""
+        codes = None if outcome is None else np.empty(pix.size if idx is None else idx.size, dtype=np.int8)
+        if idx is None:
+            apply_layer(buf, p, pix + s * plane, None if depth is None else depth[:, s], rgba, ids, lut, codes)
+        else:
+            apply_layer(buf, p, np.take(pix, idx) + s * plane, None if depth is None else np.take(depth[:, s], idx),
+                        None if rgba is None else np.take(rgba, idx, axis=0),
+                        None if ids is None else np.take(ids, idx), lut, codes)
+        if outcome is not None:
+            at = slice(None) if idx is None else idx
+            outcome[at, slice(None) if plane_only else s] = codes[:, None] if plane_only else codes
+
+    def per_sample(idx: np.ndarray | None) -> None:
+        """Fragments ``idx`` (None: all; distinct pixels) sample by sample: their uniform pixels
+        are spread first; those covering every sample may leave their pixel uniform again."""
+        ipix = pix if idx is None else np.take(pix, idx)
+        imask = mask if idx is None else np.take(mask, idx)
+        spread = buf.uniform[ipix] & (imask != 0)
+        if spread.any():
+            buf.spread(ipix[spread])
+        covers = imask == full
+        every = bool(covers.all())
+        for s in range(n):
+            if every:
+                apply(idx, s)
+                continue
+            has = ((imask >> np.uint8(s)) & np.uint8(1)) != 0
+            if has.any():
+                apply(subset(idx, has), s)
+        if covers.any():
+            buf.rejoin(ipix if every else ipix[covers])
+
+    if outcome is None and depth is not None and order_free_depth(p):
+        # Applied one by one, each fragment keeps the nearer (farther) depth: a per-sample extreme.
+        extreme = np.minimum if p.ztest in (CompareFunction.Less, CompareFunction.LEqual) else np.maximum
+        for s in range(n):
+            has = ((mask >> np.uint8(s)) & np.uint8(1)) != 0
+            extreme.at(buf.depth, pix[has] + s * plane, depth[has, s])
+        return
+    lut = None if ids is None else find_table(buf, p, frags.palette, frags.count * n, tables)
+    alike = depth is None and not p.stencil  # every covered sample passes: its result depends on its colour alone
+    for sel in primitive_layers(pix, frags.disjoint):
+        if not alike:
+            per_sample(sel)
+            continue
+        lpix = pix if sel is None else np.take(pix, sel)
+        lmask = mask if sel is None else np.take(mask, sel)
+        once = (lmask == full) & buf.uniform[lpix]
+        if once.all():
+            apply(sel, 0, plane_only=True)
+            continue
+        if once.any():
+            apply(subset(sel, once), 0, plane_only=True)
+        per_sample(subset(sel, ~once))

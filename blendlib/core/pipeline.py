@@ -126,9 +126,6 @@ def render_scene(
     if workers is None:
         workers = 1 if width * height < SMALL_FRAME_PIXELS else min(2, os.cpu_count() or 1)
     pool = ThreadPoolExecutor(max_workers=workers) if workers > 1 else None
-    # MSAA: chunks of 1/N the candidates keep the per-sample arrays of a chunk the size of a
-    # single-sampled chunk's per-fragment ones.
-    chunk_candidates = max(int(chunk_candidates) // samples, 1)
     frame = FrameContext(buf, cam, lights, cs, scene.hdr, chunk_candidates, pool, workers, threading.Event(),
                          observed=observer is not None, band=band, memo=memo, keep_setups=keep_setups)
     try:
@@ -325,8 +322,11 @@ class RowFloors:
         """The (H,) int64 floors, current in rows ``[y0, y1)`` (others as they are)."""
         stale = y0 + np.flatnonzero(~self.valid[y0:y1])
         if stale.size:
-            depth = self.buf.depth.reshape(self.buf.height, -1)  # a row's pixels (all their samples)
-            self.floor[stale] = depth[stale].min(axis=1)
+            if self.buf.samples == 1:
+                self.floor[stale] = self.buf.depth.reshape(self.buf.height, self.buf.width)[stale].min(axis=1)
+            else:  # every sample of the row's pixels (sample planes)
+                depth = self.buf.depth.reshape(self.buf.samples, self.buf.height, self.buf.width)
+                self.floor[stale] = depth[:, stale].min(axis=(0, 2))
             self.valid[stale] = True
         return self.floor
 

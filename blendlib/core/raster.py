@@ -35,6 +35,11 @@ class Rows:
     ``E_k = c_k - dy_k*Px`` for the counter-clockwise edges b→c and c→a (the third is
     ``area - E_0 - E_1``); ``swap`` (R,) bool: the triangle was clockwise and its coverage
     order is (v0, v2, v1); ``area`` (R,) int64 |area2|.
+
+    With MSAA (:func:`coverage_rows` with ``samples``) the span is the union of the samples'
+    spans and ``sample_x0``, ``sample_x1`` (R, N) int64 hold each sample's own: sample ``s``
+    of pixel ``x`` is covered exactly when ``sample_x0[s] <= x <= sample_x1[s]`` (empty when
+    ``sample_x0 > sample_x1``); None without.
     """
 
     tri: np.ndarray
@@ -47,10 +52,17 @@ class Rows:
     dy1: np.ndarray
     swap: np.ndarray
     area: np.ndarray
+    sample_x0: np.ndarray | None = None
+    sample_x1: np.ndarray | None = None
 
     @property
     def count(self) -> int:
         return int(self.tri.shape[0])
+
+    def each_field(self, fn: Callable[[str, np.ndarray], np.ndarray]) -> Rows:
+        """``Rows`` of ``fn(name, array)`` for every field (the MSAA fields stay None without MSAA)."""
+        return Rows(**{name: None if (v := getattr(self, name)) is None else fn(name, v)
+                       for name in self.__dataclass_fields__})
 
     def take(self, mask: np.ndarray) -> Rows:
         """The rows where ``mask`` is True, order kept."""
@@ -60,7 +72,7 @@ class Rows:
 
     def take_rows(self, index: np.ndarray) -> Rows:
         """The rows at positions ``index`` (int), in that order."""
-        return Rows(**{name: np.take(getattr(self, name), index) for name in self.__dataclass_fields__})
+        return self.each_field(lambda _, v: np.take(v, index, axis=0))
 
     def split_bands(self, bands: int, height: int) -> list[Rows]:
         """Split into up to ``bands`` horizontal screen bands of about equal fragment counts.
@@ -79,6 +91,16 @@ class Rows:
         empty ones included, order kept within each."""
         band = np.searchsorted(cuts, self.y, side="right")
         return [self.take(band == k) for k in range(cuts.size + 1)]
+
+
+def join_rows(parts: list[Rows], tri_offsets=None) -> Rows:
+    """The rows of ``parts`` one after another (their ``tri`` plus ``tri_offsets[k]`` when given)."""
+    def joined(name: str, _) -> np.ndarray:
+        if name == "tri" and tri_offsets is not None:
+            return np.concatenate([r.tri + o for r, o in zip(parts, tri_offsets, strict=True)])
+        return np.concatenate([getattr(r, name) for r in parts])
+
+    return parts[0].each_field(joined)
 
 
 def band_cuts(parts: list[Rows], bands: int, height: int) -> np.ndarray | None:
@@ -114,8 +136,7 @@ def coverage_rows(
     run_parts(pool, parts, selected.size, part, piece=PIECE)
     if len(results) == 1:
         return next(iter(results.values()))
-    pieces = [results[k] for k in sorted(results)]
-    return Rows(**{name: np.concatenate([getattr(r, name) for r in pieces]) for name in Rows.__dataclass_fields__})
+    return join_rows([results[k] for k in sorted(results)])
 
 
 def coverage_rows_many(passes: list[tuple[TriangleSetup, np.ndarray]], width: int, height: int,
@@ -160,7 +181,7 @@ def coverage_rows_many(passes: list[tuple[TriangleSetup, np.ndarray]], width: in
     out = []
     for k in range(len(passes)):
         a, b = int(cuts[k]), int(cuts[k + 1])
-        part = Rows(**{name: getattr(rows, name)[a:b] for name in Rows.__dataclass_fields__})
+        part = rows.each_field(lambda _, v, a=a, b=b: v[a:b])
         part.tri = np.take(local, part.tri)
         out.append(part)
     return out
@@ -320,7 +341,8 @@ def _sample_spans(ax, ay, bx, by, cx, cy, x_lo: np.ndarray, x_hi: np.ndarray, y:
         edges.append((dy, c - each(bias_t + HALF * dy_t), each(SUBPIXEL * np.maximum(np.abs(dy_t), 1)), dx_t, dy_t))
     lo = np.full(y.size, np.iinfo(np.int64).max, dtype=np.int64)
     hi = np.full(y.size, np.iinfo(np.int64).min, dtype=np.int64)
-    for ox, oy in (samples - HALF).tolist():
+    spans = np.empty((2, y.size, samples.shape[0]), dtype=np.int64)  # each sample's (x0, x1) per row
+    for s, (ox, oy) in enumerate((samples - HALF).tolist()):
         x0, x1 = x_lo.copy(), x_hi.copy()
         for dy, num_centre, den, dx_t, dy_t in edges:
             num = num_centre + each(dx_t * oy - dy_t * ox)
@@ -334,18 +356,21 @@ def _sample_spans(ax, ay, bx, by, cx, cy, x_lo: np.ndarray, x_hi: np.ndarray, y:
         some = x1 >= x0
         np.minimum(lo, x0, out=lo, where=some)
         np.maximum(hi, x1, out=hi, where=some)
+        spans[0, :, s], spans[1, :, s] = x0, x1
     keep = np.flatnonzero(hi >= lo)
     of_row = np.arange(y.size, dtype=np.int64)
     if keep.size != y.size:
         y, lo, hi, of_row = (np.take(v, keep) for v in (y, lo, hi, of_row))
         c_rows = [np.take(v, keep) for v in c_rows]
         dy_rows = [np.take(v, keep) for v in dy_rows]
+        spans = np.take(spans, keep, axis=1)
 
     def per_row(per_triangle: np.ndarray) -> np.ndarray:
         return np.take(each(per_triangle), of_row)
 
     return Rows(tri=per_row(selected), y=y, x0=lo, length=hi - lo + 1, c0=c_rows[0], c1=c_rows[1],
-                dy0=dy_rows[0], dy1=dy_rows[1], swap=per_row(swap), area=per_row(np.abs(area2)))
+                dy0=dy_rows[0], dy1=dy_rows[1], swap=per_row(swap), area=per_row(np.abs(area2)),
+                sample_x0=spans[0], sample_x1=spans[1])
 
 
 def row_chunks(rows: Rows, max_candidates: int) -> list[tuple[int, int]]:
@@ -404,14 +429,14 @@ REPEAT_MIN_RUN = 16
 
 
 def run_expander(counts: np.ndarray, n: int) -> Callable[[np.ndarray], np.ndarray]:
-    """A function that expands per-run values (R,) to the ``n`` elements of runs of ``counts``
-    (R,) int64: ``repeat`` (sequential copies) when runs are long; for short runs (small
-    triangles, rows of a few pixels; :data:`REPEAT_MIN_RUN`) one element -> run index once and
-    a gather per expansion."""
+    """A function that expands per-run values (R, ...) to the ``n`` elements of runs of ``counts``
+    (R,) int64 (along the first axis): ``repeat`` (sequential copies) when runs are long; for short
+    runs (small triangles, rows of a few pixels; :data:`REPEAT_MIN_RUN`) one element -> run index
+    once and a gather per expansion."""
     if counts.size * REPEAT_MIN_RUN > n:
         run = np.repeat(np.arange(counts.size, dtype=np.int64), counts)
-        return lambda values: np.take(values, run)
-    return lambda values: np.repeat(values, counts)
+        return lambda values: np.take(values, run, axis=0)
+    return lambda values: np.repeat(values, counts, axis=0)
 
 
 def rasterize_rows(rows: Rows, start: int, stop: int, width: int, bary: bool = True) -> Fragments:

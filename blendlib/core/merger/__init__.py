@@ -30,12 +30,12 @@ from .blending import (
     table_pays,
     table_rows,
 )
-from .buffers import FrameBuffers, Outcome, compare, resolve_colors, stencil_op
-from .ordering import PEEL_LAYERS, apply_layer, layers_by_rank, merge, order_free_depth
+from .buffers import FrameBuffers, Outcome, compare, resolve_colors, resolve_planes, stencil_op
+from .ordering import PEEL_LAYERS, apply_layer, layers_by_rank, merge, order_free_depth, primitive_layers
 
 __all__ = [
     "PAIR_TABLE_FRAGMENTS", "PEEL_LAYERS", "RECENT_TABLES", "BlendTable", "BlendTables", "FrameBuffers", "Outcome",
     "RecentTables", "apply_layer", "blend", "blend_fragments", "blend_lut", "compare", "find_table",
-    "layers_by_rank", "lut_eligible", "merge", "order_free_depth", "resolve_colors", "stencil_op", "table_pays",
-    "table_rows",
+    "layers_by_rank", "lut_eligible", "merge", "order_free_depth", "primitive_layers", "resolve_colors",
+    "resolve_planes", "stencil_op", "table_pays", "table_rows",
 ]
