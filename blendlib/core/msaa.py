@@ -87,7 +87,7 @@ def _fragment_rows(rows, start: int, stop: int, index: np.ndarray | None):
 def _masks(x: np.ndarray, x0: np.ndarray, x1: np.ndarray, samples: int) -> np.ndarray:
     """(K,) uint8: bit s set where ``x0[:, s] <= x <= x1[:, s]`` (x (K,), x0/x1 (K, N))."""
     covered = (x[:, None] >= x0) & (x[:, None] <= x1)
-    return (covered.astype(np.uint8) << np.arange(samples, dtype=np.uint8)).sum(axis=1, dtype=np.uint8)
+    return np.packbits(covered, axis=1, bitorder="little").reshape(-1)  # N <= 8: one byte
 
 
 def coverage(rows, start: int, stop: int, samples: int, index: np.ndarray | None = None) -> np.ndarray:
@@ -149,6 +149,10 @@ def sample_depth(setup: TriangleSetup, rows, start: int, stop: int, samples: int
     return np.floor(z, out=z).astype(np.int64)
 
 
+#: The lowest set bit of each nonzero 8-bit coverage mask (entry 0 unused).
+_LOWEST_BIT = np.array([0] + [(m & -m).bit_length() - 1 for m in range(1, 256)], dtype=np.int64)
+
+
 def mask_bits(mask: np.ndarray, samples: int) -> np.ndarray:
     """(M, N) bool: bit ``s`` of each coverage mask (M,) uint8."""
     return ((mask[:, None] >> np.arange(samples, dtype=np.uint8)) & np.uint8(1)).astype(bool)
@@ -206,39 +210,58 @@ def merge_samples(buf: FrameBuffers, p: Pass, frags, tables=None, outcome: np.nd
     def subset(sel: np.ndarray | None, keep: np.ndarray) -> np.ndarray:
         return np.flatnonzero(keep) if sel is None else sel[keep]
 
-    def apply(idx: np.ndarray | None, s: int, plane_only: bool = False) -> None:
-        """Fragments ``idx`` (None: all) to sample plane ``s`` (``plane_only``: their outcome is
-        every sample's)."""
-        codes = None if outcome is None else np.empty(pix.size if idx is None else idx.size, dtype=np.int8)
-        if idx is None:
-            apply_layer(buf, p, pix + s * plane, None if depth is None else depth[:, s], rgba, ids, lut, codes)
+    def apply(frag: np.ndarray | None, sample, every_sample: bool = False) -> None:
+        """Fragments ``frag`` (None: all) to their samples ``sample`` (an int: one plane, or (K,)
+        each its own): one layer of distinct samples (``every_sample``: the outcome of each is
+        that of all its samples)."""
+        target = pix if frag is None else np.take(pix, frag)
+        target = target + sample * plane
+        codes = None if outcome is None else np.empty(target.size, dtype=np.int8)
+        if frag is None:
+            apply_layer(buf, p, target, None if depth is None else depth[:, sample], rgba, ids, lut, codes)
         else:
-            apply_layer(buf, p, np.take(pix, idx) + s * plane, None if depth is None else np.take(depth[:, s], idx),
-                        None if rgba is None else np.take(rgba, idx, axis=0),
-                        None if ids is None else np.take(ids, idx), lut, codes)
+            apply_layer(buf, p, target, None if depth is None else depth[frag, sample],
+                        None if rgba is None else np.take(rgba, frag, axis=0),
+                        None if ids is None else np.take(ids, frag), lut, codes)
         if outcome is not None:
-            at = slice(None) if idx is None else idx
-            outcome[at, slice(None) if plane_only else s] = codes[:, None] if plane_only else codes
+            at = slice(None) if frag is None else frag
+            if every_sample:
+                outcome[at] = codes[:, None]
+            else:
+                outcome[at, sample] = codes
 
     def per_sample(idx: np.ndarray | None) -> None:
-        """Fragments ``idx`` (None: all; distinct pixels) sample by sample: their uniform pixels
-        are spread first; those covering every sample may leave their pixel uniform again."""
+        """Fragments ``idx`` (None: all; distinct pixels), each to its covered samples, all in one
+        layer: their uniform pixels are spread first; those covering every sample may leave their
+        pixel uniform again."""
         ipix = pix if idx is None else np.take(pix, idx)
         imask = mask if idx is None else np.take(mask, idx)
         spread = buf.uniform[ipix] & (imask != 0)
         if spread.any():
             buf.spread(ipix[spread])
+        which, sample = np.nonzero(mask_bits(imask, n))  # fragment by fragment, samples ascending
+        if which.size:
+            apply(which if idx is None else np.take(idx, which), sample)
         covers = imask == full
-        every = bool(covers.all())
-        for s in range(n):
-            if every:
-                apply(idx, s)
-                continue
-            has = ((imask >> np.uint8(s)) & np.uint8(1)) != 0
-            if has.any():
-                apply(subset(idx, has), s)
         if covers.any():
-            buf.rejoin(ipix if every else ipix[covers])
+            buf.rejoin(ipix[covers])
+
+    def partial_once(idx: np.ndarray) -> None:
+        """Fragments ``idx`` (distinct uniform pixels, some samples covered, a pass whose samples
+        all pass alike): every covered sample gets the same result, so each is blended once, at
+        its lowest covered sample, and the result copied to its other covered samples."""
+        ipix, imask = np.take(pix, idx), np.take(mask, idx)
+        buf.spread(ipix)
+        lowest = _LOWEST_BIT[imask]
+        apply(idx, lowest)
+        packed = buf.packed()
+        result = packed[lowest * plane + ipix]
+        for s in range(n):
+            copy = (((imask >> np.uint8(s)) & np.uint8(1)) != 0) & (lowest != s)
+            if copy.any():
+                packed[s * plane + ipix[copy]] = result[copy]
+                if outcome is not None:
+                    outcome[idx[copy], s] = outcome[idx[copy], lowest[copy]]
 
     if outcome is None and depth is not None and order_free_depth(p):
         # Applied one by one, each fragment keeps the nearer (farther) depth: a per-sample extreme.
@@ -255,10 +278,16 @@ def merge_samples(buf: FrameBuffers, p: Pass, frags, tables=None, outcome: np.nd
             continue
         lpix = pix if sel is None else np.take(pix, sel)
         lmask = mask if sel is None else np.take(mask, sel)
-        once = (lmask == full) & buf.uniform[lpix]
+        uniform = buf.uniform[lpix]
+        once = (lmask == full) & uniform
         if once.all():
-            apply(sel, 0, plane_only=True)
+            apply(sel, 0, every_sample=True)
             continue
         if once.any():
-            apply(subset(sel, once), 0, plane_only=True)
-        per_sample(subset(sel, ~once))
+            apply(subset(sel, once), 0, every_sample=True)
+        part = uniform & ~once & (lmask != 0)
+        if part.any():
+            partial_once(subset(sel, part))
+        rest = ~uniform
+        if rest.any():
+            per_sample(subset(sel, rest))

@@ -327,7 +327,11 @@ def _sample_spans(ax, ay, bx, by, cx, cy, x_lo: np.ndarray, x_hi: np.ndarray, y:
     values to rows. Per edge and sample, the bound is the centre's test shifted by the sample's
     offset from the centre (``E`` there is ``E`` at the centre plus ``dx*(oy - S/2) - dy*(ox -
     S/2)``); a row's span is the union hull of its samples' spans."""
-    edges = []  # per edge: (dy (R,), num at the centre (R,), den (R,), dx_t (n,), dy_t (n,))
+    # The bounds are computed in float64 when exact there (in_float: every numerator an integer
+    # below 2**53, so sums and products of them are exact and a quotient floors correctly, see
+    # _spans), else in int64; per edge, the row values are converted once.
+    work = np.float64 if in_float else np.int64
+    edges = []  # per edge: (dy > 0, dy < 0, horizontal rows or None, dx, dy, num at the centre, den), (R,) each
     c_rows, dy_rows = [], []
     for edge, (xp, yp, xq, yq) in enumerate(((bx, by, cx, cy), (cx, cy, ax, ay), (ax, ay, bx, by))):
         dx_t, dy_t = xq - xp, yq - yp
@@ -338,25 +342,35 @@ def _sample_spans(ax, ay, bx, by, cx, cy, x_lo: np.ndarray, x_hi: np.ndarray, y:
         if edge < 2:
             c_rows.append(c)
             dy_rows.append(dy)
-        edges.append((dy, c - each(bias_t + HALF * dy_t), each(SUBPIXEL * np.maximum(np.abs(dy_t), 1)), dx_t, dy_t))
+        flat = None if np.all(dy_t) else dy == 0
+        den = each(SUBPIXEL * np.maximum(np.abs(dy_t), 1))
+        edges.append((dy > 0, dy < 0, flat, each(dx_t).astype(work), dy.astype(work),
+                      (c - each(bias_t + HALF * dy_t)).astype(work), den.astype(work)))
     lo = np.full(y.size, np.iinfo(np.int64).max, dtype=np.int64)
     hi = np.full(y.size, np.iinfo(np.int64).min, dtype=np.int64)
     spans = np.empty((2, y.size, samples.shape[0]), dtype=np.int64)  # each sample's (x0, x1) per row
     for s, (ox, oy) in enumerate((samples - HALF).tolist()):
-        x0, x1 = x_lo.copy(), x_hi.copy()
-        for dy, num_centre, den, dx_t, dy_t in edges:
-            num = num_centre + each(dx_t * oy - dy_t * ox)
-            q = _floor_quotients(num, den, in_float)
-            np.minimum(x1, q, out=x1, where=dy > 0)
+        x0, x1 = x_lo.astype(work), x_hi.astype(work)
+        for pos, neg, flat, dx, dy, num_centre, den in edges:
+            num = dx * oy
+            num -= dy * ox
+            num += num_centre
+            if in_float:
+                q = num / den
+                np.floor(q, out=q)
+            else:
+                q = num // den
+            np.minimum(x1, q, out=x1, where=pos)
             np.negative(q, out=q)
-            np.maximum(x0, q, out=x0, where=dy < 0)
-            if not np.all(dy_t):  # horizontal edges: the sample row is empty when its points fail them
-                empty = np.flatnonzero((dy == 0) & (num < 0))
+            np.maximum(x0, q, out=x0, where=neg)
+            if flat is not None:  # horizontal edges: the sample row is empty when its points fail them
+                empty = np.flatnonzero(flat & (num < 0))
                 x1[empty] = x0[empty] - 1
+        spans[0, :, s], spans[1, :, s] = x0, x1
+        x0, x1 = spans[0, :, s], spans[1, :, s]
         some = x1 >= x0
         np.minimum(lo, x0, out=lo, where=some)
         np.maximum(hi, x1, out=hi, where=some)
-        spans[0, :, s], spans[1, :, s] = x0, x1
     keep = np.flatnonzero(hi >= lo)
     of_row = np.arange(y.size, dtype=np.int64)
     if keep.size != y.size:

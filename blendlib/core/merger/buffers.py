@@ -127,7 +127,15 @@ def resolve_planes(planes: np.ndarray, uniform: np.ndarray, samples: int, hdr: b
     out = np.empty((planes.shape[1], 4), dtype=np.float32 if hdr else np.uint8)
     mixed = np.flatnonzero(~uniform)
     if mixed.size:
-        out[mixed] = resolve_colors(np.take(planes, mixed, axis=1), samples, hdr, linear)
+        stored = np.take(planes, mixed, axis=1)
+        # Samples left bit-identical by fragments that each covered only some of them resolve as
+        # uniform pixels do.
+        words = stored.view(np.uint32).reshape(samples, mixed.size, -1)
+        equal = (words[1:] == words[:1]).all(axis=(0, 2))
+        uniform = uniform.copy()
+        uniform[mixed[equal]] = True
+        differ = ~equal
+        out[mixed[differ]] = resolve_colors(stored[:, differ], samples, hdr, linear)
     same = np.flatnonzero(uniform)
     if same.size:
         first = np.take(planes[0], same, axis=0)
@@ -280,13 +288,13 @@ class FrameBuffers:
         src_color = self.color.reshape(n, self.height, w, 4)[:, y0:y1][:, ::-1]
         src_depth = self.depth.reshape(n, self.height, w)[0, y0:y1][::-1]
 
-        uniform = None if n == 1 else self.uniform.reshape(self.height, w)[y0:y1][::-1]
+        planes = self.color.reshape(n, -1, 4)
 
         def rows(lo: int, hi: int) -> None:
-            if n > 1:
-                resolved = resolve_planes(src_color[:, lo:hi].reshape(n, -1, 4), uniform[lo:hi].reshape(-1), n,
-                                          self.hdr, self.linear)
-                part = resolved.reshape(hi - lo, w, 4)
+            if n > 1:  # output rows [lo, hi) are buffer rows [y1 - hi, y1 - lo): contiguous in every plane
+                first, end = (y1 - hi) * w, (y1 - lo) * w
+                resolved = resolve_planes(planes[:, first:end], self.uniform[first:end], n, self.hdr, self.linear)
+                part = resolved.reshape(hi - lo, w, 4)[::-1]
             else:
                 part = src_color[0, lo:hi]
             if self.hdr:
