@@ -18,7 +18,19 @@ from blendlib import render_scene
 from blendlib.core import msaa
 from blendlib.core.records import FrameObserver
 from blendlib.core.scene import SceneError
-from blendlib.core.vocabulary import BlendFactor, CompareFunction, Cull, Pass, Queue, StencilOp, Texture, TextureFilter
+from blendlib.core.vocabulary import (
+    BlendFactor,
+    CompareFunction,
+    Cull,
+    Lighting,
+    Material,
+    Pass,
+    Queue,
+    StencilOp,
+    Texture,
+    TextureFilter,
+    TextureWrap,
+)
 from blendlib.explain import sorted_reference
 from tests.reference import scalar
 from tests.reference import scenes as sc
@@ -194,7 +206,6 @@ def test_shading_is_once_per_pixel_at_its_centre():
     px[0, 0] = (1, 0, 0, 1)
     px[0, 1] = (0, 0, 1, 1)
     tex = Texture(px, encoding="Data", name="two")
-    from blendlib.core.vocabulary import TextureWrap
     mat = sc.unlit((1, 1, 1, 1), passes=(Pass(cull=Cull.Off),), main_tex=tex, main_tex_filter=TextureFilter.Point,
                    main_tex_wrap=TextureWrap.Clamp)
     # u = 0..1 across x = 0..3.5: pixel 3's centre (x 3.5) is u = 1, the blue texel (clamped)
@@ -300,3 +311,23 @@ def test_analyze_refuses_msaa_scenes_in_one_line():
                                          r"\(set Scene.unity.msaa to 1; this scene has 4\)$"):
         sorted_reference.analyze(scene)
     sorted_reference.analyze(replace(scene, msaa=1))  # the same scene analyses without MSAA
+
+
+@pytest.mark.parametrize("samples", [2, 4, 8])
+@pytest.mark.parametrize("hdr", [False, True])
+def test_blended_sphere_equals_reference(samples, hdr):
+    """A small S1: a smooth Lambert sphere, Cull Off ZWrite Off alpha-blended over an opaque quad,
+    then a second sphere pass with ZWrite On: pixels blended once while their samples agree
+    (uniform), spread at triangle edges, joined again under fragments covering them, per sample
+    under depth tests — equal to the scalar reference's sample-by-sample merge."""
+    glass = Pass(cull=Cull.Off, zwrite=False, blend=True, src_blend=BlendFactor.SrcAlpha,
+                 dst_blend=BlendFactor.OneMinusSrcAlpha)
+    solid = Pass(cull=Cull.Back, blend=True, src_blend=BlendFactor.One, dst_blend=BlendFactor.One)
+    sphere = Material(color=(0.3, 0.6, 0.9, 0.5), queue=Queue.Transparent, passes=(glass, solid),
+                      lighting=Lighting.Lambert)
+    cam = sc.camera(40, 30, eye=(0.4, 0.9, 3.2), fov=50)
+    back = sc.renderer(sc.quad(-3, -3, 3, 3, z=-1.5), sc.unlit((0.8, 0.2, 0.1, 1.0)), name="Back")
+    scene = sc.scene(cam, back, sc.renderer(sc.uv_sphere(1.0, segments=18, rings=12), sphere, name="Sphere"),
+                     hdr=hdr, msaa=samples)
+    assert_same(scene)
+    assert_same(scene, chunk_candidates=97)
