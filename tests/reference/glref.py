@@ -28,6 +28,12 @@ framebuffer is a raw GL FBO with a colour texture (RGBA8, SRGB8_ALPHA8 with
 GL_FRAMEBUFFER_SRGB for Linear LDR, RGBA32F for HDR) and a DEPTH24_STENCIL8
 renderbuffer. moderngl only provides the context, programs, buffers and textures.
 
+MSAA (``DrawScene.msaa`` 4: llvmpipe grants 4 samples for a request of 2 and refuses 8, so other
+counts raise ValueError): the draws go to multisampled colour and DEPTH24_STENCIL8 renderbuffers
+of the same formats with GL_MULTISAMPLE on, AlphaToMask passes with GL_SAMPLE_ALPHA_TO_COVERAGE,
+and :meth:`GLRenderer.read` resolves with glBlitFramebuffer (colours averaged, in linear light
+for the sRGB buffer with GL_FRAMEBUFFER_SRGB on; depth and stencil of sample 0).
+
 This module is free of bpy; moderngl is imported lazily (``pip install
 blendlib[reference]``).
 """
