@@ -279,22 +279,10 @@ def test_closed_mesh_covers_every_sample_exactly_once_per_side(samples, eye):
 def test_jittered_grid_covers_each_sample_of_its_rectangle_once(samples, seed):
     """A grid with jittered inner vertices and mixed windings, its boundary on pixel boundaries:
     each sample of the rectangle's pixels exactly once, none outside."""
-    rng = np.random.default_rng(seed)
-    x0, y0, x1, y1, k = 3.0, 2.0, 21.0, 15.0, 6
-    xs, ys = np.linspace(x0, x1, k), np.linspace(y0, y1, k)
-    pos = np.array([(x, y, 0.0) for y in ys for x in xs])
-    inner = (pos[:, 0] > x0) & (pos[:, 0] < x1) & (pos[:, 1] > y0) & (pos[:, 1] < y1)
-    pos[inner, :2] += rng.uniform(-1.2, 1.2, size=(inner.sum(), 2))
-    tri = []
-    for j in range(k - 1):
-        for i in range(k - 1):
-            a, b, c, d = j * k + i, j * k + i + 1, (j + 1) * k + i + 1, (j + 1) * k + i
-            tri += [(a, b, c), (a, c, d)] if rng.random() < 0.5 else [(a, b, d), (b, c, d)]
-    tri = np.array(tri)
-    flip = rng.random(len(tri)) < 0.5
-    tri[flip] = tri[flip][:, ::-1]
+    x0, y0, x1, y1 = 3.0, 2.0, 21.0, 15.0
     w, h = 24, 18
-    scene = _counting(sc.make_mesh(pos, tri), samples, sc.screen_camera(w, h), (Cull.Off,))
+    mesh = sc.jittered_grid(np.random.default_rng(seed), x0, y0, x1, y1, 6)
+    scene = _counting(mesh, samples, sc.screen_camera(w, h), (Cull.Off,))
     core, ref = _sample_counts(scene)
     assert np.array_equal(core[1], ref[1])
     expected = np.zeros((h, w), dtype=np.int64)
