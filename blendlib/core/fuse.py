@@ -101,10 +101,7 @@ def _concatenated(group: list[PreparedCall]) -> tuple[object, raster.Rows, np.nd
     setup = vertex.concatenate_setups([pr.setup for pr in group], positions=positions)
     counts = np.array([pr.setup.count for pr in group], dtype=np.int64)
     offsets = np.cumsum(counts) - counts
-    rows = raster.Rows(**{name: np.concatenate([getattr(pr.rows, name) + offset if name == "tri"
-                                                else getattr(pr.rows, name)
-                                                for pr, offset in zip(group, offsets, strict=True)])
-                          for name in raster.Rows.__dataclass_fields__})
+    rows = raster.join_rows([pr.rows for pr in group], offsets)
     selected = np.concatenate([pr.selected + o for pr, o in zip(group, offsets, strict=True)])
     return setup, rows, selected, offsets
 

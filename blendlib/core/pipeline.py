@@ -21,7 +21,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from . import fragment, raster, shade
+from . import fragment, msaa, raster, shade
 from .drawlist import DrawCall, draw_calls
 from .fuse import fuse_constant_calls, fuse_shared_shading
 from .merger import FrameBuffers, Outcome, lut_eligible, merge
@@ -110,12 +110,18 @@ def render_scene(
             raise SceneError(f"band {band} is not a range of rows within 0..{height}")
         if resume is not None:
             raise SceneError("a band render resumes nothing")
+    samples = int(scene.msaa)
+    if samples > 1 and observer is not None and not observer.per_sample:
+        raise SceneError(f"analyze: MSAA scenes are analysed per pixel only with msaa 1 (set Scene.unity.msaa to 1; "
+                         f"this scene has {samples})")
     cs = scene.color_space
     if resume is not None:
+        if resume[0].samples != samples:
+            raise SceneError(f"resume: buffers of {resume[0].samples} samples per pixel, the scene has {samples}")
         buf, first = resume[0].copy(), int(resume[1])
     else:
         clear = shade.gamma_color_to_shading(scene.clear_color[:3], cs) + (float(scene.clear_color[3]),)
-        buf, first = FrameBuffers(width, height, scene.hdr, cs, clear, band), 0
+        buf, first = FrameBuffers(width, height, scene.hdr, cs, clear, band, samples), 0
     lights = shade.frame_lights(scene)
     calls = draw_calls(scene) if calls is None else calls
     last = len(calls) if until_draw is None else min(int(until_draw), len(calls))
@@ -328,8 +334,11 @@ class RowFloors:
         """The (H,) int64 floors, current in rows ``[y0, y1)`` (others as they are)."""
         stale = y0 + np.flatnonzero(~self.valid[y0:y1])
         if stale.size:
-            depth = self.buf.depth.reshape(self.buf.height, self.buf.width)
-            self.floor[stale] = depth[stale].min(axis=1)
+            if self.buf.samples == 1:
+                self.floor[stale] = self.buf.depth.reshape(self.buf.height, self.buf.width)[stale].min(axis=1)
+            else:  # every sample of the row's pixels (sample planes)
+                depth = self.buf.depth.reshape(self.buf.samples, self.buf.height, self.buf.width)
+                self.floor[stale] = depth[:, stale].min(axis=(0, 2))
             self.valid[stale] = True
         return self.floor
 
@@ -367,7 +376,10 @@ def _shaded_chunks(frame: FrameContext, prepared: PreparedCall, rows: raster.Row
     for a, b in raster.row_chunks(rows, frame.chunk_candidates):
         if frame.stop_flag.is_set():
             return
-        shaded = prepared.shade(prepared.setup, rows, a, b, state)
+        if state.samples == 1:
+            shaded = prepared.shade(prepared.setup, rows, a, b, state)
+        else:
+            shaded = msaa.sampled_chunk(prepared.shade, prepared.setup, rows, a, b, state)
         if shaded is not None:
             yield a, b, shaded
 
@@ -380,18 +392,32 @@ def _draw_chunks(frame: FrameContext, prepared: PreparedCall, rows: raster.Rows,
     for _, _, shaded in _shaded_chunks(frame, prepared, rows, state):
         merged = shaded if shaded.alive is None else shaded.select(shaded.alive)
         if observer is None:
-            merge(buf, p, merged.pix, merged.stored_depth, merged.rgba, merged.ids, merged.palette,
-                  disjoint=merged.disjoint, tables=tables)
+            _merge(buf, p, merged, tables)
             continue
-        outcome = np.full(shaded.count, Outcome.ALPHA_TEST, dtype=np.int8)
-        written = np.empty(merged.count, dtype=np.int8)
-        merge(buf, p, merged.pix, merged.stored_depth, merged.rgba, merged.ids, merged.palette, outcome=written,
-              disjoint=merged.disjoint, tables=tables)
+        if shaded.coverage is not None and not shaded.coverage.all():  # observers see covering fragments only
+            shaded = shaded.select(shaded.coverage != 0)
+            merged = shaded if shaded.alive is None else shaded.select(shaded.alive)
+        per = () if shaded.coverage is None else (buf.samples,)  # with MSAA, an outcome per sample
+        written = np.empty((merged.count, *per), dtype=np.int8)
+        _merge(buf, p, merged, tables, written)
         if shaded.alive is None:
             outcome = written
         else:
+            outcome = np.full((shaded.count, *per), Outcome.ALPHA_TEST, dtype=np.int8)
+            if shaded.coverage is not None:  # samples the fragment does not cover
+                outcome[~msaa.mask_bits(shaded.coverage, buf.samples)] = Outcome.NOT_COVERED
             outcome[shaded.alive] = written
         observer.fragments(state.call, shaded, outcome)
+
+
+def _merge(buf: FrameBuffers, p, frags: ShadedFragments, tables, outcome: np.ndarray | None = None) -> None:
+    """Merge a chunk's surviving fragments with pass ``p``: :func:`.merger.merge`, or per sample
+    with MSAA (:func:`.msaa.merge_samples`); ``outcome`` as theirs."""
+    if frags.coverage is None:
+        merge(buf, p, frags.pix, frags.stored_depth, frags.rgba, frags.ids, frags.palette, outcome=outcome,
+              disjoint=frags.disjoint, tables=tables)
+    else:
+        msaa.merge_samples(buf, p, frags, tables, outcome)
 
 
 def _draw_members(frame: FrameContext, prepared: PreparedCall, rows: raster.Rows, state: DrawState) -> None:
@@ -422,5 +448,4 @@ def _merge_member(buf: FrameBuffers, member: Member, frags: ShadedFragments) -> 
     if p.alpha_test:
         frags = frags.select(fragment.alpha_test(frags.rgba, frags.ids, frags.palette, member.state.material.cutoff,
                                                  p.alpha_test_comp))
-    merge(buf, p, frags.pix, frags.stored_depth, frags.rgba, frags.ids, frags.palette, disjoint=frags.disjoint,
-          tables=member.tables)
+    _merge(buf, p, frags, member.tables)

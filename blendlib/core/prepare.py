@@ -20,7 +20,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from . import colorspace, fragment, lights, mips, raster, shade, vertex
+from . import colorspace, fragment, lights, mips, msaa, raster, shade, vertex
 from .drawlist import DrawCall
 from .fragment import ChunkShader
 from .merger import BlendTables, FrameBuffers
@@ -60,6 +60,17 @@ class FrameContext:
     degenerate: list[tuple[str, int]] = field(default_factory=list)  # (object, zero-area triangles)
     #: The shading-space lights of ForwardAdd draws, by light: id → (light, :class:`shade.Lights`).
     call_lights: dict = field(default_factory=dict)
+
+    @property
+    def samples(self) -> int:
+        """MSAA samples per pixel (the buffers')."""
+        return self.buf.samples
+
+    @functools.cached_property
+    def sample_offsets(self) -> np.ndarray | None:
+        """(N, 2) int64 sample positions for the coverage of MSAA rows (:func:`.msaa.sample_offsets`),
+        None without MSAA (coverage at pixel centres)."""
+        return None if self.samples == 1 else msaa.sample_offsets(self.samples)
 
     @property
     def width(self) -> int:
@@ -182,6 +193,14 @@ def chunk_shading(p: Pass) -> ChunkShader:
     return fragment.shade_chunk
 
 
+def _shading_of(frame: FrameContext, p: Pass) -> ChunkShader:
+    """:func:`chunk_shading`, except that under MSAA a pass with AlphaToMask is always shaded: its
+    alpha decides which samples it covers, colour written or not."""
+    if frame.samples > 1 and p.alpha_to_mask:
+        return fragment.shade_chunk
+    return chunk_shading(p)
+
+
 def setup_input(renderer, colors: np.ndarray | None = None, program: Pass | None = None) -> vertex.SetupInput:
     """What the vertex setup of ``renderer`` needs: normals only for lit shading, UVs only with a
     texture, its vertex colours in shading space when shading reads them
@@ -226,7 +245,7 @@ MEMO_SETUP_BUDGET = 1 << 21
 @dataclass(eq=False)
 class _Geometry:
     """A renderer's triangle setup through one camera and, in whole frames, its passes' rows
-    by Cull ((selected triangles, rows)), kept in a memo (:data:`MEMO_SETUP_TRIANGLES`)."""
+    by (Cull, MSAA samples) ((selected triangles, rows)), kept in a memo (:data:`MEMO_SETUP_TRIANGLES`)."""
 
     setup: TriangleSetup
     rows: dict = field(default_factory=dict)
@@ -286,7 +305,8 @@ def _draw_state(frame: FrameContext, call: DrawCall, setup, inputs: CallInputs,
             and not (frame.reads_depth is not None and frame.reads_depth(call))):
         zbound = raster.depth_upper_codes(setup, p.offset_factor, p.offset_units)
     state = DrawState(call, call.renderer.material, inputs.texels, inputs.lights, frame.color_space, frame.hdr,
-                      frame.width, observed=frame.observed, zbound=zbound, mips=inputs.mips)
+                      frame.width, observed=frame.observed, zbound=zbound, mips=inputs.mips,
+                      samples=frame.samples)
     return state, vertex.cull_select(setup, p.cull) if selected is None else selected
 
 
@@ -295,14 +315,15 @@ def _prepare(frame: FrameContext, call: DrawCall, geometry: _Geometry, inputs: C
     """Cull, coverage and derived state of one draw call. Passes of a renderer with one Cull
     cover the same pixels: their rows are computed once (``geometry.rows``; in a memo across
     frames when the frame is whole)."""
-    setup, cull = geometry.setup, call.state.cull
-    known = geometry.rows.get(cull)
+    setup, key = geometry.setup, (call.state.cull, frame.samples)  # rows by Cull (and MSAA: other rows)
+    known = geometry.rows.get(key)
     state, selected = _draw_state(frame, call, setup, inputs, selected=None if known is None else known[0])
-    shade = chunk_shading(call.state)
+    shade = _shading_of(frame, call.state)
     if known is not None:
         return PreparedCall(call, setup, selected, raster.Rows(**vars(known[1])), state, shade)
-    rows = raster.coverage_rows(setup, selected, frame.width, frame.height, pool=pool, parts=parts, band=frame.band)
-    geometry.rows[cull] = (selected, rows)
+    rows = raster.coverage_rows(setup, selected, frame.width, frame.height, pool=pool, parts=parts, band=frame.band,
+                                samples=frame.sample_offsets)
+    geometry.rows[key] = (selected, rows)
     return PreparedCall(call, setup, selected, rows, state, shade)
 
 
@@ -333,20 +354,20 @@ def _prepare_together(frame: FrameContext, runs: list[list[DrawCall]], inputs, c
     for run, by_key, run_inputs in zip(runs, geometries, inputs, strict=True):
         for call, found in zip(run, run_inputs, strict=True):
             geometry = by_key[outline_key(call.state)]
-            known = geometry.rows.get(call.state.cull)
+            known = geometry.rows.get((call.state.cull, frame.samples))
             state, selected = _draw_state(frame, call, geometry.setup, found,
                                           selected=None if known is None else known[0])
             items.append((call, geometry, state, selected, None if known is None else known[1]))
     todo = [k for k, item in enumerate(items) if item[4] is None]
     made = raster.coverage_rows_many([(items[k][1].setup, items[k][3]) for k in todo], frame.width,
-                                     frame.height, frame.band) if todo else []
+                                     frame.height, frame.band, frame.sample_offsets) if todo else []
     rows = [item[4] for item in items]
     for k, r in zip(todo, made, strict=True):
         rows[k] = r
         call, geometry, _, selected, _ = items[k]
-        geometry.rows.setdefault(call.state.cull, (selected, r))
+        geometry.rows.setdefault((call.state.cull, frame.samples), (selected, r))
     return [PreparedCall(call, geometry.setup, selected, r if kept is None else raster.Rows(**vars(r)), state,
-                         chunk_shading(call.state))
+                         _shading_of(frame, call.state))
             for (call, geometry, state, selected, kept), r in zip(items, rows, strict=True)]
 
 

@@ -35,6 +35,11 @@ class Rows:
     ``E_k = c_k - dy_k*Px`` for the counter-clockwise edges b→c and c→a (the third is
     ``area - E_0 - E_1``); ``swap`` (R,) bool: the triangle was clockwise and its coverage
     order is (v0, v2, v1); ``area`` (R,) int64 |area2|.
+
+    With MSAA (:func:`coverage_rows` with ``samples``) the span is the union of the samples'
+    spans and ``sample_x0``, ``sample_x1`` (R, N) int64 hold each sample's own: sample ``s``
+    of pixel ``x`` is covered exactly when ``sample_x0[s] <= x <= sample_x1[s]`` (empty when
+    ``sample_x0 > sample_x1``); None without.
     """
 
     tri: np.ndarray
@@ -47,10 +52,17 @@ class Rows:
     dy1: np.ndarray
     swap: np.ndarray
     area: np.ndarray
+    sample_x0: np.ndarray | None = None
+    sample_x1: np.ndarray | None = None
 
     @property
     def count(self) -> int:
         return int(self.tri.shape[0])
+
+    def each_field(self, fn: Callable[[str, np.ndarray], np.ndarray]) -> Rows:
+        """``Rows`` of ``fn(name, array)`` for every field (the MSAA fields stay None without MSAA)."""
+        return Rows(**{name: None if (v := getattr(self, name)) is None else fn(name, v)
+                       for name in self.__dataclass_fields__})
 
     def take(self, mask: np.ndarray) -> Rows:
         """The rows where ``mask`` is True, order kept."""
@@ -60,7 +72,7 @@ class Rows:
 
     def take_rows(self, index: np.ndarray) -> Rows:
         """The rows at positions ``index`` (int), in that order."""
-        return Rows(**{name: np.take(getattr(self, name), index) for name in self.__dataclass_fields__})
+        return self.each_field(lambda _, v: np.take(v, index, axis=0))
 
     def split_bands(self, bands: int, height: int) -> list[Rows]:
         """Split into up to ``bands`` horizontal screen bands of about equal fragment counts.
@@ -81,6 +93,16 @@ class Rows:
         return [self.take(band == k) for k in range(cuts.size + 1)]
 
 
+def join_rows(parts: list[Rows], tri_offsets=None) -> Rows:
+    """The rows of ``parts`` one after another (their ``tri`` plus ``tri_offsets[k]`` when given)."""
+    def joined(name: str, _) -> np.ndarray:
+        if name == "tri" and tri_offsets is not None:
+            return np.concatenate([r.tri + o for r, o in zip(parts, tri_offsets, strict=True)])
+        return np.concatenate([getattr(r, name) for r in parts])
+
+    return parts[0].each_field(joined)
+
+
 def band_cuts(parts: list[Rows], bands: int, height: int) -> np.ndarray | None:
     """Row cuts (bands - 1,) int64 splitting the fragments of ``parts`` (rows of one or more
     draw calls) into ``bands`` screen bands of about equal counts; None when there are none."""
@@ -96,35 +118,36 @@ def band_cuts(parts: list[Rows], bands: int, height: int) -> np.ndarray | None:
 
 def coverage_rows(
     setup: TriangleSetup, selected: np.ndarray, width: int, height: int, pool=None, parts: int = 1,
-    band: tuple[int, int] | None = None,
+    band: tuple[int, int] | None = None, samples: np.ndarray | None = None,
 ) -> Rows:
     """Per-row spans of exactly the covered pixels of the selected triangles (docs/pipeline.md §4).
 
     ``selected`` is covered in contiguous pieces of at most ``PIECE`` triangles (their arrays
     stay in cache), on a thread ``pool`` when given, joined in order (rows stay in draw order).
-    ``band`` (y0, y1): only pixel rows ``y0 <= y < y1``.
+    ``band`` (y0, y1): only pixel rows ``y0 <= y < y1``. ``samples`` (N, 2) int64 sample
+    positions (:func:`.msaa.sample_offsets`; MSAA): each row's span is then the smallest one
+    holding every pixel with a covered sample (:func:`_spans`).
     """
     results: dict[int, Rows] = {}
 
     def part(lo: int, hi: int) -> None:
-        results[lo] = _coverage_rows(setup, selected[lo:hi], width, height, band)
+        results[lo] = _coverage_rows(setup, selected[lo:hi], width, height, band, samples)
 
     run_parts(pool, parts, selected.size, part, piece=PIECE)
     if len(results) == 1:
         return next(iter(results.values()))
-    pieces = [results[k] for k in sorted(results)]
-    return Rows(**{name: np.concatenate([getattr(r, name) for r in pieces]) for name in Rows.__dataclass_fields__})
+    return join_rows([results[k] for k in sorted(results)])
 
 
 def coverage_rows_many(passes: list[tuple[TriangleSetup, np.ndarray]], width: int, height: int,
-                       band: tuple[int, int] | None = None) -> list[Rows]:
+                       band: tuple[int, int] | None = None, samples: np.ndarray | None = None) -> list[Rows]:
     """:func:`coverage_rows` of several passes at once: (setup, selected triangles) each → its Rows.
 
     The spans of a triangle depend on that triangle alone, so the selected triangles of all
     passes are concatenated and covered in one pass of array operations (many small draw
     calls cost one set of array operations, not one each), then cut per pass. Passes that
     select the same triangles of the same setup (two passes of one material with one Cull)
-    share one computation: their Rows hold the same arrays.
+    share one computation: their Rows hold the same arrays. ``samples``: as :func:`coverage_rows`'s.
     """
     unique: list[tuple[TriangleSetup, np.ndarray]] = []
     slot = []  # each pass's index in ``unique``
@@ -137,14 +160,14 @@ def coverage_rows_many(passes: list[tuple[TriangleSetup, np.ndarray]], width: in
             slot.append(len(unique))
             unique.append((setup, selected))
     if len(unique) < len(passes):
-        computed = coverage_rows_many(unique, width, height, band)
+        computed = coverage_rows_many(unique, width, height, band, samples)
         out, given = [], set()
         for k in slot:  # a repeated pass gets its own Rows over the same arrays
             out.append(computed[k] if k not in given else Rows(**vars(computed[k])))
             given.add(k)
         return out
     if len(passes) == 1:
-        return [_coverage_rows(passes[0][0], passes[0][1], width, height, band)]
+        return [_coverage_rows(passes[0][0], passes[0][1], width, height, band, samples)]
     counts = np.array([sel.size for _, sel in passes], dtype=np.int64)
     offsets = np.concatenate([[0], np.cumsum(counts)])
     gathered = [np.concatenate([np.take(getattr(setup, name), sel, axis=0) for setup, sel in passes])
@@ -152,27 +175,27 @@ def coverage_rows_many(passes: list[tuple[TriangleSetup, np.ndarray]], width: in
     # Rows come out labelled with their position in the concatenation: ascending, so each
     # pass's rows are one contiguous range; the labels then become the pass's own triangles.
     labels = np.arange(int(offsets[-1]), dtype=np.int64)
-    rows = _spans(*gathered, labels, width, height, band)
+    rows = _spans(*gathered, labels, width, height, band, samples)
     cuts = np.searchsorted(rows.tri, offsets)
     local = np.concatenate([sel for _, sel in passes]).astype(np.int64, copy=False)
     out = []
     for k in range(len(passes)):
         a, b = int(cuts[k]), int(cuts[k + 1])
-        part = Rows(**{name: getattr(rows, name)[a:b] for name in Rows.__dataclass_fields__})
+        part = rows.each_field(lambda _, v, a=a, b=b: v[a:b])
         part.tri = np.take(local, part.tri)
         out.append(part)
     return out
 
 
 def _coverage_rows(setup: TriangleSetup, selected: np.ndarray, width: int, height: int,
-                   band: tuple[int, int] | None = None) -> Rows:
+                   band: tuple[int, int] | None = None, samples: np.ndarray | None = None) -> Rows:
     """:func:`coverage_rows` for one contiguous part."""
     return _spans(np.take(setup.X, selected, axis=0), np.take(setup.Y, selected, axis=0),
-                  np.take(setup.area2, selected), selected, width, height, band)
+                  np.take(setup.area2, selected), selected, width, height, band, samples)
 
 
 def _spans(X: np.ndarray, Y: np.ndarray, area2: np.ndarray, selected: np.ndarray, width: int,
-           height: int, band: tuple[int, int] | None = None) -> Rows:
+           height: int, band: tuple[int, int] | None = None, samples: np.ndarray | None = None) -> Rows:
     """The spans of triangles with snapped corners ``X``, ``Y`` (n, 3) int64 and twice their
     signed areas ``area2`` (n,) int64, labelled ``selected`` (n,) in the rows' ``tri``; within
     pixel rows ``band`` (y0, y1) when given, else all ``height`` rows.
@@ -182,6 +205,12 @@ def _spans(X: np.ndarray, Y: np.ndarray, area2: np.ndarray, selected: np.ndarray
     ``dy_k*Px <= rhs_k`` with ``rhs_k = c_k - bias_k``. With ``q = (rhs_k - (S/2)*dy_k) //
     (S*|dy_k|)``, that is ``x <= q`` when ``dy_k > 0`` and ``x >= -q`` when ``dy_k < 0``
     (one exact floor division per edge); a horizontal edge keeps or empties the row.
+
+    With ``samples`` (N, 2) int64 (MSAA sample positions from the pixel's lower-left corner),
+    the same test runs at each sample position ``(x*S + ox, y*S + oy)`` and a row's span is the
+    smallest holding every pixel with a covered sample (the union of the samples' spans: each
+    end pixel has one; a pixel inside may have none, on thin slivers). ``c0``/``c1`` stay the
+    edge functions along the row of pixel centres, where fragments are shaded.
     """
     # Bounding boxes first: they do not depend on the vertex order, and most small triangles hold
     # no pixel centre at all, so they are dropped before any per-edge work.
@@ -189,12 +218,19 @@ def _spans(X: np.ndarray, Y: np.ndarray, area2: np.ndarray, selected: np.ndarray
     x_max = np.maximum(np.maximum(X[:, 0], X[:, 1]), X[:, 2])
     y_min = np.minimum(np.minimum(Y[:, 0], Y[:, 1]), Y[:, 2])
     y_max = np.maximum(np.maximum(Y[:, 0], Y[:, 1]), Y[:, 2])
+    # The pixels whose sample points (the centre without MSAA) can fall in the box: x*S + o in
+    # [x_min, x_max] for an offset o between the smallest and largest sample offset.
+    if samples is None:
+        ox_lo = ox_hi = oy_lo = oy_hi = HALF
+    else:
+        ox_lo, oy_lo = (int(v) for v in samples.min(axis=0))
+        ox_hi, oy_hi = (int(v) for v in samples.max(axis=0))
     # Floor and ceiling divisions by S = 2**SHIFT as arithmetic shifts (exact for negatives too).
-    x_lo = np.maximum(-((HALF - x_min) >> _SHIFT), 0)
-    x_hi = np.minimum((x_max - HALF) >> _SHIFT, width - 1)
+    x_lo = np.maximum(-((ox_hi - x_min) >> _SHIFT), 0)
+    x_hi = np.minimum((x_max - ox_lo) >> _SHIFT, width - 1)
     row_lo, row_hi = (0, height) if band is None else band
-    y_lo = np.maximum(-((HALF - y_min) >> _SHIFT), row_lo)
-    y_hi = np.minimum((y_max - HALF) >> _SHIFT, row_hi - 1)
+    y_lo = np.maximum(-((oy_hi - y_min) >> _SHIFT), row_lo)
+    y_hi = np.minimum((y_max - oy_lo) >> _SHIFT, row_hi - 1)
     has = (x_lo <= x_hi) & (y_lo <= y_hi)
     if not np.all(has):
         index = np.flatnonzero(has)
@@ -230,7 +266,11 @@ def _spans(X: np.ndarray, Y: np.ndarray, area2: np.ndarray, selected: np.ndarray
     # corners of the triangles kept: the only ones whose rows are computed).
     reach = max(0, -int(x_min.min(initial=0)), int(x_max.max(initial=0)),
                 -int(y_min.min(initial=0)), int(y_max.max(initial=0)))
-    in_float = 6 * reach * reach + SUBPIXEL * reach + 1 < FLOAT_DIVISION_LIMIT
+    # A sample away from the centre adds dx*(oy - S/2) - dy*(ox - S/2): at most 2*S*L more.
+    in_float = 6 * reach * reach + (1 if samples is None else 3) * SUBPIXEL * reach + 1 < FLOAT_DIVISION_LIMIT
+    if samples is not None:
+        return _sample_spans(ax, ay, bx, by, cx, cy, x0, x1, y, py, each, selected, swap, area2, samples,
+                             in_float)
     # Edges p -> q: b->c (opposite a), c->a (opposite b), a->b (opposite c). Per row of edge k,
     # E = c - dy*Px with c = dx*Py + k; the test E >= bias is dy*Px <= c - bias, i.e. with
     # num = c - bias - (S/2)*dy: x <= num // (S*dy) for dy > 0, x >= -(num // (S*|dy|)) for
@@ -249,13 +289,7 @@ def _spans(X: np.ndarray, Y: np.ndarray, area2: np.ndarray, selected: np.ndarray
             num += each(-(bias_t + HALF * dy_t))
         else:
             num += each(k_t - (bias_t + HALF * dy_t))
-        den_t = SUBPIXEL * np.maximum(np.abs(dy_t), 1)
-        if in_float:
-            q = np.divide(num, each(den_t.astype(np.float64)))
-            np.floor(q, out=q)
-            q = q.astype(np.int64)
-        else:
-            q = num // each(den_t)
+        q = _floor_quotients(num, each(SUBPIXEL * np.maximum(np.abs(dy_t), 1)), in_float)
         np.minimum(x1, q, out=x1, where=dy > 0)
         np.negative(q, out=q)
         np.maximum(x0, q, out=x0, where=dy < 0)
@@ -273,6 +307,84 @@ def _spans(X: np.ndarray, Y: np.ndarray, area2: np.ndarray, selected: np.ndarray
         (c0, c1), (dy0, dy1) = c_rows, dy_rows[:2]
     return Rows(tri=each(selected), y=y, x0=x0, length=length, c0=c0, c1=c1, dy0=dy0,
                 dy1=dy1, swap=each(swap), area=each(np.abs(area2)))
+
+
+def _floor_quotients(num: np.ndarray, den: np.ndarray, in_float: bool) -> np.ndarray:
+    """``num // den`` (int64), in float64 when ``in_float`` (exact there: see :func:`_spans`)."""
+    if in_float:
+        q = np.divide(num, den, dtype=np.float64)
+        np.floor(q, out=q)
+        return q.astype(np.int64)
+    return num // den
+
+
+def _sample_spans(ax, ay, bx, by, cx, cy, x_lo: np.ndarray, x_hi: np.ndarray, y: np.ndarray, py: np.ndarray,
+                  each, selected: np.ndarray, swap: np.ndarray, area2: np.ndarray, samples: np.ndarray,
+                  in_float: bool) -> Rows:
+    """:func:`_spans` with MSAA sample positions ``samples`` (N, 2): the counter-clockwise
+    corners (n,) of the kept triangles, the bounding-box columns ``x_lo``/``x_hi`` (R,), pixel
+    rows ``y`` (R,) and their centres ``py`` (R,) in sub-pixels, ``each`` expanding per-triangle
+    values to rows. Per edge and sample, the bound is the centre's test shifted by the sample's
+    offset from the centre (``E`` there is ``E`` at the centre plus ``dx*(oy - S/2) - dy*(ox -
+    S/2)``); a row's span is the union hull of its samples' spans."""
+    # The bounds are computed in float64 when exact there (in_float: every numerator an integer
+    # below 2**53, so sums and products of them are exact and a quotient floors correctly, see
+    # _spans), else in int64; per edge, the row values are converted once.
+    work = np.float64 if in_float else np.int64
+    edges = []  # per edge: (dy > 0, dy < 0, horizontal rows or None, dx, dy, num at the centre, den), (R,) each
+    c_rows, dy_rows = [], []
+    for edge, (xp, yp, xq, yq) in enumerate(((bx, by, cx, cy), (cx, cy, ax, ay), (ax, ay, bx, by))):
+        dx_t, dy_t = xq - xp, yq - yp
+        bias_t = ((dy_t > 0) | ((dy_t == 0) & (dx_t >= 0))).astype(np.int64)
+        k_t = dy_t * xp - dx_t * yp
+        dy = each(dy_t)
+        c = each(dx_t) * py + each(k_t)
+        if edge < 2:
+            c_rows.append(c)
+            dy_rows.append(dy)
+        flat = None if np.all(dy_t) else dy == 0
+        den = each(SUBPIXEL * np.maximum(np.abs(dy_t), 1))
+        edges.append((dy > 0, dy < 0, flat, each(dx_t).astype(work), dy.astype(work),
+                      (c - each(bias_t + HALF * dy_t)).astype(work), den.astype(work)))
+    lo = np.full(y.size, np.iinfo(np.int64).max, dtype=np.int64)
+    hi = np.full(y.size, np.iinfo(np.int64).min, dtype=np.int64)
+    spans = np.empty((2, y.size, samples.shape[0]), dtype=np.int64)  # each sample's (x0, x1) per row
+    for s, (ox, oy) in enumerate((samples - HALF).tolist()):
+        x0, x1 = x_lo.astype(work), x_hi.astype(work)
+        for pos, neg, flat, dx, dy, num_centre, den in edges:
+            num = dx * oy
+            num -= dy * ox
+            num += num_centre
+            if in_float:
+                q = num / den
+                np.floor(q, out=q)
+            else:
+                q = num // den
+            np.minimum(x1, q, out=x1, where=pos)
+            np.negative(q, out=q)
+            np.maximum(x0, q, out=x0, where=neg)
+            if flat is not None:  # horizontal edges: the sample row is empty when its points fail them
+                empty = np.flatnonzero(flat & (num < 0))
+                x1[empty] = x0[empty] - 1
+        spans[0, :, s], spans[1, :, s] = x0, x1
+        x0, x1 = spans[0, :, s], spans[1, :, s]
+        some = x1 >= x0
+        np.minimum(lo, x0, out=lo, where=some)
+        np.maximum(hi, x1, out=hi, where=some)
+    keep = np.flatnonzero(hi >= lo)
+    of_row = np.arange(y.size, dtype=np.int64)
+    if keep.size != y.size:
+        y, lo, hi, of_row = (np.take(v, keep) for v in (y, lo, hi, of_row))
+        c_rows = [np.take(v, keep) for v in c_rows]
+        dy_rows = [np.take(v, keep) for v in dy_rows]
+        spans = np.take(spans, keep, axis=1)
+
+    def per_row(per_triangle: np.ndarray) -> np.ndarray:
+        return np.take(each(per_triangle), of_row)
+
+    return Rows(tri=per_row(selected), y=y, x0=lo, length=hi - lo + 1, c0=c_rows[0], c1=c_rows[1],
+                dy0=dy_rows[0], dy1=dy_rows[1], swap=per_row(swap), area=per_row(np.abs(area2)),
+                sample_x0=spans[0], sample_x1=spans[1])
 
 
 def row_chunks(rows: Rows, max_candidates: int) -> list[tuple[int, int]]:
@@ -331,14 +443,14 @@ REPEAT_MIN_RUN = 16
 
 
 def run_expander(counts: np.ndarray, n: int) -> Callable[[np.ndarray], np.ndarray]:
-    """A function that expands per-run values (R,) to the ``n`` elements of runs of ``counts``
-    (R,) int64: ``repeat`` (sequential copies) when runs are long; for short runs (small
-    triangles, rows of a few pixels; :data:`REPEAT_MIN_RUN`) one element -> run index once and
-    a gather per expansion."""
+    """A function that expands per-run values (R, ...) to the ``n`` elements of runs of ``counts``
+    (R,) int64 (along the first axis): ``repeat`` (sequential copies) when runs are long; for short
+    runs (small triangles, rows of a few pixels; :data:`REPEAT_MIN_RUN`) one element -> run index
+    once and a gather per expansion."""
     if counts.size * REPEAT_MIN_RUN > n:
         run = np.repeat(np.arange(counts.size, dtype=np.int64), counts)
-        return lambda values: np.take(values, run)
-    return lambda values: np.repeat(values, counts)
+        return lambda values: np.take(values, run, axis=0)
+    return lambda values: np.repeat(values, counts, axis=0)
 
 
 def rasterize_rows(rows: Rows, start: int, stop: int, width: int, bary: bool = True) -> Fragments:

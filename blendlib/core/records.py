@@ -71,13 +71,22 @@ class DrawState:
     zfloor: np.ndarray | None = None
     #: The texture's mip chain (:class:`.mips.MipChain`) when the material samples through one.
     mips: object | None = None
+    #: MSAA samples per pixel (``DrawScene.msaa``): fragments carry coverage masks and a depth
+    #: code per sample (docs/pipeline.md §10).
+    samples: int = 1
 
     @property
     def pass_state(self) -> Pass:
         return self.call.state
 
     def depth_needed(self, rows, start: int, stop: int) -> bool:
-        """Whether the fragments of rows ``[start, stop)`` need their depth codes."""
+        """Whether the fragments of rows ``[start, stop)`` need their depth codes at the pixel
+        centre (never with MSAA, whose depth is per sample: :meth:`sample_depth_needed`)."""
+        return self.samples == 1 and self.sample_depth_needed(rows, start, stop)
+
+    def sample_depth_needed(self, rows, start: int, stop: int) -> bool:
+        """Whether the fragments of rows ``[start, stop)`` need their depth codes (the depth test
+        reads them or the pass writes them), wherever they are computed."""
         p = self.pass_state
         if p.zwrite:
             return True
@@ -108,6 +117,9 @@ class ShadedFragments:
       when an observer reads it (``stored_triangle`` / ``triangle_fn``); None when not observed.
     - ``alive`` (N,) bool or None: passed the alpha test (None: the pass has no alpha test).
     - ``disjoint``: the fragments hit pairwise distinct pixels (one merge layer).
+    - ``coverage`` (N,) uint8 or None: with MSAA, the samples each fragment covers (bit s =
+      sample s; the rasteriser's coverage, before AlphaToMask); ``depth`` is then (N, samples)
+      int64, each sample's code (those of samples not covered are meaningless). None without.
     """
 
     pix: np.ndarray
@@ -125,6 +137,7 @@ class ShadedFragments:
     #: ``colors_fn(index)``: the shader colours (M, 4) of fragments ``index`` (None: all), deferred
     #: (a pass that writes no colour, observed: colours only for the fragments an observer reads).
     colors_fn: Callable[[np.ndarray | None], np.ndarray] | None = None
+    coverage: np.ndarray | None = None
 
     @property
     def triangle(self) -> np.ndarray | None:
@@ -163,7 +176,8 @@ class ShadedFragments:
             return None if a is None else a[lo:hi]
 
         return ShadedFragments(cut(self.pix), cut(self.stored_depth), cut(self.rgba), cut(self.ids), self.palette,
-                               cut(self.stored_triangle), cut(self.alive), self.disjoint)
+                               cut(self.stored_triangle), cut(self.alive), self.disjoint,
+                               coverage=cut(self.coverage))
 
     def select(self, keep: np.ndarray) -> ShadedFragments:
         """The fragments where ``keep`` (bool (N,) or indices) holds."""
@@ -184,7 +198,7 @@ class ShadedFragments:
         colors_fn = deferred(self.rgba if self.ids is None else self.ids, self.colors_fn)
         return ShadedFragments(take(self.pix), take(self.stored_depth), take(self.rgba), take(self.ids),
                                self.palette, take(self.stored_triangle), take(self.alive), self.disjoint, depth_fn,
-                               triangle_fn, colors_fn)
+                               triangle_fn, colors_fn, take(self.coverage))
 
 
 class FrameObserver:
@@ -210,12 +224,20 @@ class FrameObserver:
         shortcut of :meth:`DrawState.depth_needed` would only defer them)."""
         return False
 
+    #: Whether this observer reads MSAA fragments (:attr:`ShadedFragments.coverage`, per-sample
+    #: depth and outcomes, :meth:`fragments`); a render with ``msaa`` > 1 refuses one that does not.
+    per_sample = False
+
     def draw_begin(self, call: DrawCall, buffers: FrameBuffers) -> None:
         """Before draw call ``call`` (``buffers`` as left by the draw calls before it when
         :attr:`exact_boundaries`; else as left by the batch before it)."""
 
     def fragments(self, call: DrawCall, frags: ShadedFragments, outcome: np.ndarray) -> None:
-        """Every fragment rasterised in a chunk, with its :class:`.merger.Outcome` (N,) int8."""
+        """Every fragment rasterised in a chunk, with its :class:`.merger.Outcome` (N,) int8.
+
+        With MSAA (:attr:`per_sample` observers only), ``outcome`` is (N, samples) int8: each
+        sample's outcome, ``Outcome.ALPHA_TO_MASK`` where AlphaToMask removed a covered sample,
+        and ``Outcome.NOT_COVERED`` (-1) where the fragment does not cover the sample."""
 
     def draw_end(self, call: DrawCall, buffers: FrameBuffers, triangles: int) -> None:
         """After draw call ``call``; ``triangles``: the call's source triangles that reach the

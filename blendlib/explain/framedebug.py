@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..core import merger, shade
+from ..core import merger, msaa, shade
 from ..core.drawlist import DrawCall, draw_calls
 from ..core.merger import FrameBuffers, Outcome
 from ..core.pipeline import render_scene
@@ -38,9 +38,9 @@ from ..core.scene import DrawScene, SceneError
 from ..core.vertex import DEPTH_MAX
 from ..core.vocabulary import pass_state_text
 
-#: ``result`` of a fragment in the pixel history, by :class:`Outcome`.
+#: ``result`` of a fragment in the pixel history, by :class:`Outcome` (``alpha_to_mask``: MSAA only).
 RESULT_NAMES = {Outcome.WRITTEN: "written", Outcome.ALPHA_TEST: "alpha_test", Outcome.STENCIL: "stencil",
-                Outcome.DEPTH: "depth"}
+                Outcome.DEPTH: "depth", Outcome.ALPHA_TO_MASK: "alpha_to_mask"}
 
 #: Default memory bound of a capture's snapshots (bytes). One snapshot costs 13 bytes per pixel
 #: in LDR (colour 4, depth 8, stencil 1) and 25 in HDR: 27 MB / 52 MB at 1920x1080, so the
@@ -80,12 +80,17 @@ def _light_name(call: DrawCall) -> str | None:
 class DrawStats:
     """One draw call and what it did: ``triangles`` drawn (neither culled, nor degenerate, nor
     entirely outside the view), ``fragments`` rasterised (before any test), ``written`` (passed
-    alpha test, stencil and depth: what an occlusion query counts)."""
+    alpha test, stencil and depth: what an occlusion query counts).
+
+    With MSAA a fragment is a pixel fragment (one per pixel with a covered sample, shaded once):
+    ``written`` counts those with at least one sample written, ``samples_written`` the samples
+    written (what an occlusion query counts then); None without MSAA."""
 
     call: DrawCall
     triangles: int
     fragments: int
     written: int
+    samples_written: int | None = None
 
     def __repr__(self) -> str:  # the call's renderer holds the whole mesh: name it instead
         c = self.call
@@ -96,16 +101,23 @@ class DrawStats:
         """The ``drawlist --json`` item (docs/json.md)."""
         out = _call_json(self.call)
         out.update(triangles=self.triangles, fragments=self.fragments, written=self.written)
+        if self.samples_written is not None:
+            out["samples_written"] = self.samples_written
         return out
 
 
 class _StatsObserver(FrameObserver):
-    """Counts fragments and writes per draw call; optionally keeps snapshots and a pixel mask."""
+    """Counts fragments and writes per draw call (with MSAA, written samples too); optionally keeps
+    snapshots and a pixel mask."""
 
-    def __init__(self, snapshot_every: int = 0, last: int = 0, mark_draw: int | None = None):
+    per_sample = True
+
+    def __init__(self, snapshot_every: int = 0, last: int = 0, mark_draw: int | None = None, samples: int = 1):
         self.lock = threading.Lock()
+        self.samples = samples
         self.rasterised: dict[int, int] = {}
         self.passed: dict[int, int] = {}
+        self.samples_passed: dict[int, int] = {}
         self.triangles: dict[int, int] = {}
         self.snapshot_every, self.last = snapshot_every, last
         self.snapshots: dict[int, FrameBuffers] = {}
@@ -122,10 +134,16 @@ class _StatsObserver(FrameObserver):
             self.mask = np.zeros(buffers.width * buffers.height, dtype=bool)
 
     def fragments(self, call, frags: ShadedFragments, outcome: np.ndarray) -> None:
-        written = int(np.count_nonzero(outcome == Outcome.WRITTEN))
+        hits = outcome == Outcome.WRITTEN
+        samples = 0
+        if hits.ndim == 2:  # MSAA: an outcome per sample
+            samples = int(np.count_nonzero(hits))
+            hits = hits.any(axis=1)
+        written = int(np.count_nonzero(hits))
         with self.lock:
             self.rasterised[call.index] = self.rasterised.get(call.index, 0) + frags.count
             self.passed[call.index] = self.passed.get(call.index, 0) + written
+            self.samples_passed[call.index] = self.samples_passed.get(call.index, 0) + samples
             if call.index == self.mark_draw:
                 self.mask[frags.pix] = True
 
@@ -136,7 +154,8 @@ class _StatsObserver(FrameObserver):
 
     def stats(self, calls: list[DrawCall]) -> list[DrawStats]:
         return [DrawStats(c, self.triangles.get(c.index, 0), self.rasterised.get(c.index, 0),
-                          self.passed.get(c.index, 0)) for c in calls]
+                          self.passed.get(c.index, 0),
+                          None if self.samples == 1 else self.samples_passed.get(c.index, 0)) for c in calls]
 
 
 def draw_list(scene: DrawScene, *, progress: Callable[[float], None] | None = None,
@@ -150,6 +169,33 @@ def draw_list(scene: DrawScene, *, progress: Callable[[float], None] | None = No
 
 
 @dataclass(frozen=True)
+class SampleResult:
+    """One covered sample of an MSAA fragment in a pixel history (docs/json.md): the sample's
+    index in the pattern, its depth code, its stored colour before and after the fragment (in
+    ``frame.color`` units), its depth and stencil before and after, and ``result``."""
+
+    sample: int
+    depth_code: int
+    before: tuple[float, float, float, float]
+    after: tuple[float, float, float, float]
+    depth_before: float
+    depth_after: float
+    stencil_before: int
+    stencil_after: int
+    result: str
+
+    @property
+    def depth(self) -> float:
+        return float(np.float32(self.depth_code / float(DEPTH_MAX)))
+
+    def to_json(self) -> dict:
+        return {"sample": self.sample, "depth": float32_json(self.depth), "before": _rgba_json(self.before),
+                "after": _rgba_json(self.after), "depth_before": float32_json(self.depth_before),
+                "depth_after": float32_json(self.depth_after), "stencil_before": self.stencil_before,
+                "stencil_after": self.stencil_after, "result": self.result}
+
+
+@dataclass(frozen=True)
 class PixelFragment:
     """One fragment of a pixel history (docs/json.md).
 
@@ -159,6 +205,13 @@ class PixelFragment:
     ``triangle``: index in the evaluated mesh's loop triangles (or the renderer's mesh);
     ``polygon``: the face index, None for a synthetic mesh. ``result``: ``written``,
     ``alpha_test``, ``stencil`` or ``depth``.
+
+    With MSAA: ``coverage`` the samples the rasteriser found covered (bit s = sample s) and
+    ``samples`` one :class:`SampleResult` per covered sample; ``before``/``after`` are then the
+    resolved pixel, ``depth_before``/``depth_after``/``stencil_*`` those of sample 0 (what
+    ``frame.depth``/``frame.stencil`` show), ``depth_code`` the depth at the lowest covered
+    sample and ``result`` ``written`` when a sample was written, else the lowest covered
+    sample's (``alpha_to_mask`` among them). None without MSAA.
     """
 
     call: DrawCall
@@ -173,12 +226,21 @@ class PixelFragment:
     stencil_before: int
     stencil_after: int
     result: str
+    coverage: int | None = None
+    samples: tuple[SampleResult, ...] | None = None
 
     @property
     def depth(self) -> float:
         return float(np.float32(self.depth_code / float(DEPTH_MAX)))
 
     def to_json(self) -> dict:
+        out = self._json()
+        if self.samples is not None:
+            out["coverage"] = self.coverage
+            out["samples"] = [sample.to_json() for sample in self.samples]
+        return out
+
+    def _json(self) -> dict:
         call = self.call
         return {
             "draw": call.index, "object": call.renderer.name, "slot": call.renderer.slot,
@@ -194,18 +256,23 @@ class PixelFragment:
 @dataclass
 class PixelHistory:
     """The history of pixel (``x``, ``y``): ``clear`` and ``final`` (4,) stored RGBA (``final`` is
-    ``frame.color[y, x]``) and every fragment rasterised there, in application order."""
+    ``frame.color[y, x]``) and every fragment rasterised there, in application order; ``msaa``
+    the samples per pixel."""
 
     x: int
     y: int
     clear: tuple[float, float, float, float]
     final: tuple[float, float, float, float]
     fragments: list[PixelFragment] = field(default_factory=list)
+    msaa: int = 1
 
     def to_json(self) -> dict:
         """The ``pixel --json`` object (docs/json.md)."""
-        return {"x": self.x, "y": self.y, "clear": _rgba_json(self.clear), "final": _rgba_json(self.final),
-                "fragments": [f.to_json() for f in self.fragments]}
+        out = {"x": self.x, "y": self.y, "clear": _rgba_json(self.clear), "final": _rgba_json(self.final),
+               "fragments": [f.to_json() for f in self.fragments]}
+        if self.msaa > 1:
+            out["msaa"] = self.msaa
+        return out
 
 
 class _PixelObserver(FrameObserver):
@@ -216,6 +283,7 @@ class _PixelObserver(FrameObserver):
     """
 
     exact_boundaries = False  # only fragments are read
+    per_sample = True
 
     def __init__(self, targets: np.ndarray, size: int):
         self.lock = threading.Lock()
@@ -243,11 +311,21 @@ def _stored(buf: FrameBuffers) -> tuple[tuple, float, int]:
 def _clear_buffers(scene: DrawScene, width: int = 1, height: int = 1) -> FrameBuffers:
     cs = scene.color_space
     clear = shade.gamma_color_to_shading(scene.clear_color[:3], cs) + (float(scene.clear_color[3]),)
-    return FrameBuffers(width, height, scene.hdr, cs, clear)
+    return FrameBuffers(width, height, scene.hdr, cs, clear, samples=int(scene.msaa))
+
+
+def _stored_samples(buf: FrameBuffers) -> list[tuple[tuple, float, int]]:
+    """Each sample of the 1x1 ``buf``: (colour in frame units, depth, stencil)."""
+    codes = buf.sample_colors(np.zeros(1, dtype=np.int64))[0]
+    colors = codes if buf.hdr else np.divide(codes, np.float32(255.0), dtype=np.float32)
+    depths = np.divide(buf.depth, np.float32(DEPTH_MAX), dtype=np.float32)
+    return [(tuple(float(v) for v in colors[s]), float(depths[s]), int(buf.stencil[s])) for s in range(buf.samples)]
 
 
 def _replay(scene: DrawScene, records: list[tuple]) -> list[PixelFragment]:
     """Before/after of each fragment of ONE pixel: its fragments through the merger on a 1x1 buffer."""
+    if int(scene.msaa) > 1:
+        return _replay_samples(scene, records)
     buf = _clear_buffers(scene)
     zero = np.zeros(1, dtype=np.int64)
     out = []
@@ -267,6 +345,43 @@ def _replay(scene: DrawScene, records: list[tuple]) -> list[PixelFragment]:
         out.append(PixelFragment(call, tri, polygon, int(code), tuple(float(v) for v in rgba), color, after,
                                  depth, depth_after, stencil, stencil_after, RESULT_NAMES[result]))
         color, depth, stencil = after, depth_after, stencil_after
+    return out
+
+
+def _replay_samples(scene: DrawScene, records: list[tuple]) -> list[PixelFragment]:
+    """:func:`_replay` with MSAA: each fragment's covered samples through the same per-sample
+    merger (:func:`blendlib.core.msaa.merge_samples`) on a 1x1 buffer of N samples."""
+    buf = _clear_buffers(scene)
+    n = buf.samples
+    zero = np.zeros(1, dtype=np.int64)
+    out = []
+    color, depth, stencil = _stored(buf)
+    samples = _stored_samples(buf)
+    for call, triangle, codes, rgba, outcome in records:
+        mesh = call.renderer.mesh
+        tri = int(triangle) if mesh.loop_triangles is None else int(mesh.loop_triangles[triangle])
+        polygon = None if mesh.polygons is None else int(mesh.polygons[triangle])
+        covered = outcome != Outcome.NOT_COVERED
+        coverage = int(sum(1 << s for s in range(n) if covered[s]))
+        if not (outcome[covered] == Outcome.ALPHA_TEST).all():
+            frags = ShadedFragments(zero, np.asarray(codes, dtype=np.int64)[None, :], rgba[None, :].copy(), None, None,
+                                    None, None, True, coverage=np.array([coverage], dtype=np.uint8))
+            replayed = np.empty((1, n), dtype=np.int8)
+            msaa.merge_samples(buf, call.state, frags, outcome=replayed)
+            if not np.array_equal(replayed[0], outcome):  # the replay is the frame's own arithmetic
+                raise RuntimeError(f"pixel replay disagrees with the render at draw {call.index}")
+        after, depth_after, stencil_after = _stored(buf)
+        samples_after = _stored_samples(buf)
+        results = [RESULT_NAMES[Outcome(int(outcome[s]))] for s in range(n) if covered[s]]
+        per_sample = tuple(SampleResult(s, int(codes[s]), samples[s][0], samples_after[s][0], samples[s][1],
+                                        samples_after[s][1], samples[s][2], samples_after[s][2],
+                                        RESULT_NAMES[Outcome(int(outcome[s]))])
+                           for s in range(n) if covered[s])
+        lowest = per_sample[0]
+        result = "written" if "written" in results else lowest.result
+        out.append(PixelFragment(call, tri, polygon, lowest.depth_code, tuple(float(v) for v in rgba), color, after,
+                                 depth, depth_after, stencil, stencil_after, result, coverage, per_sample))
+        color, depth, stencil, samples = after, depth_after, stencil_after, samples_after
     return out
 
 
@@ -301,7 +416,7 @@ def pixel_histories(scene: DrawScene, pixels: Iterable[tuple[int, int]], *,
     out = []
     for (x, y), p in zip(pixels, window, strict=True):
         final = tuple(float(v) for v in frame.color[y, x])
-        out.append(PixelHistory(x, y, clear, final, _replay(scene, per_pixel[int(p)])))
+        out.append(PixelHistory(x, y, clear, final, _replay(scene, per_pixel[int(p)]), int(scene.msaa)))
     return out, frame
 
 
@@ -315,9 +430,12 @@ def pixel_history(scene: DrawScene, x: int, y: int, **kwargs) -> PixelHistory:
 # ------------------------------------------------------------------ stepping
 
 
-def snapshot_bytes(width: int, height: int, hdr: bool) -> int:
-    """Memory of one buffer snapshot: colour (4 or 16 bytes), depth (8) and stencil (1) per pixel."""
-    return int(width) * int(height) * ((16 if hdr else 4) + 8 + 1)
+def snapshot_bytes(width: int, height: int, hdr: bool, samples: int = 1) -> int:
+    """Memory of one buffer snapshot: colour (4 or 16 bytes), depth (8) and stencil (1) per pixel;
+    with MSAA per sample, depth 4 bytes, plus a uniform flag (1) per pixel."""
+    if samples == 1:
+        return int(width) * int(height) * ((16 if hdr else 4) + 8 + 1)
+    return int(width) * int(height) * (samples * ((16 if hdr else 4) + 4 + 1) + 1)
 
 
 @dataclass(eq=False)
@@ -342,7 +460,8 @@ class FrameCapture:
     @property
     def snapshot_memory(self) -> int:
         """Bytes held by the snapshots."""
-        return sum(b.color.nbytes + b.depth.nbytes + b.stencil.nbytes for b in self.snapshots.values())
+        return sum(b.color.nbytes + b.depth.nbytes + b.stencil.nbytes + (0 if b.uniform is None else b.uniform.nbytes)
+                   for b in self.snapshots.values())
 
     @classmethod
     def capture(cls, scene: DrawScene, *, memory: int = SNAPSHOT_MEMORY,
@@ -351,10 +470,10 @@ class FrameCapture:
         """Render ``scene`` once, keeping statistics and snapshots within ``memory`` bytes (0: none)."""
         calls = draw_calls(scene)
         cam = scene.camera
-        per = snapshot_bytes(cam.width, cam.height, scene.hdr)
+        per = snapshot_bytes(cam.width, cam.height, scene.hdr, int(scene.msaa))
         most = int(memory) // per if per else 0
         interval = 0 if most <= 0 or not calls else max(1, math.ceil(len(calls) / most))
-        observer = _StatsObserver(snapshot_every=interval, last=len(calls))
+        observer = _StatsObserver(snapshot_every=interval, last=len(calls), samples=int(scene.msaa))
         frame = render_scene(scene, progress=progress, should_cancel=should_cancel, workers=workers,
                              observer=observer, calls=calls)
         return cls(scene, observer.stats(calls), frame, observer.snapshots, interval)
@@ -389,4 +508,5 @@ def draw_list_json(stats: list[DrawStats]) -> list[dict]:
 
 
 __all__ = ["DrawStats", "FrameCapture", "PixelFragment", "PixelHistory", "RESULT_NAMES", "SNAPSHOT_MEMORY",
-           "draw_list", "draw_list_json", "float32_json", "pixel_histories", "pixel_history", "snapshot_bytes"]
+           "SampleResult", "draw_list", "draw_list_json", "float32_json", "pixel_histories", "pixel_history",
+           "snapshot_bytes"]

@@ -109,25 +109,10 @@ def test_fan_centre_on_pixel_centre(impl):
 def test_jittered_grid_covers_its_rectangle_once(impl, seed):
     """A grid mesh with randomly jittered inner vertices and its boundary on pixel boundaries: exactly
     the pixels of the rectangle, each once, whatever the triangle orientation."""
-    rng = np.random.default_rng(seed)
-    x0, y0, x1, y1, n = 3.0, 2.0, 27.0, 21.0, 7
-    xs, ys = np.linspace(x0, x1, n), np.linspace(y0, y1, n)
-    pos = np.array([(x, y, 0.0) for y in ys for x in xs])
-    inner = (pos[:, 0] > x0) & (pos[:, 0] < x1) & (pos[:, 1] > y0) & (pos[:, 1] < y1)
-    pos[inner, :2] += rng.uniform(-1.2, 1.2, size=(inner.sum(), 2))
-    tri = []
-    for j in range(n - 1):
-        for i in range(n - 1):
-            a, b, c, d = j * n + i, j * n + i + 1, (j + 1) * n + i + 1, (j + 1) * n + i
-            if rng.random() < 0.5:
-                tri += [(a, b, c), (a, c, d)]
-            else:
-                tri += [(a, b, d), (b, c, d)]
-    tri = np.array(tri)
-    flip = rng.random(len(tri)) < 0.5
-    tri[flip] = tri[flip][:, ::-1]  # mixed windings: Cull Off
+    x0, y0, x1, y1 = 3.0, 2.0, 27.0, 21.0
+    mesh = sc.jittered_grid(np.random.default_rng(seed), x0, y0, x1, y1, 7)  # mixed windings: Cull Off
     cam = sc.screen_camera(32, 24)
-    counts = _count(impl, cam, sc.make_mesh(pos, tri), Cull.Off)
+    counts = _count(impl, cam, mesh, Cull.Off)
     expected = np.zeros((24, 32), int)
     expected[24 - int(y1):24 - int(y0), int(x0):int(x1)] = 1
     assert np.array_equal(counts, expected)

@@ -28,6 +28,12 @@ framebuffer is a raw GL FBO with a colour texture (RGBA8, SRGB8_ALPHA8 with
 GL_FRAMEBUFFER_SRGB for Linear LDR, RGBA32F for HDR) and a DEPTH24_STENCIL8
 renderbuffer. moderngl only provides the context, programs, buffers and textures.
 
+MSAA (``DrawScene.msaa`` 4: llvmpipe grants 4 samples for a request of 2 and refuses 8, so other
+counts raise ValueError): the draws go to multisampled colour and DEPTH24_STENCIL8 renderbuffers
+of the same formats with GL_MULTISAMPLE on, AlphaToMask passes with GL_SAMPLE_ALPHA_TO_COVERAGE,
+and :meth:`GLRenderer.read` resolves with glBlitFramebuffer (colours averaged, in linear light
+for the sRGB buffer with GL_FRAMEBUFFER_SRGB on; depth and stencil of sample 0).
+
 This module is free of bpy; moderngl is imported lazily (``pip install
 blendlib[reference]``).
 """
@@ -78,7 +84,10 @@ GL_KEEP, GL_REPLACE, GL_INCR, GL_DECR, GL_INVERT = 0x1E00, 0x1E01, 0x1E02, 0x1E0
 GL_INCR_WRAP, GL_DECR_WRAP = 0x8507, 0x8508
 GL_CULL_FACE, GL_DEPTH_TEST, GL_STENCIL_TEST, GL_BLEND = 0x0B44, 0x0B71, 0x0B90, 0x0BE2
 GL_DITHER, GL_POLYGON_OFFSET_FILL, GL_FRAMEBUFFER_SRGB, GL_SCISSOR_TEST = 0x0BD0, 0x8037, 0x8DB9, 0x0C11
-GL_MULTISAMPLE = 0x809D
+GL_MULTISAMPLE, GL_SAMPLE_ALPHA_TO_COVERAGE, GL_SAMPLE_MASK = 0x809D, 0x809E, 0x8E51
+GL_RENDERBUFFER_SAMPLES, GL_SAMPLE_POSITION = 0x8CAB, 0x8E50
+GL_READ_FRAMEBUFFER, GL_DRAW_FRAMEBUFFER, GL_NEAREST = 0x8CA8, 0x8CA9, 0x2600
+GL_RGBA8, GL_RGBA32F = 0x8058, 0x8814
 GL_FRONT, GL_BACK, GL_CW, GL_CCW = 0x0404, 0x0405, 0x0900, 0x0901
 GL_COLOR_BUFFER_BIT, GL_DEPTH_BUFFER_BIT, GL_STENCIL_BUFFER_BIT = 0x4000, 0x0100, 0x0400
 GL_FRAMEBUFFER, GL_RENDERBUFFER = 0x8D40, 0x8D41
@@ -138,6 +147,10 @@ _PROTOS = {
     "glFramebufferRenderbuffer": (None, _u, _u, _u, _u), "glFramebufferTexture2D": (None, _u, _u, _u, _u, _i),
     "glCheckFramebufferStatus": (_u, _u), "glFinish": (None,), "glGetError": (_u,),
     "glClearBufferuiv": (None, _u, _i, _p), "glClearBufferfv": (None, _u, _i, _p),
+    "glRenderbufferStorageMultisample": (None, _u, _i, _u, _i, _i),
+    "glBlitFramebuffer": (None, _i, _i, _i, _i, _i, _i, _i, _i, _u, _u),
+    "glGetRenderbufferParameteriv": (None, _u, _u, _p), "glGetMultisamplefv": (None, _u, _u, _p),
+    "glSampleMaski": (None, _u, _u),
 }
 
 
@@ -506,19 +519,18 @@ class GLRenderer:
         else:
             self.color_tex = ctx.texture(size, 4, dtype="f1")
         self._resources.append(self.color_tex)
-        ids = (ctypes.c_uint * 1)()
-        gl.GenRenderbuffers(1, ids)
-        self.rbo = ids[0]
-        gl.BindRenderbuffer(GL_RENDERBUFFER, self.rbo)
-        gl.RenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH24_STENCIL8, self.W, self.H)
-        gl.GenFramebuffers(1, ids)
-        self.fbo = ids[0]
-        gl.BindFramebuffer(GL_FRAMEBUFFER, self.fbo)
-        gl.FramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, self.color_tex.glo, 0)
-        gl.FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_STENCIL_ATTACHMENT, GL_RENDERBUFFER, self.rbo)
-        status = gl.CheckFramebufferStatus(GL_FRAMEBUFFER)
-        if status != GL_FRAMEBUFFER_COMPLETE:
-            raise RuntimeError(f"framebuffer incomplete: 0x{status:04X}")
+        self.rbo = self._renderbuffer(GL_DEPTH24_STENCIL8, 0)
+        self.fbo = self._framebuffer(self.color_tex.glo, self.rbo)
+        # MSAA: draw into multisampled colour and depth-stencil renderbuffers of the same formats;
+        # read() resolves them into the single-sampled FBO above (glBlitFramebuffer).
+        self.samples = int(scene.msaa)
+        self.resolve_fbo = None
+        self._ms_rbos: list[int] = []
+        if self.samples > 1:
+            color_format = GL_RGBA32F if self.hdr else GL_SRGB8_ALPHA8 if self.linear else GL_RGBA8
+            self._ms_rbos = [self._renderbuffer(color_format, self.samples),
+                             self._renderbuffer(GL_DEPTH24_STENCIL8, self.samples)]
+            self.resolve_fbo, self.fbo = self.fbo, self._framebuffer(None, self._ms_rbos[1], self._ms_rbos[0])
         gl.check("framebuffer set-up")
 
         # Draw calls: (vao, vertex count, mirrored, texture, uniforms, pass).
@@ -594,6 +606,54 @@ class GLRenderer:
         self._resources.append(tex)
         return tex
 
+    def _renderbuffer(self, internal_format: int, samples: int) -> int:
+        """A W x H renderbuffer; ``samples`` > 1: multisampled, exactly that many samples granted
+        (llvmpipe grants 4 for a request of 2 and refuses 8: ValueError)."""
+        gl = self.gl
+        ids = (ctypes.c_uint * 1)()
+        gl.GenRenderbuffers(1, ids)
+        gl.BindRenderbuffer(GL_RENDERBUFFER, ids[0])
+        if samples > 1:
+            gl.RenderbufferStorageMultisample(GL_RENDERBUFFER, samples, internal_format, self.W, self.H)
+            granted = ctypes.c_int(0)
+            gl.GetRenderbufferParameteriv(GL_RENDERBUFFER, GL_RENDERBUFFER_SAMPLES, ctypes.byref(granted))
+            if gl.GetError() or granted.value != samples:
+                gl.DeleteRenderbuffers(1, ids)
+                raise ValueError(f"this GL gives no {samples}-sample buffers (granted {granted.value}); "
+                                 "llvmpipe has 4x MSAA only")
+        else:
+            gl.RenderbufferStorage(GL_RENDERBUFFER, internal_format, self.W, self.H)
+        return ids[0]
+
+    def _framebuffer(self, color_texture: int | None, depth_stencil: int, color_renderbuffer: int | None = None) -> int:
+        """A complete FBO of a colour texture (or renderbuffer) and a depth-stencil renderbuffer."""
+        gl = self.gl
+        ids = (ctypes.c_uint * 1)()
+        gl.GenFramebuffers(1, ids)
+        gl.BindFramebuffer(GL_FRAMEBUFFER, ids[0])
+        if color_texture is not None:
+            gl.FramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, color_texture, 0)
+        else:
+            gl.FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, color_renderbuffer)
+        gl.FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_STENCIL_ATTACHMENT, GL_RENDERBUFFER, depth_stencil)
+        status = gl.CheckFramebufferStatus(GL_FRAMEBUFFER)
+        if status != GL_FRAMEBUFFER_COMPLETE:
+            raise RuntimeError(f"framebuffer incomplete: 0x{status:04X}")
+        return ids[0]
+
+    def sample_positions(self) -> list[tuple[float, float]]:
+        """``glGetMultisamplefv(GL_SAMPLE_POSITION)`` of the drawing framebuffer: each sample's
+        (x, y) within the pixel, y up."""
+        gl = self.gl
+        gl.BindFramebuffer(GL_FRAMEBUFFER, self.fbo)
+        out = []
+        for k in range(self.samples):
+            xy = (ctypes.c_float * 2)()
+            gl.GetMultisamplefv(GL_SAMPLE_POSITION, k, xy)
+            out.append((float(xy[0]), float(xy[1])))
+        gl.check("sample positions")
+        return out
+
     # -------------------------------------------------------------- drawing
 
     def _set_pass(self, p, mirrored: bool) -> None:
@@ -628,6 +688,10 @@ class GLRenderer:
         else:
             gl.Disable(GL_BLEND)
         gl.ColorMask(*(1 if c in p.color_mask else 0 for c in "RGBA"))
+        if p.alpha_to_mask:
+            gl.Enable(GL_SAMPLE_ALPHA_TO_COVERAGE)
+        else:
+            gl.Disable(GL_SAMPLE_ALPHA_TO_COVERAGE)
 
     def _bind(self, fbo: int | None = None) -> None:
         gl = self.gl
@@ -635,7 +699,10 @@ class GLRenderer:
         gl.Viewport(0, 0, self.W, self.H)
         gl.Disable(GL_SCISSOR_TEST)
         gl.Disable(GL_DITHER)
-        gl.Disable(GL_MULTISAMPLE)
+        if self.samples > 1 and fbo is None:
+            gl.Enable(GL_MULTISAMPLE)
+        else:
+            gl.Disable(GL_MULTISAMPLE)
         if self.linear and not self.hdr:
             gl.Enable(GL_FRAMEBUFFER_SRGB)
         else:
@@ -725,6 +792,8 @@ class GLRenderer:
         3. Overlay (queue ≥ 4000) is drawn as :meth:`render` draws it, testing against step 1's
            depth plus its own writes.
         """
+        if self.samples > 1:
+            raise ValueError("render_sorted: no MSAA (the sorted reference is per pixel)")
         overlay = QUEUE_NUMBERS[Queue.Overlay]
         peeled = [k for k, q in enumerate(self.call_queues)
                   if LAST_OPAQUE_QUEUE < q < overlay and self.calls[k][5].color_mask]
@@ -884,7 +953,20 @@ class GLRenderer:
     def read(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(color, depth, stencil)`` as in :class:`blendlib.core.pipeline.Frame`, row 0 = top."""
         gl, W, H = self.gl, self.W, self.H
-        gl.BindFramebuffer(GL_FRAMEBUFFER, self.fbo)
+        read_fbo = self.fbo
+        if self.samples > 1:
+            # Resolve: colours averaged (in linear light for the sRGB buffer: GL_FRAMEBUFFER_SRGB
+            # on), depth and stencil of sample 0 (llvmpipe's blit of multisampled depth-stencil).
+            if self.linear and not self.hdr:
+                gl.Enable(GL_FRAMEBUFFER_SRGB)
+            gl.Disable(GL_SCISSOR_TEST)
+            gl.BindFramebuffer(GL_READ_FRAMEBUFFER, self.fbo)
+            gl.BindFramebuffer(GL_DRAW_FRAMEBUFFER, self.resolve_fbo)
+            gl.BlitFramebuffer(0, 0, W, H, 0, 0, W, H, GL_COLOR_BUFFER_BIT, GL_NEAREST)
+            gl.BlitFramebuffer(0, 0, W, H, 0, 0, W, H, GL_DEPTH_BUFFER_BIT | GL_STENCIL_BUFFER_BIT, GL_NEAREST)
+            gl.check("resolve")
+            read_fbo = self.resolve_fbo
+        gl.BindFramebuffer(GL_FRAMEBUFFER, read_fbo)
         gl.Disable(GL_FRAMEBUFFER_SRGB)  # read the stored (encoded) codes, no conversion
         gl.PixelStorei(GL_PACK_ALIGNMENT, 1)
         if self.hdr:
@@ -905,8 +987,13 @@ class GLRenderer:
         gl = self.gl
         ids = (ctypes.c_uint * 1)(self.fbo)
         gl.DeleteFramebuffers(1, ids)
-        ids[0] = self.rbo
-        gl.DeleteRenderbuffers(1, ids)
+        if self.resolve_fbo is not None:
+            ids[0] = self.resolve_fbo
+            gl.DeleteFramebuffers(1, ids)
+        for rbo in (self.rbo, *self._ms_rbos):
+            ids[0] = rbo
+            gl.DeleteRenderbuffers(1, ids)
+        self._ms_rbos = []
         if self._peeling is not None:
             ids = (ctypes.c_uint * 2)(*self._peeling[:2])
             gl.DeleteFramebuffers(2, ids)

@@ -15,7 +15,8 @@ With ``features`` (SPEC §12 and the outline of §11.6; drawn after everything a
 scene without them stays the scene it always was): forward lights (directional, point and spot,
 every render mode) drawing ForwardAdd passes, every LightMode, vertex colours (both encodings) with
 Off / Multiply / Particle, textures up to 8 x 8 with mipmaps (every filter, Preserve Coverage) and
-outline vertex programs (World / Screen, MToon 0.x / 1.0).
+outline vertex programs (World / Screen, MToon 0.x / 1.0). With ``msaa`` 2, 4 or 8 samples (drawn
+after the features), AlphaToMask on some passes.
 """
 
 from __future__ import annotations
@@ -257,9 +258,24 @@ def _camera(pick) -> Camera:
     return Camera(look_at(eye), proj, w, h, orthographic=ortho)
 
 
-def build(pick, shared: bool = True, features: bool = False) -> DrawScene:
+def _with_alpha_to_mask(pick, r: Renderer) -> Renderer:
+    """``r`` with AlphaToMask on some of its passes (drawn after the rest of the scene, so that
+    scenes without MSAA stay those of the same seed before MSAA existed)."""
+    passes = tuple(replace(p, alpha_to_mask=pick.chance(0.4)) for p in r.material.draw_passes)
+    return replace(r, material=replace(r.material, passes=passes))
+
+
+def build(pick, shared: bool = True, features: bool = False, msaa: int = 1) -> DrawScene:
     """A random scene; ``shared=False`` gives every triangle its own three vertices; ``features``
-    adds lights, vertex colours, mipmaps and outlines (module docstring)."""
+    adds lights, vertex colours, mipmaps and outlines (module docstring); ``msaa`` > 1: that many
+    samples, and AlphaToMask on some passes."""
+    scene = _build(pick, shared, features)
+    if msaa == 1:
+        return scene
+    return replace(scene, msaa=msaa, renderers=tuple(_with_alpha_to_mask(pick, r) for r in scene.renderers))
+
+
+def _build(pick, shared: bool, features: bool) -> DrawScene:
     cam = _camera(pick)
     renderers = tuple(_renderer(pick, k, shared) for k in range(pick.int(1, 4)))
     light = None
@@ -289,14 +305,16 @@ def _scene(pick, cam, renderers, light) -> DrawScene:
 
 
 @st.composite
-def scenes(draw, shared: bool = True, features: bool = False) -> DrawScene:
-    """Hypothesis strategy: a small random draw scene."""
-    return build(_HypothesisPick(draw), shared, features)
+def scenes(draw, shared: bool = True, features: bool = False, msaa: int = 1) -> DrawScene:
+    """Hypothesis strategy: a small random draw scene (``msaa`` 0: 2, 4 or 8 samples, drawn)."""
+    if msaa == 0:
+        msaa = draw(st.sampled_from((2, 4, 8)))
+    return build(_HypothesisPick(draw), shared, features, msaa)
 
 
-def seeded_scene(seed: int, shared: bool = True, features: bool = False) -> DrawScene:
+def seeded_scene(seed: int, shared: bool = True, features: bool = False, msaa: int = 1) -> DrawScene:
     """The same kind of scene from a numpy seed (stable, for aggregate statistics)."""
-    return build(_RngPick(seed), shared, features)
+    return build(_RngPick(seed), shared, features, msaa)
 
 
 def describe(scene: DrawScene) -> str:
@@ -306,7 +324,8 @@ def describe(scene: DrawScene) -> str:
         f"camera {cam.width}x{cam.height} ortho={cam.orthographic} view={cam.view_matrix.tolist()} "
         f"proj={cam.projection.tolist()}",
         f"color_space={scene.color_space} hdr={scene.hdr} clear={scene.clear_color} ambient={scene.ambient} "
-        f"linear_ambient={scene.ambient_is_linear} light={scene.light} sort={scene.sort_mode} {scene.sort_axis}",
+        f"linear_ambient={scene.ambient_is_linear} light={scene.light} sort={scene.sort_mode} {scene.sort_axis} "
+        f"msaa={scene.msaa}",
         f"lights={scene.lights} pixel_light_count={scene.pixel_light_count}",
     ]
     for r in scene.renderers:

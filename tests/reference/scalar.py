@@ -221,21 +221,40 @@ def blend_channel(op: BlendOp, s: float, d: float, fs: float, fd: float) -> floa
 
 
 class Buffers:
-    """Colour (LDR codes or HDR float32 values), depth (ints) and stencil (ints), window rows (y up)."""
+    """Colour (LDR codes or HDR float32 values), depth (ints) and stencil (ints), window rows (y up).
+
+    ``color[y][x]``, ``depth[y][x]``, ``stencil[y][x]``: the pixel; with MSAA (``samples`` N > 1)
+    a list of its N samples (docs/pipeline.md §10), resolved by :meth:`arrays`."""
 
     def __init__(self, scene: DrawScene):
         cam = scene.camera
         self.W, self.H = int(cam.width), int(cam.height)
         self.hdr = bool(scene.hdr)
         self.linear = scene.color_space is ColorSpace.Linear
+        self.samples = int(scene.msaa)
         clear = [float(c) for c in scene.clear_color]
         if self.linear:
             clear = [decode(c) for c in clear[:3]] + [clear[3]]
         stored = self.store(clear)
-        self.color = [[list(stored) for _ in range(self.W)] for _ in range(self.H)]
-        self.depth = [[DMAX] * self.W for _ in range(self.H)]
-        self.stencil = [[0] * self.W for _ in range(self.H)]
+        n = self.samples
+
+        def cell(value):
+            return value() if n == 1 else [value() for _ in range(n)]
+
+        self.color = [[cell(lambda: list(stored)) for _ in range(self.W)] for _ in range(self.H)]
+        self.depth = [[cell(lambda: DMAX) for _ in range(self.W)] for _ in range(self.H)]
+        self.stencil = [[cell(lambda: 0) for _ in range(self.W)] for _ in range(self.H)]
         self.collect: list | None = None  # sorted reference: fragments kept instead of merged
+
+    def get(self, grid: list, x: int, y: int, s: int):
+        """Sample ``s`` of pixel (x, y) of ``grid`` (the pixel itself without MSAA)."""
+        return grid[y][x] if self.samples == 1 else grid[y][x][s]
+
+    def put(self, grid: list, x: int, y: int, s: int, value) -> None:
+        if self.samples == 1:
+            grid[y][x] = value
+        else:
+            grid[y][x][s] = value
 
     def store(self, rgba: list) -> list:
         """Shading-space rgba → the stored representation (§8 'write')."""
@@ -261,10 +280,10 @@ class Buffers:
             out.append(v)
         return out
 
-    def write_color(self, x: int, y: int, p, src: list) -> None:
+    def write_color(self, x: int, y: int, p, src: list, s: int = 0) -> None:
         if not self.hdr:
             src = [clamp01(v) for v in src]
-        old = self.color[y][x]
+        old = self.get(self.color, x, y, s)
         if p.blend:
             dst = self.load(old)
             sfa, dfa, opa = p.alpha_factors
@@ -276,15 +295,49 @@ class Buffers:
             result = src
         new = self.store(result)
         mask = p.color_mask
-        self.color[y][x] = [new[c] if ch in mask else old[c] for c, ch in enumerate("RGBA")]
+        self.put(self.color, x, y, s, [new[c] if ch in mask else old[c] for c, ch in enumerate("RGBA")])
+
+    def resolved(self, x: int, y: int) -> list:
+        """The stored pixel (x, y); with MSAA its samples resolved (docs/pipeline.md §10): a
+        float32 sum from 0 in sample order times float32(1/N) — LDR of ``float32(q) * float32(1/255)``
+        (Linear rgb: of ``float32(decode(q/255))``), rounded half to even after ``* 255`` (Linear
+        rgb: encoded exactly) — numpy float32 scalars doing the float32 arithmetic."""
+        if self.samples == 1:
+            return self.color[y][x]
+        f = np.float32
+        out = []
+        for c in range(4):
+            acc = f(0.0)
+            for sample in self.color[y][x]:
+                q = sample[c]
+                if self.hdr:
+                    v = f(q)
+                elif self.linear and c < 3:
+                    v = f(decode(q / 255))
+                else:
+                    v = f(q) * f(1.0 / 255.0)
+                acc = acc + v
+            avg = acc * f(1.0 / self.samples)
+            if self.hdr:
+                out.append(float(avg))
+            elif self.linear and c < 3:
+                out.append(math.floor(encode(clamp01(float(avg))) * 255 + 0.5))
+            else:
+                out.append(round(float(avg * f(255.0))))  # round half to even
+        return out
 
     def arrays(self):
+        """(color, depth, stencil) row 0 = top; with MSAA the resolved colour and sample 0's depth
+        and stencil (what GL's blit of a multisampled depth-stencil buffer keeps)."""
+        pixels = [[self.resolved(x, y) for x in range(self.W)] for y in range(self.H)]
         if self.hdr:
-            color = np.array(self.color, dtype=np.float32)
+            color = np.array(pixels, dtype=np.float32)
         else:
-            color = (np.array(self.color, dtype=np.int64) / 255.0).astype(np.float32)
-        depth = (np.array(self.depth, dtype=np.int64) / DMAX).astype(np.float32)
-        stencil = np.array(self.stencil, dtype=np.uint8)
+            color = (np.array(pixels, dtype=np.int64) / 255.0).astype(np.float32)
+        depth = [[self.get(self.depth, x, y, 0) for x in range(self.W)] for y in range(self.H)]
+        stencil = [[self.get(self.stencil, x, y, 0) for x in range(self.W)] for y in range(self.H)]
+        depth = (np.array(depth, dtype=np.int64) / DMAX).astype(np.float32)
+        stencil = np.array(stencil, dtype=np.uint8)
         return color[::-1].copy(), depth[::-1].copy(), stencil[::-1].copy()
 
 
@@ -298,8 +351,10 @@ class FragmentLog:
     ``(draw, x, y, triangle, depth_code, rgba, result)`` with ``draw`` the 1-based draw call,
     ``y`` the window row (0 = bottom), ``triangle`` the index in the renderer's mesh, ``rgba``
     the shader's output (shading space) and ``result`` one of ``written``, ``alpha_test``,
-    ``stencil``, ``depth``. ``triangles``: per draw call, the source triangles drawn (some
-    clipped piece neither culled nor of zero area).
+    ``stencil``, ``depth``. With MSAA, ``(draw, x, y, triangle, codes, rgba, results,
+    coverage)``: ``codes`` and ``results`` dicts by covered sample (``alpha_to_mask`` a result
+    too), ``coverage`` the rasteriser's mask. ``triangles``: per draw call, the source
+    triangles drawn (some clipped piece neither culled nor of zero area).
     """
 
     def __init__(self) -> None:
@@ -307,13 +362,20 @@ class FragmentLog:
         self.triangles: dict[int, int] = {}
 
     def counts(self) -> dict[int, tuple[int, int]]:
-        """Per draw call: (fragments rasterised, fragments written)."""
+        """Per draw call: (fragments rasterised, fragments written: with MSAA, those with a sample written)."""
         out: dict[int, list[int]] = {}
-        for draw, *_, result in self.fragments:
+        for draw, _, _, _, _, _, result, *_ in self.fragments:
             c = out.setdefault(draw, [0, 0])
             c[0] += 1
-            c[1] += result == "written"
+            c[1] += "written" in result.values() if isinstance(result, dict) else result == "written"
         return {k: (v[0], v[1]) for k, v in out.items()}
+
+    def samples_written(self) -> dict[int, int]:
+        """Per draw call with MSAA: the samples written (what GL's occlusion query counts)."""
+        out: dict[int, int] = {}
+        for draw, _, _, _, _, _, results, _ in self.fragments:
+            out[draw] = out.get(draw, 0) + sum(r == "written" for r in results.values())
+        return out
 
 
 def render_reference(scene: DrawScene, warnings: list | None = None, max_calls: int | None = None,
@@ -513,29 +575,62 @@ def raster_triangle(tri, attrs, clipped: bool, mirrored: bool, p, shader: Shader
             o = [(o[0] * B[0][j] + o[1] * B[1][j]) + o[2] * B[2][j] for j in range(3)]
         return shader.texture_uv(lerp3(o, attrs["uv"], 2))
 
+    def edges(Px, Py):
+        Ea = (Xc - Xb) * (Py - Yb) - (Yc - Yb) * (Px - Xb)
+        Eb = (Xa - Xc) * (Py - Yc) - (Ya - Yc) * (Px - Xc)
+        Ec = (Xb - Xa) * (Py - Ya) - (Yb - Ya) * (Px - Xa)
+        return Ea, Eb, Ec
+
+    def inside(Ea, Eb, Ec) -> bool:
+        return ((Ea > 0 or (Ea == 0 and tl_a)) and (Eb > 0 or (Eb == 0 and tl_b))
+                and (Ec > 0 or (Ec == 0 and tl_c)))
+
+    def weights(Ea, Eb, Ec):
+        ba, bb, bc = float(Ea) / A, float(Eb) / A, float(Ec) / A
+        if area2 > 0:
+            return (ba, bb, bc)
+        return (ba, bc, bb)  # order (v0, v2, v1): a = v0, b = v2, c = v1
+
     xs = (X0, X1, X2)
     ys = (Y0, Y1, Y2)
-    xlo = max(0, (min(xs) - HALF) // S)
-    xhi = min(W - 1, (max(xs) - HALF) // S + 1)
-    ylo = max(0, (min(ys) - HALF) // S)
-    yhi = min(H - 1, (max(ys) - HALF) // S + 1)
+    margin = 0 if buf.samples == 1 else 1  # samples lie up to half a pixel from the centre
+    xlo = max(0, (min(xs) - HALF) // S - margin)
+    xhi = min(W - 1, (max(xs) - HALF) // S + 1 + margin)
+    ylo = max(0, (min(ys) - HALF) // S - margin)
+    yhi = min(H - 1, (max(ys) - HALF) // S + 1 + margin)
+    positions = sample_positions(buf.samples)
     for py in range(ylo, yhi + 1):
-        Py = py * S + HALF
         for px in range(xlo, xhi + 1):
-            Px = px * S + HALF
-            Ea = (Xc - Xb) * (Py - Yb) - (Yc - Yb) * (Px - Xb)
-            Eb = (Xa - Xc) * (Py - Yc) - (Ya - Yc) * (Px - Xc)
-            Ec = (Xb - Xa) * (Py - Ya) - (Yb - Ya) * (Px - Xa)
-            if not ((Ea > 0 or (Ea == 0 and tl_a)) and (Eb > 0 or (Eb == 0 and tl_b))
-                    and (Ec > 0 or (Ec == 0 and tl_c))):
+            if buf.samples == 1:
+                centre = edges(px * S + HALF, py * S + HALF)
+                if inside(*centre):
+                    fragment(px, py, weights(*centre), win, zws, bias, use_offset, attrs, p, shader, buf, log, where,
+                             uv_at)
                 continue
-            ba, bb, bc = float(Ea) / A, float(Eb) / A, float(Ec) / A
-            if area2 > 0:
-                bw = (ba, bb, bc)
-            else:  # order (v0, v2, v1): a = v0, b = v2, c = v1
-                bw = (ba, bc, bb)
-            fragment(px, py, bw, win, zws, bias, use_offset, attrs, p, shader, buf, log, where, uv_at)
+            # MSAA (docs/pipeline.md §10): each sample tested at its position; the pixel is shaded
+            # once at its centre (inside the triangle or not) and has a depth per covered sample.
+            at_samples = {}
+            for k, (ox, oy) in enumerate(positions):
+                e = edges(px * S + ox, py * S + oy)
+                if inside(*e):
+                    at_samples[k] = weights(*e)
+            if at_samples:
+                centre = weights(*edges(px * S + HALF, py * S + HALF))
+                fragment(px, py, centre, win, zws, bias, use_offset, attrs, p, shader, buf, log, where, uv_at,
+                         at_samples)
     return True
+
+
+def sample_positions(samples: int) -> list:
+    """docs/pipeline.md §10: the standard sample positions in sub-pixels from the pixel's lower-left
+    corner, y up (1/16-pixel tables times 16); sample k is bit k of a coverage mask."""
+    table = {
+        1: [(8, 8)],
+        2: [(12, 12), (4, 4)],
+        4: [(6, 2), (14, 6), (2, 10), (10, 14)],
+        8: [(9, 5), (7, 11), (13, 9), (5, 3), (3, 13), (1, 7), (11, 15), (15, 1)],
+    }[samples]
+    return [(x * 16, y * 16) for x, y in table]
 
 
 def lerp3(o: list, corners: list, n: int) -> list:
@@ -558,16 +653,43 @@ def quad_lod(px: int, py: int, uv_at, w: int, h: int) -> float:
     return sh.log2_lod(sh.nmax(rx, ry))
 
 
-def fragment(px, py, bw, win, zws, bias, use_offset, attrs, p, shader: Shader, buf: Buffers,
-             log: FragmentLog | None = None, where: list | None = None, uv_at=None) -> None:
+def depth_code(bw, zws, bias, use_offset) -> int:
+    """§5: the 24-bit depth code at screen barycentrics ``bw``."""
     b0, b1, b2 = bw
-    # §5 depth
     z = (b0 * zws[0] + b1 * zws[1]) + b2 * zws[2]
     if use_offset:
         z = z + bias
     z = min(max(z, 0.0), 1.0)
-    d = math.floor(z * DMAX + 0.5)
-    # §6 perspective-correct interpolation
+    return math.floor(z * DMAX + 0.5)
+
+
+def fragment(px, py, bw, win, zws, bias, use_offset, attrs, p, shader: Shader, buf: Buffers,
+             log: FragmentLog | None = None, where: list | None = None, uv_at=None,
+             at_samples: dict | None = None) -> None:
+    """One fragment at window pixel (px, py), screen barycentrics ``bw`` at its centre; with MSAA
+    ``at_samples`` {covered sample: its barycentrics}."""
+    if at_samples is not None:
+        sample_fragment(px, py, bw, win, zws, bias, use_offset, attrs, p, shader, buf, log, where, uv_at,
+                        at_samples)
+        return
+    # §5 depth
+    d = depth_code(bw, zws, bias, use_offset)
+    rgba = shade_at(px, py, bw, win, attrs, shader, uv_at)
+    if p.alpha_test and not alpha_survives(rgba[3], shader.cutoff, p.alpha_test_comp):
+        result = "alpha_test"
+    elif buf.collect is not None:  # sorted reference, step 2: kept for the per-pixel sort
+        if p.color_mask:
+            buf.collect.append((py, px, d, len(buf.collect), rgba, p))
+        return
+    else:
+        result = merge_fragment(px, py, d, rgba, p, buf)
+    if log is not None:
+        log.fragments.append((where[0], px, py, where[1], d, rgba, result))
+
+
+def shade_at(px, py, bw, win, attrs, shader: Shader, uv_at) -> list:
+    """§6 perspective-correct interpolation at screen barycentrics ``bw`` of pixel (px, py), then
+    §7 shading (the LOD of its quad through ``uv_at`` when the texture has mipmaps)."""
     t = [bw[k] * win[k][3] for k in range(3)]
     s = (t[0] + t[1]) + t[2]
     pk = [div(tk, s) for tk in t]
@@ -580,18 +702,7 @@ def fragment(px, py, bw, win, zws, bias, use_offset, attrs, p, shader: Shader, b
     lod = None
     if shader.mips is not None:
         lod = quad_lod(px, py, uv_at, shader.tw, shader.th)
-    # §7 shading and alpha test
-    rgba = shader.shade(uvf, nwf, vcf, wpf, lod)
-    if p.alpha_test and not alpha_survives(rgba[3], shader.cutoff, p.alpha_test_comp):
-        result = "alpha_test"
-    elif buf.collect is not None:  # sorted reference, step 2: kept for the per-pixel sort
-        if p.color_mask:
-            buf.collect.append((py, px, d, len(buf.collect), rgba, p))
-        return
-    else:
-        result = merge_fragment(px, py, d, rgba, p, buf)
-    if log is not None:
-        log.fragments.append((where[0], px, py, where[1], d, rgba, result))
+    return shader.shade(uvf, nwf, vcf, wpf, lod)
 
 
 def alpha_survives(alpha: float, cutoff: float, comp: CompareFunction) -> bool:
@@ -606,28 +717,52 @@ def alpha_survives(alpha: float, cutoff: float, comp: CompareFunction) -> bool:
     }[comp]
 
 
-def merge_fragment(px: int, py: int, d: int, rgba: list, p, buf: Buffers) -> str:
-    """§8 output merger for one fragment at window pixel (px, py) with depth code ``d``;
-    returns ``written`` or the test that discarded it (``stencil``, ``depth``)."""
-    s_old = buf.stencil[py][px]
+def alpha_to_mask(alpha: float, samples: int) -> int:
+    """docs/pipeline.md §10 (llvmpipe's rule): sample s of N covered when alpha > s/N."""
+    return sum(1 << s for s in range(samples) if alpha > s / samples)
+
+
+def sample_fragment(px, py, bw, win, zws, bias, use_offset, attrs, p, shader: Shader, buf: Buffers,
+                    log: FragmentLog | None, where: list | None, uv_at, at_samples: dict) -> None:
+    """docs/pipeline.md §10: a fragment covering samples ``at_samples`` {sample: barycentrics}:
+    shaded once with the centre's barycentrics ``bw``, alpha-tested once; AlphaToMask drops
+    samples; each remaining sample goes through the merger with its own depth."""
+    rgba = shade_at(px, py, bw, win, attrs, shader, uv_at)
+    codes = {k: depth_code(w, zws, bias, use_offset) for k, w in at_samples.items()}
+    coverage = sum(1 << k for k in at_samples)
+    results = {}
+    if p.alpha_test and not alpha_survives(rgba[3], shader.cutoff, p.alpha_test_comp):
+        results = {k: "alpha_test" for k in at_samples}
+    else:
+        keep = coverage & alpha_to_mask(rgba[3], buf.samples) if p.alpha_to_mask else coverage
+        for k in sorted(at_samples):
+            results[k] = merge_fragment(px, py, codes[k], rgba, p, buf, k) if keep >> k & 1 else "alpha_to_mask"
+    if log is not None:
+        log.fragments.append((where[0], px, py, where[1], codes, rgba, results, coverage))
+
+
+def merge_fragment(px: int, py: int, d: int, rgba: list, p, buf: Buffers, sample: int = 0) -> str:
+    """§8 output merger for one fragment at window pixel (px, py) (its ``sample`` with MSAA) with
+    depth code ``d``; returns ``written`` or the test that discarded it (``stencil``, ``depth``)."""
+    s_old = buf.get(buf.stencil, px, py, sample)
     if p.stencil:
         ref, rm, wm = p.stencil_ref, p.stencil_read_mask, p.stencil_write_mask
 
         def apply(op):
-            buf.stencil[py][px] = (s_old & ~wm & 255) | (stencil_op(op, s_old, ref) & wm)
+            buf.put(buf.stencil, px, py, sample, (s_old & ~wm & 255) | (stencil_op(op, s_old, ref) & wm))
 
         if not compare(p.stencil_comp, ref & rm, s_old & rm):
             apply(p.stencil_fail)
             return "stencil"
-    if not compare(p.ztest, d, buf.depth[py][px]):
+    if not compare(p.ztest, d, buf.get(buf.depth, px, py, sample)):
         if p.stencil:
             apply(p.stencil_zfail)
         return "depth"
     if p.stencil:
         apply(p.stencil_pass)
     if p.zwrite:
-        buf.depth[py][px] = d
-    buf.write_color(px, py, p, rgba)
+        buf.put(buf.depth, px, py, sample, d)
+    buf.write_color(px, py, p, rgba, sample)
     return "written"
 
 

@@ -158,6 +158,28 @@ def fan(center=(0.0, 0.0, 0.0), radius: float = 1.0, count: int = 7, phase: floa
     return make_mesh(pos, tri)
 
 
+def jittered_grid(rng, x0: float, y0: float, x1: float, y1: float, n: int) -> Mesh:
+    """A flat grid of n x n vertices over [x0, x1] x [y0, y1] (z = 0), its inner vertices jittered by
+    up to 1.2 (``rng``, a numpy Generator), each cell split along a random diagonal, about half the
+    triangles wound the other way (draw it with Cull Off): its outline is the rectangle."""
+    xs, ys = np.linspace(x0, x1, n), np.linspace(y0, y1, n)
+    pos = np.array([(x, y, 0.0) for y in ys for x in xs])
+    inner = (pos[:, 0] > x0) & (pos[:, 0] < x1) & (pos[:, 1] > y0) & (pos[:, 1] < y1)
+    pos[inner, :2] += rng.uniform(-1.2, 1.2, size=(inner.sum(), 2))
+    tri = []
+    for j in range(n - 1):
+        for i in range(n - 1):
+            a, b, c, d = j * n + i, j * n + i + 1, (j + 1) * n + i + 1, (j + 1) * n + i
+            if rng.random() < 0.5:
+                tri += [(a, b, c), (a, c, d)]
+            else:
+                tri += [(a, b, d), (b, c, d)]
+    tri = np.array(tri)
+    flip = rng.random(len(tri)) < 0.5
+    tri[flip] = tri[flip][:, ::-1]
+    return make_mesh(pos, tri)
+
+
 def renderer(mesh: Mesh, material: Material | None = None, *, name: str = "Object", slot: int = 0,
              matrix=None) -> Renderer:
     matrix = np.eye(4) if matrix is None else np.asarray(matrix, np.float64)
@@ -192,6 +214,6 @@ def scale(x=1.0, y=1.0, z=1.0) -> np.ndarray:
 
 
 __all__ = [
-    "camera", "cube", "fan", "look_at", "make_mesh", "orthographic", "perspective", "quad", "renderer",
+    "camera", "cube", "fan", "jittered_grid", "look_at", "make_mesh", "orthographic", "perspective", "quad", "renderer",
     "replace", "scale", "scene", "screen_camera", "translate", "unlit", "uv_sphere",
 ]

@@ -8,6 +8,7 @@ fragment (the observers' record of :func:`.ordering.apply_layer`).
 
 from __future__ import annotations
 
+import functools
 from enum import IntEnum
 
 import numpy as np
@@ -25,6 +26,8 @@ class Outcome(IntEnum):
     ALPHA_TEST = 1
     STENCIL = 2
     DEPTH = 3
+    ALPHA_TO_MASK = 4  # MSAA: a covered sample AlphaToMask removed
+    NOT_COVERED = -1  # MSAA: a sample of the pixel the fragment does not cover
 
 
 _COMPARE = {
@@ -72,33 +75,151 @@ def stencil_op(op: StencilOp, s: np.ndarray, ref: int) -> np.ndarray:
     return (s - 1) & 255  # DecrWrap
 
 
+def resolve_colors(stored: np.ndarray, samples: int, hdr: bool, linear: bool) -> np.ndarray:
+    """The resolved pixels (P, 4) of ``stored`` (N, P, 4) samples (uint8 codes, or float32 in HDR),
+    as llvmpipe's resolve blit (``util_make_fs_msaa_resolve``: a float32 sum from 0 in sample
+    order, times 1/N) computes them, measured bit for bit on RGBA8: LDR ``v_s = float32(q_s) *
+    float32(1/255)``, ``avg = (((v_0 + v_1) + ...) * float32(1/N))`` and the code
+    ``rint(float32(avg * 255))`` (ties to even). Linear LDR (an sRGB framebuffer): rgb samples
+    are decoded first (float32 of the exact decode), averaged likewise and encoded exactly, as a
+    resolve with ``GL_FRAMEBUFFER_SRGB`` (and Direct3D's resolve of sRGB formats) does it; alpha
+    as in Gamma. HDR: the float32 average. Returns uint8 codes (P, 4), or float32 in HDR."""
+    f32 = np.float32
+    inverse = f32(1.0 / samples)
+    acc = np.zeros((stored.shape[1], 4), dtype=f32)  # from 0, as the resolve shader (0 + -0.0 is 0.0)
+    if hdr:
+        for s in range(samples):
+            acc += stored[s]
+        acc *= inverse
+        return acc
+    values = np.empty(stored.shape, dtype=f32)
+    if linear:
+        values[..., :3] = colorspace.DECODE_LUT[stored[..., :3]]
+        np.multiply(stored[..., 3], f32(1.0 / 255.0), out=values[..., 3], dtype=f32)
+    else:
+        np.multiply(stored, f32(1.0 / 255.0), out=values, dtype=f32)
+    for s in range(samples):
+        acc += values[s]
+    acc *= inverse
+    out = np.empty((stored.shape[1], 4), dtype=np.uint8)
+    if linear:
+        out[:, :3] = colorspace.quantize_encoded(acc[:, :3].astype(np.float64))
+        out[:, 3] = np.rint(acc[:, 3] * f32(255.0))
+    else:
+        out[:] = np.rint(acc * f32(255.0))
+    return out
+
+
+@functools.cache
+def _uniform_resolve_table(samples: int, linear: bool) -> np.ndarray | None:
+    """(256, 4) uint8: the resolve of a pixel whose N samples all hold code q (row q, per channel),
+    or None where that is q itself (the case for 2, 4 and 8 samples, Gamma and Linear: checked
+    here, not assumed)."""
+    codes = np.repeat(np.arange(256, dtype=np.uint8)[:, None], 4, axis=1)
+    table = resolve_colors(np.ascontiguousarray(np.broadcast_to(codes, (samples, 256, 4))), samples, False, linear)
+    return None if np.array_equal(table, codes) else table
+
+
+def resolve_planes(planes: np.ndarray, uniform: np.ndarray, samples: int, hdr: bool, linear: bool) -> np.ndarray:
+    """:func:`resolve_colors` of pixels stored as ``planes`` (N, P, 4) with ``uniform`` (P,) bool
+    flags (:attr:`FrameBuffers.uniform`: the pixel's samples all hold plane 0's colour, the other
+    planes possibly stale). The same values as resolving N copies of plane 0 there."""
+    out = np.empty((planes.shape[1], 4), dtype=np.float32 if hdr else np.uint8)
+    mixed = np.flatnonzero(~uniform)
+    if mixed.size:
+        stored = np.take(planes, mixed, axis=1)
+        # Samples left bit-identical by fragments that each covered only some of them resolve as
+        # uniform pixels do.
+        words = stored.view(np.uint32).reshape(samples, mixed.size, -1)
+        equal = (words[1:] == words[:1]).all(axis=(0, 2))
+        uniform = uniform.copy()
+        uniform[mixed[equal]] = True
+        differ = ~equal
+        out[mixed[differ]] = resolve_colors(stored[:, differ], samples, hdr, linear)
+    same = np.flatnonzero(uniform)
+    if same.size:
+        first = np.take(planes[0], same, axis=0)
+        if hdr:
+            out[same] = resolve_colors(np.broadcast_to(first, (samples, *first.shape)), samples, hdr, linear)
+        else:
+            table = _uniform_resolve_table(samples, linear)
+            out[same] = first if table is None else table[first, np.arange(4)]
+    return out
+
+
 class FrameBuffers:
     """Colour, depth and stencil of a frame, flat in window order (index ``y*W + x``, y up).
 
     ``color``: LDR (H*W, 4) uint8 codes (sRGB-encoded rgb in Linear), HDR (H*W, 4) float32.
     ``depth``: (H*W,) int64 in 0..2**24-1. ``stencil``: (H*W,) uint8.
+
+    With ``samples`` N > 1 (MSAA) every pixel holds N samples, stored as N planes of the frame:
+    sample ``s`` of pixel ``p`` at index ``s*H*W + p`` (the merger applies a sample's fragments
+    to its plane); ``depth`` is int32 then (24-bit codes fit; 8x at 1080p holds 16.6M samples).
+    ``uniform`` (H*W,) bool: the pixel's samples all hold the colour of plane 0, whose value alone
+    is kept up to date there (as GPUs compress colour: fragments covering a whole pixel of
+    equal samples are blended once, :func:`..msaa.merge_samples`; :meth:`spread` writes the
+    others before samples part ways). Depth and stencil are always per sample. :meth:`output`
+    resolves the samples (:func:`resolve_planes`).
     """
 
     def __init__(self, width: int, height: int, hdr: bool, color_space: ColorSpace, clear_rgba,
-                 band: tuple[int, int] | None = None) -> None:
+                 band: tuple[int, int] | None = None, samples: int = 1) -> None:
         """Buffers cleared to ``clear_rgba``, depth 1.0 and stencil 0; with ``band`` (y0, y1)
         only those rows are cleared (a band render never reads the others)."""
         self.width, self.height = int(width), int(height)
         self.hdr = bool(hdr)
         self.linear = color_space is ColorSpace.Linear
-        n = self.width * self.height
-        lo, hi = (0, n) if band is None else (band[0] * self.width, band[1] * self.width)
+        self.samples = int(samples)
+        pixels = self.width * self.height
+        n = pixels * self.samples
+        lo, hi = (0, pixels) if band is None else (band[0] * self.width, band[1] * self.width)
         clear = np.array([float(c) for c in clear_rgba], dtype=np.float64)[None, :]
         if self.hdr:
             self.color = np.empty((n, 4), dtype=np.float32)
         else:
             self.color = np.empty((n, 4), dtype=np.uint8)
-        # One fill of whole packed pixels (a (1, 4) broadcast copies byte by byte).
-        self.packed()[lo:hi].fill(np.ascontiguousarray(self.encode(clear)).view(self.packed().dtype)[0, 0])
-        self.depth = np.empty(n, dtype=np.int64)
-        self.depth[lo:hi] = DEPTH_MAX
+        # One fill of whole packed pixels (a (1, 4) broadcast copies byte by byte), in every plane.
+        self.packed().reshape(self.samples, pixels)[:, lo:hi].fill(
+            np.ascontiguousarray(self.encode(clear)).view(self.packed().dtype)[0, 0])
+        self.depth = np.empty(n, dtype=np.int64 if self.samples == 1 else np.int32)
+        self.depth.reshape(self.samples, pixels)[:, lo:hi] = DEPTH_MAX
         self.stencil = np.empty(n, dtype=np.uint8)
-        self.stencil[lo:hi] = 0
+        self.stencil.reshape(self.samples, pixels)[:, lo:hi] = 0
+        self.uniform = None if self.samples == 1 else np.ones(pixels, dtype=bool)
+
+    def spread(self, pixels: np.ndarray) -> None:
+        """Write the colour of plane 0 into every sample of ``pixels`` (K,) int64 (uniform ones,
+        distinct), which are then no longer uniform: their samples are about to part ways."""
+        packed, plane = self.packed(), self.plane
+        value = packed[pixels]
+        for s in range(1, self.samples):
+            packed[s * plane + pixels] = value
+        self.uniform[pixels] = False
+
+    def rejoin(self, pixels: np.ndarray) -> None:
+        """Mark those of ``pixels`` (K,) int64 whose samples hold bit-identical colours uniform."""
+        words = self.color.view(np.uint32).reshape(self.samples, self.plane, -1)  # 1 (LDR) or 4 (HDR) words
+        first = words[0, pixels]
+        same = np.ones(pixels.size, dtype=bool)
+        for s in range(1, self.samples):
+            same &= (words[s, pixels] == first).all(axis=1)
+        self.uniform[pixels[same]] = True
+
+    def sample_colors(self, pixels: np.ndarray) -> np.ndarray:
+        """(K, N, 4) the stored colour of every sample of ``pixels`` (K,) int64 (uniform pixels'
+        from plane 0)."""
+        planes = self.color.reshape(self.samples, self.plane, 4)
+        out = np.ascontiguousarray(np.take(planes, pixels, axis=1).transpose(1, 0, 2))
+        if self.uniform is not None:
+            same = self.uniform[pixels]
+            out[same] = out[same, :1]
+        return out
+
+    @property
+    def plane(self) -> int:
+        """Elements of one sample plane (H*W): sample ``s`` of pixel ``p`` is at ``s*plane + p``."""
+        return self.width * self.height
 
     def packed(self) -> np.ndarray:
         """The colour buffer with one element per pixel, for gathers and scatters of whole pixels:
@@ -112,6 +233,8 @@ class FrameBuffers:
         other = object.__new__(FrameBuffers)
         other.__dict__.update(self.__dict__)
         other.color, other.depth, other.stencil = self.color.copy(), self.depth.copy(), self.stencil.copy()
+        if self.uniform is not None:
+            other.uniform = self.uniform.copy()
         return other
 
     def encode(self, rgba: np.ndarray) -> np.ndarray:
@@ -159,19 +282,30 @@ class FrameBuffers:
                                            strict=True):
                 if array.shape != shape or array.dtype != dtype:
                     raise ValueError(f"out array {array.dtype} {array.shape} is not {np.dtype(dtype)} {shape}")
-        src_color = self.color.reshape(self.height, w, 4)[y0:y1][::-1]
-        src_depth = self.depth.reshape(self.height, w)[y0:y1][::-1]
+        n = self.samples
+        # Depth and stencil of a multisampled pixel: its sample 0 (what GL's blit of a
+        # multisampled depth-stencil buffer gives, measured on llvmpipe).
+        src_color = self.color.reshape(n, self.height, w, 4)[:, y0:y1][:, ::-1]
+        src_depth = self.depth.reshape(n, self.height, w)[0, y0:y1][::-1]
+
+        planes = self.color.reshape(n, -1, 4)
 
         def rows(lo: int, hi: int) -> None:
+            if n > 1:  # output rows [lo, hi) are buffer rows [y1 - hi, y1 - lo): contiguous in every plane
+                first, end = (y1 - hi) * w, (y1 - lo) * w
+                resolved = resolve_planes(planes[:, first:end], self.uniform[first:end], n, self.hdr, self.linear)
+                part = resolved.reshape(hi - lo, w, 4)[::-1]
+            else:
+                part = src_color[0, lo:hi]
             if self.hdr:
-                color[lo:hi] = src_color[lo:hi]
+                color[lo:hi] = part
             else:
                 # float32 division of the exact integers equals float32(q / 255.0) for every code
                 # and float32(d / (2**24 - 1)) for every depth code (both checked exhaustively in
                 # tests/core/test_fastpaths.py), cheaper than a table lookup.
-                np.divide(src_color[lo:hi], _FLOAT32_255, out=color[lo:hi], dtype=np.float32)
+                np.divide(part, _FLOAT32_255, out=color[lo:hi], dtype=np.float32)
             np.divide(src_depth[lo:hi], _FLOAT32_DEPTH_MAX, out=depth[lo:hi], dtype=np.float32)
 
         run_parts(pool, parts, h, rows, min_part=64)
-        stencil[...] = self.stencil.reshape(self.height, w)[y0:y1][::-1]
+        stencil[...] = self.stencil.reshape(n, self.height, w)[0, y0:y1][::-1]
         return color, depth, stencil

@@ -12,6 +12,8 @@ with one stable sort (:func:`layers_by_rank`, which the sorted reference uses to
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import numpy as np
 
 from ..vocabulary import CompareFunction, Pass
@@ -175,16 +177,30 @@ def merge(
         if codes is not None:
             outcome[sel] = codes
 
+    layers = 0
+    for sel in primitive_layers(pix, disjoint):
+        layer(sel)
+        layers += 1
+    return layers
+
+
+def primitive_layers(pix: np.ndarray, disjoint: bool = False) -> Iterator[np.ndarray | None]:
+    """The layers of fragments at ``pix`` (N,) int64 (N > 0, in draw order) to apply one after
+    another, each a set of distinct pixels in draw order: None for "all of them" when the pixels
+    are distinct (``disjoint``: the caller knows), else index arrays — the first remaining
+    fragment of every pixel, peeled while there are at most :data:`PEEL_LAYERS`, else ranked by
+    :func:`layers_by_rank`. Applying the layers in order applies every pixel's fragments in order."""
     if disjoint:
-        layer(None)
-        return 1
+        yield None
+        return
+    n = pix.shape[0]
     lo = int(pix.min())
     local = pix - lo
     counts = np.bincount(local, minlength=int(pix.max()) - lo + 1)
     layers = int(counts.max())
     if layers == 1:
-        layer(None)
-        return 1
+        yield None
+        return
     if layers <= PEEL_LAYERS:
         # Layer k = the first remaining fragment of each pixel, found with an unbuffered minimum.
         first = np.full(counts.size, n, dtype=np.int64)
@@ -193,11 +209,9 @@ def merge(
             where = local[remaining]
             np.minimum.at(first, where, remaining)
             is_first = first[where] == remaining
-            layer(remaining[is_first])
+            yield remaining[is_first]
             first[where] = n
             remaining = remaining[~is_first]
-        return layers
+        return
     order = np.argsort(local, kind="stable")
-    for sel in layers_by_rank(order, local[order]):
-        layer(sel)
-    return layers
+    yield from layers_by_rank(order, local[order])
