@@ -319,3 +319,11 @@ def test_blended_sphere_equals_reference(samples, hdr):
                      hdr=hdr, msaa=samples)
     assert_same(scene)
     assert_same(scene, chunk_candidates=97)
+
+
+@pytest.mark.parametrize("samples", [2, 4, 8])
+@pytest.mark.parametrize("seed", range(1, 40, 4))
+def test_seeded_msaa_scenes_with_lights_vertex_colours_mips_and_outlines_equal_reference(seed, samples):
+    """SPEC §12 together: ForwardAdd lights, vertex colours, mipmaps (the quad LOD from the pixel
+    centres, shading once per pixel) and outline vertex programs under MSAA with AlphaToMask."""
+    assert_same(seeded_scene(seed, features=True, msaa=samples))
