@@ -156,7 +156,8 @@ def _vrm0_entry(mtoon: AddonMToon) -> dict[str, Any]:
             "keywordMap": keywords, "vectorProperties": vectors, "textureProperties": textures}
 
 
-def _vrm1_material(mtoon: AddonMToon) -> dict[str, Any]:
+def vrm1_material_json(mtoon: AddonMToon) -> dict[str, Any]:
+    """The glTF material the add-on's VRM 1.0 exporter writes for ``mtoon`` (texture index 0)."""
     base: dict[str, Any] = {"baseColorFactor": list(mtoon.base_color_factor)}
     texture = mtoon.base_color_texture
     if texture is not None:
@@ -185,7 +186,7 @@ def export_document(mtoon: AddonMToon, spec_version: str) -> GltfDocument:
                     "extensions": {"KHR_materials_unlit": {}}}
         data |= {"materials": [material], "extensions": {"VRM": {"materialProperties": [_vrm0_entry(mtoon)]}}}
     elif spec_version == "1.0":
-        data |= {"materials": [_vrm1_material(mtoon)], "extensions": {"VRMC_vrm": {"specVersion": "1.0"}}}
+        data |= {"materials": [vrm1_material_json(mtoon)], "extensions": {"VRMC_vrm": {"specVersion": "1.0"}}}
     else:
         raise ValueError(f"unknown VRM spec version {spec_version!r} (expected 0.x or 1.0)")
     return document_from_json(data, f"<VRM Add-on material {mtoon.name!r}>")
