@@ -1,4 +1,4 @@
-"""Command line: ``python -m blendlib render|compare|shaderlab|drawlist|pixel|analyze ...``.
+"""Command line: ``python -m blendlib render|compare|shaderlab|drawlist|pixel|analyze|import ...``.
 
 Each subcommand is a module with ``add_parser(subparsers)`` and ``run(args)``. Errors are
 one line on stderr (``error: ...``) with a non-zero exit status: 1 for bad input or a
@@ -13,10 +13,10 @@ import argparse
 import os
 import sys
 
-from . import analyze, compare, drawlist, pixel, render, shaderlab
+from . import analyze, compare, drawlist, import_, pixel, render, shaderlab
 from .common import CliError
 
-COMMANDS = (render, compare, shaderlab, drawlist, pixel, analyze)
+COMMANDS = (render, compare, shaderlab, drawlist, pixel, analyze, import_)
 
 
 def build_parser() -> argparse.ArgumentParser:
