@@ -34,6 +34,8 @@ CAPTIONS = (
     ("render_queues", "RenderQueues", "8  Render queues, Overlay ZTest Always, Transparent+1"),
     ("gamma_linear", "Gamma", "9a Gamma colour space: blending encoded values"),
     ("gamma_linear", "Linear", "9b Linear colour space: blending in linear light"),
+    ("vrm_avatar", "Avatar", "10a VRM avatar: the skirt's ZWrite hides the stockings"),
+    ("vrm_avatar", "AvatarFace", "10b VRM avatar: eyebrows over bangs, lashes over lenses"),
 )
 
 TILE = (480, 270)

@@ -46,6 +46,7 @@ EXPECTED_FILES = {
     "blend_modes.blend": ["BlendModes"],
     "render_queues.blend": ["RenderQueues"],
     "gamma_linear.blend": ["Gamma", "Linear"],
+    "vrm_avatar.blend": ["Avatar", "AvatarFace"],  # phenomena: tests/test_vrm_avatar_example.py
 }
 
 

@@ -42,6 +42,7 @@ import numpy as np
 from blendlib.core.scene import DrawScene, validate_scene
 from blendlib.core.vocabulary import (
     LAST_OPAQUE_QUEUE,
+    ONCE,
     QUEUE_NUMBERS,
     BlendFactor,
     BlendOp,
@@ -54,6 +55,7 @@ from blendlib.core.vocabulary import (
     StencilOp,
     TextureFilter,
     TextureWrap,
+    pass_draws,
 )
 
 DMAX = 2**24 - 1
@@ -427,7 +429,10 @@ class GLRenderer:
             data, mirrored, skipped = vertex_data(scene, r)
             if skipped:
                 self.warnings.append(f"object {r.name!r} slot {r.slot}: {skipped} non-finite triangle(s) skipped")
-            number += len(r.material.draw_passes)
+            # Passes the forward path draws once (SPEC §11.2); ForwardAdd passes draw per extra light, which
+            # this reference does not draw yet, and ShadowCaster & co. never.
+            drawn = [p for p in r.material.draw_passes if pass_draws(p, r.material.draw_passes)[0] == ONCE]
+            number += len(drawn)
             if len(data) == 0:
                 continue
             vbo = ctx.buffer(data.tobytes())
@@ -450,9 +455,9 @@ class GLRenderer:
                 "cutoff": float(mat.cutoff), "lambert": mat.lighting is Lighting.Lambert,
                 "has_tex": tex is not None, "ambient": sh.ambient, "light": sh.light, "ldir": sh.ldir,
             }
-            for k, p in enumerate(mat.draw_passes):
+            for k, p in enumerate(drawn):
                 self.calls.append((vao, len(data), mirrored, tex, uniforms, p))
-                self.call_numbers.append(number - len(mat.draw_passes) + k + 1)
+                self.call_numbers.append(number - len(drawn) + k + 1)
                 self.call_queues.append(mat.render_queue)
                 self._call_buffers.append(vbo)
 
