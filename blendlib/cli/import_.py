@@ -37,17 +37,20 @@ def add_parser(sub) -> None:
 
 
 def _check_output(output: Path, source: Path) -> None:
+    """Before any work: a ``.blend`` name, not the input, in a folder a file can be created in."""
     if output.suffix.lower() != ".blend":
         raise CliError(f"{output}: the import writes a .blend file")
     if output.is_dir():
         raise CliError(f"{output}: is a directory; -o needs a file name")
-    folder = output.parent if str(output.parent) else Path(".")
-    if not folder.is_dir():
-        raise CliError(f"{output}: output directory {str(folder)!r} does not exist")
-    if not os.access(folder, os.W_OK):
-        raise CliError(f"{output}: output directory {str(folder)!r} is not writable")
     if output.exists() and source.exists() and output.resolve() == source.resolve():
         raise CliError(f"{output}: is the input file; choose another output")
+    folder = output.parent if str(output.parent) else Path(".")
+    try:  # the real test of the folder: create (and remove) a file there
+        fd, probe = tempfile.mkstemp(prefix=f".{output.stem}.", suffix=".probe", dir=folder)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise CliError(f"{output}: cannot write in {str(folder)!r} ({exc.strerror or exc})") from None
 
 
 def _save(output: Path) -> None:

@@ -99,6 +99,6 @@ def test_bad_outputs(tmp_path):
     source = write_gltf(tmp_path / "m.gltf", triangles_document([{"name": "M"}]))
     one_line_error(run_cli("import", str(source), "-o", str(tmp_path / "m.png")), "the import writes a .blend file")
     one_line_error(run_cli("import", str(source), "-o", str(tmp_path / "no" / "m.blend")),
-                   "output directory")
+                   "m.blend: cannot write in")
     one_line_error(run_cli("import", str(tmp_path / "missing.vrm"), "-o", str(tmp_path / "m.blend")),
                    "missing.vrm: no such file")
