@@ -6,6 +6,9 @@
 - :mod:`.extract`: a Blender scene → :class:`blendlib.core.scene.DrawScene`.
 - :mod:`.render`: render a scene (viewport or F12 depsgraph), write a Frame into an Image.
 - :mod:`.files`: open .blend files, find scenes.
+- :mod:`.gltf_import`: ``.vrm`` / ``.glb`` / ``.gltf`` through Blender's glTF importer, each material with
+  the Unity settings UniVRM / UniGLTF set; :mod:`.vrm_addon`: the VRM Add-on for Blender's MToon
+  materials, read (and written) in the add-on's format, drawn as UniVRM draws its export.
 """
 
 from __future__ import annotations

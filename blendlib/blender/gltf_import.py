@@ -93,14 +93,17 @@ def _renamed_copy(document: GltfDocument) -> Iterator[str]:
         yield path
 
 
-def _run_blender_importer(path: str, where: str) -> None:
+def _run_blender_importer(path: str, where: str, scene: Any) -> None:
+    """Blender's glTF importer into ``scene`` (it links what it makes into the context's collection)."""
     import bpy  # noqa: I001 - bpy before addon_utils
 
     import addon_utils
 
     addon_utils.enable("io_scene_gltf2", default_set=False)
+    override = {} if scene == bpy.context.scene else {"scene": scene, "view_layer": scene.view_layers[0]}
     try:
-        result = bpy.ops.import_scene.gltf(filepath=path)
+        with bpy.context.temp_override(**override):
+            result = bpy.ops.import_scene.gltf(filepath=path)
     except (RuntimeError, TypeError, ValueError, KeyError, IndexError, AttributeError) as exc:
         lines = [line for line in str(exc).strip().splitlines() if line.strip()]
         reason = lines[-1].removeprefix("Error: ").strip() if lines else type(exc).__name__
@@ -132,7 +135,7 @@ def import_gltf(path: str | Path, scene: Any = None, *, add_camera: bool = True,
     scene = scene or bpy.context.scene
     before = {key: {b.as_pointer() for b in getattr(bpy.data, key)} for key in ("objects", "materials", "images")}
     with _renamed_copy(document) as copy_path:
-        _run_blender_importer(copy_path, document.path)
+        _run_blender_importer(copy_path, document.path, scene)
     images: dict[int, Any] = {}
     for image in _new(bpy.data.images, before["images"]):
         token = _strip_suffix(image.name)

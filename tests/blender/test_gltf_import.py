@@ -152,3 +152,27 @@ def test_textures_become_main_tex_with_their_pixels(tmp_path):
     assert np.allclose(pixels[1, 0], (1, 0, 0, 1)) and pixels[1, 1, 3] == pytest.approx(128 / 255)
     material = blender.material_from_blender(mat)
     assert (material.main_tex_filter.value, material.cutoff, material.lighting.value) == ("Point", 0.25, "Unlit")
+
+
+def test_a_gltf_with_external_buffer_and_image_files(tmp_path):
+    """The importer reads a renamed copy of the file from a temporary folder: relative URIs (with a
+    space, percent-encoded) still find the files beside the original."""
+    import base64
+    import json
+
+    doc = triangles_document([{"name": "Ext", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}],
+                             textures=1)
+    folder = tmp_path / "my model"
+    folder.mkdir()
+    (folder / "geo data.bin").write_bytes(doc.pop("__buffer__"))
+    doc["buffers"][0]["uri"] = "geo%20data.bin"
+    png = base64.b64decode(doc["images"][0]["uri"].split(",", 1)[1])
+    (folder / "tex 0.png").write_bytes(png)
+    doc["images"][0] = {"uri": "tex%200.png"}
+    (folder / "model.gltf").write_text(json.dumps(doc))
+    empty_scene()
+    done = gltf_import.import_gltf(folder / "model.gltf")
+    (mat,) = done.materials
+    image = blender.material_values(mat)["main_tex"]
+    assert image.name == "tex 0.png" and image.size[:] == (2, 2) and image.has_data
+    assert len([o for o in done.objects if o.type == "MESH"]) == 1

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import struct
+import urllib.parse
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -75,7 +76,7 @@ class GltfDocument:
             return name
         uri = entry.get("uri")
         if isinstance(uri, str) and uri and not uri.startswith("data:"):
-            return uri.replace("\\", "/").rsplit("/", 1)[-1]
+            return urllib.parse.unquote(uri).replace("\\", "/").rsplit("/", 1)[-1]
         return f"Image_{image}"
 
 
