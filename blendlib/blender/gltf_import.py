@@ -105,7 +105,9 @@ def _run_blender_importer(path: str, where: str, scene: Any) -> None:
         with bpy.context.temp_override(**override):
             result = bpy.ops.import_scene.gltf(filepath=path)
     except (RuntimeError, TypeError, ValueError, KeyError, IndexError, AttributeError) as exc:
-        lines = [line for line in str(exc).strip().splitlines() if line.strip()]
+        # Blender's message is a traceback then "Location: ops.py:N": the reason is the last line of neither.
+        lines = [line.strip() for line in str(exc).splitlines()
+                 if line.strip() and not line.startswith((" ", "\t")) and not line.startswith("Location:")]
         reason = lines[-1].removeprefix("Error: ").strip() if lines else type(exc).__name__
         raise GltfError(f"{where}: Blender's glTF importer failed: {reason}") from None
     if "FINISHED" not in result:
@@ -118,8 +120,23 @@ def _strip_suffix(name: str) -> str:
     return head if dot and tail.isdigit() else name
 
 
+#: The kinds of data Blender's glTF importer creates.
+_CREATED = ("objects", "meshes", "materials", "images", "armatures", "cameras", "lights", "node_groups",
+            "actions", "collections")
+
+
 def _new(collection: Any, before: set[int]) -> list[Any]:
     return [block for block in collection if block.as_pointer() not in before]
+
+
+def _remove_new(before: dict[str, set[int]]) -> None:
+    """Remove every data-block created since ``before`` (pointers per ``bpy.data`` collection)."""
+    import bpy
+
+    for key in _CREATED:
+        collection = getattr(bpy.data, key)
+        for block in _new(collection, before[key]):
+            collection.remove(block)
 
 
 def import_gltf(path: str | Path, scene: Any = None, *, add_camera: bool = True, add_sun: bool = True
@@ -133,9 +150,13 @@ def import_gltf(path: str | Path, scene: Any = None, *, add_camera: bool = True,
     document = read_document(path)
     result = import_materials(document)
     scene = scene or bpy.context.scene
-    before = {key: {b.as_pointer() for b in getattr(bpy.data, key)} for key in ("objects", "materials", "images")}
-    with _renamed_copy(document) as copy_path:
-        _run_blender_importer(copy_path, document.path, scene)
+    before = {key: {b.as_pointer() for b in getattr(bpy.data, key)} for key in _CREATED}
+    try:
+        with _renamed_copy(document) as copy_path:
+            _run_blender_importer(copy_path, document.path, scene)
+    except GltfError:
+        _remove_new(before)  # what Blender's importer made before it stopped
+        raise
     images: dict[int, Any] = {}
     for image in _new(bpy.data.images, before["images"]):
         token = _strip_suffix(image.name)
@@ -161,6 +182,8 @@ def import_gltf(path: str | Path, scene: Any = None, *, add_camera: bool = True,
     camera = sun = None
     if add_camera and not document.list("cameras"):
         camera = frame_model(scene, objects, facing_positive_y=result.vrm == "0.x")
+    elif scene.camera is None:  # the file's own first camera
+        scene.camera = next((o for o in objects if o.type == "CAMERA"), None)
     if add_sun and not any(o.type == "LIGHT" and o.data.type == "SUN" for o in scene.objects):
         sun = add_front_sun(scene, facing_positive_y=result.vrm == "0.x")
     return ImportResult(result, tuple(materials), tuple(objects), camera, sun)

@@ -176,3 +176,14 @@ def test_a_gltf_with_external_buffer_and_image_files(tmp_path):
     image = blender.material_values(mat)["main_tex"]
     assert image.name == "tex 0.png" and image.size[:] == (2, 2) and image.has_data
     assert len([o for o in done.objects if o.type == "MESH"]) == 1
+
+
+def test_a_file_blenders_importer_rejects_is_one_line_and_leaves_nothing(tmp_path):
+    doc = triangles_document([{"name": "A"}, {"name": "B"}])
+    doc["accessors"][3]["bufferView"] = 99  # the second mesh's positions: no such buffer view
+    empty_scene()
+    before = {key: len(getattr(bpy.data, key)) for key in gltf_import._CREATED}
+    with pytest.raises(GltfError, match=r"bad.glb: Blender's glTF importer failed: IndexError: list index") as info:
+        gltf_import.import_gltf(write_glb(tmp_path / "bad.glb", doc))
+    assert "\n" not in str(info.value)
+    assert {key: len(getattr(bpy.data, key)) for key in gltf_import._CREATED} == before
