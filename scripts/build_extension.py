@@ -1,11 +1,12 @@
 #!/usr/bin/env python3
 """Build the Blender 4.2+ extension zip: ``dist/blendlib-<version>.zip``.
 
-The zip holds the add-on (``addon/``, with ``blender_manifest.toml`` at the top of the zip) and
-``wheels/blendlib-<version>-py3-none-any.whl``, the bpy-free ``blendlib`` package, which Blender
-installs with the extension so ``import blendlib`` works where the repository is not on
-``sys.path``. numpy ships with Blender; Pillow and OpenEXR are not needed inside Blender (they
-are the wheel's optional ``files`` extra, which Blender does not install).
+The zip holds the add-on (``addon/``, with ``blender_manifest.toml`` at the top of the zip),
+``wheels/blendlib-<version>-py3-none-any.whl``, the bpy-free ``blendlib`` package, and the pure-Python
+wheel of ruamel.yaml at the version ``requirements.txt`` pins (Unity ``.mat`` files; Blender ships no
+YAML library), which Blender installs with the extension so ``import blendlib`` works where the
+repository is not on ``sys.path``. numpy ships with Blender; Pillow and OpenEXR are not needed inside
+Blender (they are the wheel's optional ``files`` extra, which Blender does not install).
 
 The tools are the standard ones: ``python -m build`` (sdist, then the wheel from the sdist, with
 the setuptools installed in this environment, on a copy of the sources) and Blender's own
@@ -89,18 +90,47 @@ def build_wheel(out_dir: Path) -> Path:
     return wheels[0]
 
 
+#: Third-party wheels the extension bundles: pure-Python ones only (one wheel serves every platform).
+BUNDLED = ("ruamel.yaml",)
+
+
+def pinned(name: str) -> str:
+    """``name==version`` as ``requirements.txt`` pins it."""
+    for line in (ROOT / "requirements.txt").read_text(encoding="utf-8").splitlines():
+        if line.split("==")[0].strip().lower() == name.lower():
+            return line.strip()
+    raise BuildError(f"requirements.txt does not pin {name}")
+
+
+def bundled_wheels(out_dir: Path) -> list[Path]:
+    """The pure-Python wheels of :data:`BUNDLED` at their pinned versions (``pip download``, which
+    takes them from pip's cache when it holds them)."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    wheels = []
+    for name in BUNDLED:
+        _run([sys.executable, "-m", "pip", "download", "--no-deps", "--only-binary=:all:", "--dest", str(out_dir),
+              pinned(name)], f"pip download {pinned(name)}")
+        found = sorted(out_dir.glob(name.replace(".", "_").replace("-", "_") + "-*-py3-none-any.whl"))
+        if len(found) != 1:
+            raise BuildError(f"pip download {pinned(name)} gave no pure-Python wheel in {out_dir}")
+        wheels.append(found[0])
+    return wheels
+
+
 def build(dist: Path) -> Path:
     """Build ``dist/<id>-<version>.zip`` with Blender's extension builder; returns its path."""
     ext_id, version = versions()
     dist.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix="blendlib-extension-") as tmp:
-        wheel = build_wheel(Path(tmp) / "wheel")
+        wheels = [build_wheel(Path(tmp) / "wheel"), *bundled_wheels(Path(tmp) / "bundled")]
         source = Path(tmp) / ext_id
         shutil.copytree(ADDON, source, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
         (source / "wheels").mkdir()
-        shutil.copy2(wheel, source / "wheels" / wheel.name)
+        for wheel in wheels:
+            shutil.copy2(wheel, source / "wheels" / wheel.name)
+        listed = ", ".join(f'"./wheels/{wheel.name}"' for wheel in wheels)
         manifest_path = source / "blender_manifest.toml"
-        manifest, count = re.subn(r"^wheels\s*=\s*\[.*?\]", f'wheels = ["./wheels/{wheel.name}"]',
+        manifest, count = re.subn(r"^wheels\s*=\s*\[.*?\]", f"wheels = [{listed}]",
                                   manifest_path.read_text(encoding="utf-8"), flags=re.M | re.S)
         if count != 1:
             raise BuildError("addon/blender_manifest.toml needs one 'wheels = [...]' entry")

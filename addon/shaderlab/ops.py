@@ -1,18 +1,20 @@
-"""Import ShaderLab (file browser / clipboard) and Export ShaderLab (file browser) operators.
+"""Import ShaderLab (file browser: a ``.shader`` or a Unity ``.mat``; clipboard) and Export ShaderLab
+(file browser) operators.
 
-Import parses the whole ``.shader`` text first (:mod:`blendlib.formats.shaderlab`); on a
-parse error it reports one line (``FILE:LINE:COL: message``) and changes nothing.
-On success it replaces the material's Unity settings (``material.unity``) through the
-schema's writer (:func:`blendlib.blender.write_material`): queue, offset, ``_Color``,
-``_AlphaScale``, ``_Cutoff``, lighting and the pass list (cleared and rebuilt), and
-turns ``enabled`` on. Every value is checked before any is assigned, so a value the
-settings cannot hold changes nothing.
+Import parses the whole file first (:mod:`blendlib.formats.shaderlab`); on an error it reports
+one line (``FILE:LINE:COL: message``) and changes nothing. On success it replaces the
+material's Unity settings (``material.unity``) through the schema's writer
+(:func:`blendlib.blender.write_material`): queue, offset, ``_Color``, ``_AlphaScale``,
+``_Cutoff``, lighting, vertex colours and ``_TintColor``, and the pass list (cleared and
+rebuilt), and turns ``enabled`` on. Every value is checked before any is assigned, so a value
+the settings cannot hold changes nothing.
 
-A ``.shader`` file holds no texture image, tiling/offset or sampler settings (in
-Unity they belong to the material and the texture asset, and switching a
-material's shader keeps them), so import keeps the material's ``main_tex``,
-``main_tex_tiling``, ``main_tex_offset``, ``main_tex_filter`` and ``main_tex_wrap``
-unless "Reset Texture Settings" is on, which sets them to the defaults.
+A ``.shader`` file holds no texture image, tiling/offset or sampler settings (in Unity they
+belong to the material and the texture asset, and switching a material's shader keeps them), so
+a ``.shader`` import keeps the material's texture settings unless "Reset Texture Settings" is on.
+A ``.mat`` holds them: its ``_MainTex`` image is loaded as a Blender image (:func:`apply_material`)
+with the sampler settings of the texture's ``.meta``. Unity's built-in shaders (Standard,
+Sprites/Default, …) are found in the "Shader Folder" (Unity's built-in shader source).
 """
 
 from __future__ import annotations
@@ -30,11 +32,13 @@ from blendlib.formats import shaderlab
 from blendlib.formats.atomic import write_atomic
 
 #: Material fields a .shader file does not hold: kept on import unless "Reset Texture Settings".
-TEXTURE_FIELDS = ("main_tex", "main_tex_tiling", "main_tex_offset", "main_tex_filter", "main_tex_wrap")
+TEXTURE_FIELDS = ("main_tex", "main_tex_tiling", "main_tex_offset", "main_tex_filter", "main_tex_wrap",
+                  "main_tex_mipmaps", "main_tex_preserve_coverage")
 
 
 def apply_result(material, result: shaderlab.ShaderLabResult, reset_texture: bool = False) -> None:
-    """Replace ``material.unity`` with an import result, all or nothing (ValueError: nothing changed)."""
+    """Replace ``material.unity`` with a ``.shader`` import result, all or nothing (ValueError:
+    nothing changed)."""
     values = blender.material_fields(result.material)
     if reset_texture:
         values["main_tex"] = None
@@ -43,8 +47,51 @@ def apply_result(material, result: shaderlab.ShaderLabResult, reset_texture: boo
     blender.write_material(material, enabled=True, **values)
 
 
+def load_texture(result: shaderlab.ShaderLabResult):
+    """``(image, warning)``: the ``.mat`` result's ``_MainTex`` file as a Blender image (an image
+    already loaded from that file is reused; a non-colour texture gets Non-Color), or None."""
+    path = result.main_tex_file
+    if path is None:
+        return None, None
+    try:
+        image = bpy.data.images.load(path, check_existing=True)
+    except RuntimeError as exc:
+        return None, f"{path}: cannot load the texture ({_one_line(exc)}); drawn without it"
+    prop = result.extra.get("main_tex_property")
+    settings = result.extra.get("textures", {}).get(prop, {})
+    if settings.get("srgb") is False and image.colorspace_settings.name != "Non-Color":
+        image.colorspace_settings.name = "Non-Color"
+    return image, None
+
+
+def apply_material(material, result: shaderlab.ShaderLabResult) -> list[str]:
+    """Replace ``material.unity`` with a ``.mat`` import result, its texture loaded as a Blender
+    image, all or nothing (ValueError: nothing changed; an image loaded for it is removed again).
+    Returns the warnings of loading the texture."""
+    existing = {image.name for image in bpy.data.images}
+    image, warning = load_texture(result)
+    try:
+        blender.write_material(material, enabled=True, **(blender.material_fields(result.material)
+                                                            | {"main_tex": image}))
+    except ValueError:
+        if image is not None and image.name not in existing:
+            bpy.data.images.remove(image)
+        raise
+    return [warning] if warning else []
+
+
+def search_folders(text: str) -> tuple[str, ...]:
+    """The "Shader Folder" setting as search folders (Blender's // paths resolved)."""
+    return (bpy.path.abspath(text),) if text.strip() else ()
+
+
 def _one_line(text: str) -> str:
     return " ".join(str(text).split())
+
+
+SHADER_FOLDER_DESCRIPTION = ("A folder searched (with its subfolders) for shaders a file names: Unity's built-in "
+                             "shader source for Standard, Sprites/Default, UI/Default, … (the 'Built in shaders' "
+                             "download); a project's own shaders are found in its Assets folder")
 
 
 class _ImportMixin:
@@ -61,9 +108,11 @@ class _ImportMixin:
         mat = getattr(context, "material", None)
         return mat is not None and hasattr(mat, "unity")
 
-    def import_text(self, context, text: str, filename: str):
+    def import_text(self, context, text: str, filename: str, search: tuple[str, ...] = (),
+                    folder: str | None = None):
         try:
-            result = shaderlab.parse_shaderlab(text, filename=filename)
+            folders = shaderlab.AssetSearch([*([folder] if folder else []), *search])
+            result = shaderlab.parse_shaderlab(text, filename=filename, search=folders)
         except shaderlab.ShaderLabError as exc:
             self.report({"ERROR"}, _one_line(str(exc)))
             return {"CANCELLED"}
@@ -77,31 +126,62 @@ class _ImportMixin:
             return {"CANCELLED"}
         for warning in result.warnings:
             self.report({"WARNING"}, _one_line(f"{filename}:{warning}"))
+        self.report_done(result)
+        return {"FINISHED"}
+
+    def report_done(self, result: shaderlab.ShaderLabResult) -> None:
         n = len(result.passes)
         queue = queue_text(result.material.queue, result.material.queue_offset)
         self.report({"INFO"}, f'Imported "{result.name}": {n} pass{"" if n == 1 else "es"}, queue {queue}')
-        return {"FINISHED"}
 
 
 class UNITY_OT_shaderlab_import(_ImportMixin, Operator, ImportHelper):
-    """Replace this material's Unity settings with those of a ShaderLab .shader file"""
+    """Replace this material's Unity settings with those of a ShaderLab .shader file or a Unity .mat
+    material (its texture and sampler settings too)"""
 
     bl_idname = "unity.shaderlab_import"
     bl_label = "Import ShaderLab…"
     bl_options = {"REGISTER", "UNDO"}
 
     filename_ext = ".shader"
-    filter_glob: StringProperty(default="*.shader", options={"HIDDEN"})
+    filter_glob: StringProperty(default="*.shader;*.mat", options={"HIDDEN"})
+    search_folder: StringProperty(name="Shader Folder", description=SHADER_FOLDER_DESCRIPTION, subtype="DIR_PATH",
+                                  default="")
 
     def execute(self, context):
-        path = self.filepath
+        path = bpy.path.abspath(self.filepath)
+        search = search_folders(self.search_folder)
+        if path.lower().endswith(".mat"):
+            return self.import_material_file(context, path, search)
         try:
             with open(path, encoding="utf-8-sig") as fh:
                 text = fh.read()
         except (OSError, UnicodeDecodeError) as exc:
             self.report({"ERROR"}, _one_line(f"{path}: cannot read: {getattr(exc, 'strerror', None) or exc}"))
             return {"CANCELLED"}
-        return self.import_text(context, text, os.path.basename(path) or path)
+        return self.import_text(context, text, os.path.basename(path) or path, search, os.path.dirname(path))
+
+    def import_material_file(self, context, path: str, search: tuple[str, ...]):
+        try:
+            result = shaderlab.import_material_file(path, search)
+        except shaderlab.ShaderLabError as exc:
+            self.report({"ERROR"}, _one_line(str(exc)))
+            return {"CANCELLED"}
+        except OSError as exc:
+            self.report({"ERROR"}, _one_line(f"{path}: cannot read: {exc.strerror or exc}"))
+            return {"CANCELLED"}
+        except Exception as exc:  # noqa: BLE001 - a report, never a traceback in the UI
+            self.report({"ERROR"}, _one_line(f"{path}: internal error: {type(exc).__name__}: {exc}"))
+            return {"CANCELLED"}
+        try:
+            warnings = apply_material(context.material, result)
+        except (TypeError, ValueError, AttributeError) as exc:
+            self.report({"ERROR"}, _one_line(f"{path}: cannot apply the settings: {exc}"))
+            return {"CANCELLED"}
+        for warning in (*result.warnings, *warnings):
+            self.report({"WARNING"}, _one_line(warning))
+        self.report_done(result)
+        return {"FINISHED"}
 
 
 class UNITY_OT_shaderlab_import_clipboard(_ImportMixin, Operator):

@@ -27,7 +27,7 @@ from . import raster, shade
 from .merger import table_pays
 from .records import DrawState, ShadedFragments
 from .vertex import TriangleSetup
-from .vocabulary import ColorSpace, TextureFilter
+from .vocabulary import ColorSpace, CompareFunction, TextureFilter
 
 #: ``shade(setup, rows, start, stop, state)``: a chunk of a draw call's rows → its shaded fragments.
 ChunkShader = Callable[[TriangleSetup, raster.Rows, int, int, DrawState], ShadedFragments | None]
@@ -77,16 +77,34 @@ def distinct_colors(colors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def alpha_test(rgba: np.ndarray | None, ids: np.ndarray | None, palette: np.ndarray | None,
-                cutoff: float) -> np.ndarray:
-    """(N,) bool: the fragments that survive ``clip(alpha - _Cutoff)``, their colours given as
-    in :class:`ShadedFragments` (``rgba``, or ``palette[ids]`` where ``ids >= 0``)."""
+               cutoff: float, comp: CompareFunction = CompareFunction.GEqual) -> np.ndarray:
+    """(N,) bool: the fragments that survive the alpha test ``alpha <comp> _Cutoff``, their
+    colours given as in :class:`ShadedFragments` (``rgba``, or ``palette[ids]`` where ``ids >= 0``).
+
+    ``GEqual`` is the book's ``clip(alpha - _Cutoff)``: a fragment dies when the difference is
+    negative (so a NaN alpha survives, as ``clip`` keeps it). The other comparisons are the
+    legacy ``AlphaTest`` command's (Unity manual, "ShaderLab: legacy alpha testing"): a plain
+    IEEE comparison of alpha with the cutoff; ``Always`` keeps every fragment, ``Never`` none.
+    """
     if ids is None:
         alpha = rgba[:, 3]
     elif rgba is None:
         alpha = np.take(palette[:, 3], ids)
     else:
         alpha = np.where(ids >= 0, palette[np.maximum(ids, 0), 3], rgba[:, 3])
-    return ~(alpha - float(cutoff) < 0)
+    cutoff = float(cutoff)
+    if comp is CompareFunction.GEqual:
+        return ~(alpha - cutoff < 0)
+    if comp is CompareFunction.Always or comp is CompareFunction.Never:
+        return np.full(alpha.shape, comp is CompareFunction.Always, dtype=bool)
+    return _ALPHA_COMPARISONS[comp](alpha, cutoff)
+
+
+#: ``alpha <comp> cutoff`` for the comparisons other than GEqual, Always and Never.
+_ALPHA_COMPARISONS = {
+    CompareFunction.Greater: np.greater, CompareFunction.Less: np.less, CompareFunction.LEqual: np.less_equal,
+    CompareFunction.Equal: np.equal, CompareFunction.NotEqual: np.not_equal,
+}
 
 
 def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedFragments | None:
@@ -208,7 +226,7 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
                 tabled_at = ids >= 0
                 rgba[tabled_at] = np.take(palette, ids[tabled_at], axis=0)
             ids = palette = None
-    alive = alpha_test(rgba, ids, palette, material.cutoff) if p.alpha_test else None
+    alive = alpha_test(rgba, ids, palette, material.cutoff, p.alpha_test_comp) if p.alpha_test else None
     triangle_fn = None
     if state.observed:  # source triangles only when an observer reads them (and only those it reads)
         def triangle_fn(index: np.ndarray | None) -> np.ndarray:

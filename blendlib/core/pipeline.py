@@ -408,6 +408,7 @@ def _merge_member(buf: FrameBuffers, member: Member, frags: ShadedFragments) -> 
     if frags.ids is not None and not lut_eligible(p, buf.hdr):
         frags = replace(frags, rgba=frags.colors(), ids=None, palette=None)  # blended one by one
     if p.alpha_test:
-        frags = frags.select(fragment.alpha_test(frags.rgba, frags.ids, frags.palette, member.state.material.cutoff))
+        frags = frags.select(fragment.alpha_test(frags.rgba, frags.ids, frags.palette, member.state.material.cutoff,
+                                                 p.alpha_test_comp))
     merge(buf, p, frags.pix, frags.stored_depth, frags.rgba, frags.ids, frags.palette, disjoint=frags.disjoint,
           tables=member.tables)

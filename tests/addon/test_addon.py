@@ -24,7 +24,8 @@ def registered():
 #: call the operators, files store the panels' and lists' names).
 OPERATORS = {
     "pass_add", "pass_remove", "pass_move", "pass_duplicate", "apply_preset", "fill_from_principled",
-    "use_standard_view", "shaderlab_import", "shaderlab_import_clipboard", "shaderlab_export", "sort_analyze",
+    "use_standard_view", "shaderlab_import", "shaderlab_import_clipboard", "shaderlab_export", "link_unity_project",
+    "sort_analyze",
     "sort_apply_advice", "frame_debugger_capture", "frame_debugger_pixel",
 }
 TYPES = {
@@ -87,13 +88,25 @@ scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_pe
 scene.render.filepath = sys.argv[2]
 bpy.ops.render.render(write_still=True)
 assert not any(m.split(".")[0] in ("PIL", "OpenEXR", "matplotlib") for m in sys.modules)
+# A Unity .mat reads through ruamel.yaml from the extension's bundled wheel: only site-packages under
+# this test's folder stay on the path (bpy and numpy are loaded already).
+assert "ruamel" not in sys.modules
+sys.path[:] = [p for p in sys.path if "site-packages" not in p or p.startswith(sys.argv[3])]
+from blendlib.formats.shaderlab import material_file
+mat = material_file.parse_material_file(
+    "--- !u!21 &2100000\nMaterial:\n  m_Name: M\n  m_Shader: {fileID: 46, guid: 0000000000000000f000000000000000}\n"
+    "  m_SavedProperties:\n    m_Floats:\n    - _SrcBlend: 5\n", "m.mat")
+assert mat.name == "M" and mat.floats == {"_SrcBlend": 5.0}
+import ruamel.yaml
+assert ruamel.yaml.__file__.startswith(sys.argv[3]), ruamel.yaml.__file__
 print("OK", [m.__name__ for m in addon_utils.modules() if m.__name__.startswith("bl_ext.")])
 """
 
 
 def test_extension_zip_installs_without_the_repository(tmp_path):
     """Blender's own installer takes the zip built by Blender's own builder; the add-on then
-    imports blendlib from the bundled wheel and renders without Pillow, OpenEXR or matplotlib."""
+    imports blendlib from the bundled wheel and renders without Pillow, OpenEXR or matplotlib, and
+    reads a Unity .mat with the bundled ruamel.yaml wheel."""
     import subprocess
     import sys
     import zipfile
@@ -110,10 +123,11 @@ def test_extension_zip_installs_without_the_repository(tmp_path):
             "material_settings/properties.py", "shaderlab/ops.py", "sort_analysis/ops.py",
             "frame_debugger/ops.py"} <= set(names)
     assert "wheels/blendlib-0.1.0-py3-none-any.whl" in names
+    assert "wheels/ruamel_yaml-0.19.1-py3-none-any.whl" in names  # the version requirements.txt pins
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}  # blendlib must come from the wheel
     env.update(HOME=str(tmp_path / "home"), XDG_CONFIG_HOME=str(tmp_path / "config"))
     image = tmp_path / "render.png"
-    run = subprocess.run([sys.executable, "-c", INSTALL, zip_path, str(image)], cwd=tmp_path, env=env,
+    run = subprocess.run([sys.executable, "-c", INSTALL, zip_path, str(image), str(tmp_path)], cwd=tmp_path, env=env,
                          capture_output=True, text=True, timeout=300)
     assert run.returncode == 0 and "OK ['bl_ext.user_default.blendlib']" in run.stdout, run.stderr[-2000:]
     assert images.load(image).shape == (24, 32, 4)

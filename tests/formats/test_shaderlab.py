@@ -1,4 +1,4 @@
-"""ShaderLab import/export: seed listings, round trips, malformed input, CLI, Blender operators."""
+"""ShaderLab import/export: seed listings, the grammar, malformed input, round trips, the CLI."""
 
 from __future__ import annotations
 
@@ -8,7 +8,6 @@ import re
 import subprocess
 import sys
 from dataclasses import fields, replace
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -23,6 +22,7 @@ from blendlib.core.vocabulary import (
     CompareFunction,
     Cull,
     Lighting,
+    LightMode,
     Material,
     Pass,
     Queue,
@@ -37,11 +37,9 @@ from blendlib.formats.shaderlab import (
     parse_queue,
     parse_shaderlab,
 )
+from tests.support.shared import REPO, SHARED
 
-REPO = Path(__file__).resolve().parents[2]
-SEEDS = REPO.parent / "shared" / "seeds"
-if not SEEDS.is_dir():
-    SEEDS = Path("/work/shared/seeds")
+SEEDS = SHARED / "seeds"
 
 SA, OMSA = BlendFactor.SrcAlpha, BlendFactor.OneMinusSrcAlpha
 
@@ -199,6 +197,9 @@ def test_the_scan_damage_is_reported_with_a_position():
     assert err.value.message == "Pass inside a Pass: is the '}' closing the Pass at 18:8 missing?"
 
 
+ALWAYS, OTHER = LightMode.Always, LightMode.Other
+
+
 def _blend_pass(name="Pass", **kw):
     return Pass(name=name, zwrite=False, blend=True, src_blend=SA, dst_blend=OMSA, **kw)
 
@@ -224,20 +225,25 @@ SEED_EXPECTED = {
     "001#3": dict(**_LAMBERT_BLEND, alpha_scale=0.5,
                   passes=[_blend_pass("Pass 1", cull=Cull.Front), _blend_pass("Pass 2", cull=Cull.Back)]),
     # No _Color property: _Color stays white (the listing's fragment uses the texture only).
-    "002#1": dict(**_LAMBERT_TEST, cutoff=0.5, color=(1, 1, 1, 1), passes=[Pass(name="Pass", alpha_test=True)],
+    # The URP tutorial's passes are tagged "UniversalForward": not a LightMode of the built-in
+    # forward path, so Other (listed, never drawn: SPEC §11.2).
+    "002#1": dict(**_LAMBERT_TEST, cutoff=0.5, color=(1, 1, 1, 1),
+                  passes=[Pass(name="Pass", alpha_test=True, light_mode=OTHER)],
                   light_modes=["UniversalForward"], fallback="Transparent/Cutout/VertexLit"),
-    "002#2": dict(**_LAMBERT_BLEND, alpha_scale=1.0, passes=[_blend_pass()]),
-    # The depth prepass: ZWrite On, ColorMask 0, no program.
+    "002#2": dict(**_LAMBERT_BLEND, alpha_scale=1.0, passes=[_blend_pass(light_mode=OTHER)]),
+    # The depth prepass: ZWrite On, ColorMask 0, no program, no LightMode (Always).
     "002#3": dict(**_LAMBERT_BLEND, alpha_scale=1.0,
-                  passes=[Pass(name="Pass 1", zwrite=True, color_mask=frozenset()), _blend_pass("Pass 2")],
+                  passes=[Pass(name="Pass 1", zwrite=True, color_mask=frozenset(), light_mode=ALWAYS),
+                          _blend_pass("Pass 2", light_mode=OTHER)],
                   light_modes=[None, "UniversalForward"]),
-    "002#4": dict(**_LAMBERT_BLEND, passes=[_blend_pass("Pass 1", cull=Cull.Front),
-                                            _blend_pass("Pass 2", cull=Cull.Back)]),
-    # The wikibook's unlit shaders: no _LightColor0. The first returns semitransparent green.
+    "002#4": dict(**_LAMBERT_BLEND, passes=[_blend_pass("Pass 1", cull=Cull.Front, light_mode=OTHER),
+                                            _blend_pass("Pass 2", cull=Cull.Back, light_mode=OTHER)]),
+    # The wikibook's unlit shaders: no _LightColor0, no LightMode. The first returns semitransparent green.
     "003#1": dict(queue=Queue.Transparent, lighting=Lighting.Unlit, color=(0.0, 1.0, 0.0, 0.3),
-                  passes=[_blend_pass()], light_modes=[None], fallback=None, render_type=None),
+                  passes=[_blend_pass(light_mode=ALWAYS)], light_modes=[None], fallback=None, render_type=None),
     "003#2": dict(queue=Queue.Transparent, lighting=Lighting.Unlit, color=(1, 1, 1, 1),
-                  passes=[_blend_pass("Pass 1", cull=Cull.Front), _blend_pass("Pass 2", cull=Cull.Back)]),
+                  passes=[_blend_pass("Pass 1", cull=Cull.Front, light_mode=ALWAYS),
+                          _blend_pass("Pass 2", cull=Cull.Back, light_mode=ALWAYS)]),
 }
 
 
@@ -297,13 +303,13 @@ def test_book_blend_mode_snippets_match_the_presets():
         body = by_name[head]
         (got,) = parse_shaderlab(_SNIPPET.format("ZWrite Off " + body)).passes
         (want,) = preset(preset_name)[1]
-        assert got == replace(want, name="Pass"), head
+        assert got == replace(want, name="Pass", light_mode=ALWAYS), head  # untagged: Always
     # Screen: the book's first spelling equals Soft Additive; the "equivalently" one is the preset.
     screen = by_name["//滤色(Screen)"]
     (got,) = parse_shaderlab(_SNIPPET.format("ZWrite Off " + screen)).passes
     assert (got.src_blend, got.dst_blend) == (BlendFactor.OneMinusDstColor, BlendFactor.One)
     (got,) = parse_shaderlab(_SNIPPET.format("ZWrite Off Blend One OneMinusSrcColor")).passes
-    assert got == replace(preset("Screen")[1][0], name="Pass")
+    assert got == replace(preset("Screen")[1][0], name="Pass", light_mode=ALWAYS)
 
 
 def test_four_factor_blend_from_the_book():
@@ -466,52 +472,16 @@ def test_unknown_commands_warn_and_recorded_extras():
     }"""
     r = parse_shaderlab(text)
     (p,) = r.passes
-    assert p.cull is Cull.Front
+    assert p.cull is Cull.Front and p.alpha_to_mask and p.light_mode is LightMode.ForwardBase
     assert r.extra["use_pass"] == ["Other/SHADOWCASTER"] and r.extra["fallback"] == "Off"
     assert r.extra["render_type"] == "Transparent" and r.extra["ignore_projector"] is False
     assert r.extra["light_modes"] == ["ForwardBase"]
     w = r.warnings
-    assert any(x.startswith("9:17: unknown command 'Fog'") for x in w)
-    assert any(x.startswith("10:17: unknown command 'Frobnicate'") for x in w)
-    assert any(x.startswith("11:17: AlphaToMask On is not supported") for x in w)
-    assert any(x.startswith("5:13: UsePass") for x in w)
-    assert not any("Lighting" in x or "LOD" in x for x in w)
-
-
-def test_fixed_function_and_surface_shaders():
-    text = """Shader "Legacy" {
-        Properties {
-            _Color ("Main Color", Color) = (1, 0.5, 0.5, 1)
-            _MainTex ("Base", 2D) = "gray" { TexGen ObjectLinear }
-        }
-        SubShader {
-            Pass {
-                Material { Diffuse [_Color] }
-                Lighting On
-                SetTexture [_MainTex] { combine texture * primary DOUBLE }
-                Blend DstColor Zero
-            }
-            GrabPass { "_Background" }
-        }
-    }"""
-    r = parse_shaderlab(text)
-    (p,) = r.passes
-    assert p.blend and (p.src_blend, p.dst_blend) == (BlendFactor.DstColor, BlendFactor.Zero)
-    assert r.material.color == (1, 0.5, 0.5, 1) and r.extra["main_tex_default"] == "gray"
-    assert [w.split(": ")[1] for w in r.warnings] == [
-        'unknown command \'Material\' in Pass ignored', "unknown command 'SetTexture' in Pass ignored",
-        "GrabPass ignored", '_MainTex default "gray" imported as no texture (white); assign an image to match it',
-    ] or len(r.warnings) == 4
-    surface = """Shader "Surf" { SubShader { Tags { "RenderType"="Opaque" } LOD 200
-        CGPROGRAM
-        #pragma surface surf Lambert alpha
-        void surf (Input IN, inout SurfaceOutput o) { o.Albedo = _LightColor0.rgb; }
-        ENDCG
-    } FallBack "Diffuse" }"""
-    r = parse_shaderlab(surface)
-    assert r.passes == () and r.extra["fallback"] == "Diffuse"
-    assert any("surface shader" in w for w in r.warnings)
-    assert r.material.passes == () and r.material.draw_passes == (Pass(),)
+    assert any(x.startswith("4:13: LOD ignored") for x in w)
+    assert any(x.startswith("5:13: UsePass \"Other/SHADOWCASTER\": no shader named 'Other'") for x in w)
+    assert any(x.startswith("9:17: Fog ignored: fog is not drawn") for x in w)
+    assert any(x.startswith("10:17: unknown command 'Frobnicate' in Pass ignored") for x in w)
+    assert not any("AlphaToMask" in x or "Lighting" in x for x in w)  # kept; Lighting Off: a fixed-function pass
 
 
 def test_pass_names_with_spaces_and_quotes_export():
@@ -552,7 +522,7 @@ GOOD = """Shader "Good" {
     (GOOD.replace("ZWrite Off", "ZWrite Maybe"), 8, 20, "unknown ZWrite value"),
     (GOOD.replace("ZWrite Off", "ZTest Sometimes"), 8, 19, "unknown ZTest function 'Sometimes'"),
     (GOOD.replace("ZWrite Off", "Cull Sideways"), 8, 18, "unknown Cull mode"),
-    (GOOD.replace("ZWrite Off", "BlendOp Multiply"), 8, 21, "unknown BlendOp 'Multiply'"),
+    (GOOD.replace("ZWrite Off", "BlendOp Multiplied"), 8, 21, "unknown BlendOp 'Multiplied'"),
     # bad ColorMask
     (GOOD.replace("ColorMask RGB", "ColorMask RGBX"), 10, 23, "bad ColorMask 'RGBX'"),
     (GOOD.replace("ColorMask RGB", "ColorMask RR"), 10, 23, "bad ColorMask 'RR'"),
@@ -567,8 +537,6 @@ GOOD = """Shader "Good" {
     # others
     (GOOD.replace("Tags {", "Tags { Queue"), 6, 16, 'expected a tag "Name"="Value"'),
     (GOOD.replace('"Queue"="Transparent"', '"Queue"="Sometimes"'), 6, 24, "unknown Queue 'Sometimes'"),
-    (GOOD.replace("ZWrite Off", "Cull [_Missing]"), 8, 19, "[_Missing], which is not in Properties"),
-    (GOOD.replace("ZWrite Off", "ZTest Never"), 8, 19, "ZTest Never is not supported"),
     (GOOD.replace("ZWrite Off", "Stencil { Ref 300 }"), 8, 27, "integer 0..255"),
     (GOOD.replace("ZWrite Off", "/* open comment"), 8, 13, "comment '/*' is never closed"),
     (GOOD.replace("ZWrite Off", "ZWrite Off;"), 8, 23, "unexpected character ';'"),
@@ -595,7 +563,9 @@ def _roundtrip(material: Material) -> Material:
     text = export_shaderlab(material, "Round/Trip")
     result = parse_shaderlab(text, "roundtrip.shader")
     assert result.name == "Round/Trip"
-    assert result.warnings == (), result.warnings
+    # The only warning: a pass whose LightMode is not one of the forward path's (Other) is never drawn.
+    others = sum(p.light_mode is LightMode.Other for p in material.draw_passes)
+    assert len(result.warnings) == others and all("LightMode 'Other'" in w for w in result.warnings), result.warnings
     return result.material
 
 
@@ -665,6 +635,9 @@ passes_strategy = st.builds(
     stencil_pass=st.sampled_from(list(StencilOp)),
     stencil_fail=st.sampled_from(list(StencilOp)),
     stencil_zfail=st.sampled_from(list(StencilOp)),
+    alpha_to_mask=st.booleans(),
+    alpha_test_comp=st.sampled_from(list(CompareFunction)),
+    light_mode=st.sampled_from(list(LightMode)),
 )
 
 materials_strategy = st.builds(
@@ -694,8 +667,12 @@ def test_canonical_pass_is_a_fixed_point_and_keeps_what_renders(p):
     c = canonical_pass(p)
     assert canonical_pass(c) == c
     keep = [f.name for f in fields(Pass) if not f.name.startswith(("src_blend", "dst_blend", "blend_op",
-                                                                   "separate_alpha", "stencil_", "offset_"))]
+                                                                   "separate_alpha", "stencil_", "offset_",
+                                                                   "alpha_test"))]
     assert all(getattr(c, k) == getattr(p, k) for k in keep)
+    # The alpha test as it renders: Always keeps every fragment (no test), an inactive comparison is not kept.
+    tests = p.alpha_test and p.alpha_test_comp is not CompareFunction.Always
+    assert c.alpha_test is tests and c.alpha_test_comp is (p.alpha_test_comp if tests else CompareFunction.GEqual)
     # Offsets as Blender stores them: the same float32.
     assert np.float32(c.offset_factor) == np.float32(p.offset_factor)
     assert np.float32(c.offset_units) == np.float32(p.offset_units)
@@ -704,6 +681,21 @@ def test_canonical_pass_is_a_fixed_point_and_keeps_what_renders(p):
             p.src_blend, p.dst_blend, p.blend_op, p.alpha_factors)
     if p.stencil:
         assert c == replace(c, **{k: getattr(p, k) for k in pass_to_dict(p) if k.startswith("stencil_")})
+
+
+@pytest.mark.parametrize("comp", list(CompareFunction))
+def test_the_alpha_comparison_and_light_mode_round_trip(comp):
+    """Each comparison is written into the exported CG (GEqual the book's clip(), Never clip(-1), the
+    others 'if (!(alpha OP _Cutoff)) discard;') and read back; Always tests nothing."""
+    p = Pass(name="Cut", alpha_test=True, alpha_test_comp=comp, alpha_to_mask=True, light_mode=LightMode.Vertex)
+    text = export_shaderlab(Material(passes=(p,)), "Round/Trip")
+    assert 'Tags { "LightMode"="Vertex" }' in text and "AlphaToMask On" in text
+    if comp is CompareFunction.Greater:
+        assert "if (!(texColor.a * _Color.a * _AlphaScale > _Cutoff)) discard;" in text
+    (back,) = parse_shaderlab(text).passes
+    assert back == canonical_pass(p)
+    assert back.alpha_test is (comp is not CompareFunction.Always)
+    assert back.alpha_test_comp is (CompareFunction.GEqual if comp is CompareFunction.Always else comp)
 
 
 def test_empty_pass_list_exports_one_default_pass():
@@ -730,7 +722,8 @@ def test_cli_main_prints_json(tmp_path, capsys):
                                     "vertex_color", "tint_color"}
     (p,) = out["passes"]
     assert p == pass_to_dict(Pass(name="Pass", zwrite=False, blend=True, src_blend=SA, dst_blend=OMSA,
-                                  color_mask=frozenset("RGB")))
+                                  color_mask=frozenset("RGB"), light_mode=ALWAYS)) | {
+        "drawn": True, "reason": "Always: drawn once"}
     assert p["color_mask"] == ["R", "G", "B"] and p["src_blend"] == "SrcAlpha"
 
 
@@ -746,7 +739,7 @@ def test_cli_main_errors(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.startswith("error: ") and "missing.shader" in err
     assert cli_main(["shaderlab"]) == 1
-    assert capsys.readouterr().err.startswith("error: no .shader file given")
+    assert capsys.readouterr().err.startswith("error: no .shader or .mat file given")
     with pytest.raises(SystemExit) as usage:  # argparse: usage errors exit 2
         cli_main(["shaderlab", "--bogus"])
     assert usage.value.code == 2
@@ -783,248 +776,3 @@ def test_cli_python_m_blendlib_shaderlab(tmp_path):
     r = _run(["-m", "blendlib", "shaderlab", "--export", str(tmp_path / "none.blend"), "--material", "M", "-o",
               str(tmp_path / "o.shader")])
     assert r.returncode == 1 and "none.blend: no such file" in r.stderr and not (tmp_path / "o.shader").exists()
-
-
-# --------------------------------------------------------------------------- Blender
-
-
-import bpy  # noqa: E402 - the Blender half of this module
-
-import addon  # noqa: E402
-
-
-@pytest.fixture(scope="module")
-def blender():
-    """The add-on registered (it registers this module's operators), restored afterwards."""
-    from types import SimpleNamespace
-
-    from addon import shaderlab
-
-    registered = hasattr(bpy.types.Material, "unity")
-    if not registered:
-        addon.register()
-    yield SimpleNamespace(register=shaderlab.register, apply_result=shaderlab.ops.apply_result,
-                          draw_import_export=shaderlab.panel.draw_import_export)
-    if not registered:
-        addon.unregister()
-
-
-def test_addon_package_registers_the_operators():
-    """addon.register() registers the three ShaderLab operators."""
-    registered = hasattr(bpy.types.Material, "unity")
-    if not registered:
-        addon.register()
-    try:
-        assert hasattr(bpy.types, "UNITY_OT_shaderlab_import")
-        assert hasattr(bpy.types, "UNITY_OT_shaderlab_import_clipboard")
-        assert hasattr(bpy.types, "UNITY_OT_shaderlab_export")
-    finally:
-        if not registered:
-            addon.unregister()
-
-
-def _new_material(name="M"):
-    mat = bpy.data.materials.new(name)
-    u = mat.unity
-    u.queue = "Overlay"
-    u.queue_offset = 7
-    u.color = (0.1, 0.2, 0.3, 0.4)
-    u.cutoff = 0.9
-    u.main_tex_tiling = (3.0, 4.0)
-    u.main_tex_filter = "Point"
-    for _ in range(3):
-        item = u.passes.add()
-        item.name = "Old"
-        item.cull = "Off"
-    return mat
-
-
-def _snapshot(mat):
-    u = mat.unity
-    data = {k: (tuple(v) if hasattr(v, "__len__") and not isinstance(v, str) else v)
-            for k in ("enabled", "queue", "queue_offset", "color", "alpha_scale", "cutoff", "lighting",
-                      "main_tex_tiling", "main_tex_offset", "main_tex_filter", "main_tex_wrap")
-            for v in [getattr(u, k)]}
-    data["passes"] = [{k: getattr(p, k) for k in pass_to_dict(Pass())} for p in u.passes]
-    return data
-
-
-def _call(op, mat, **kw):
-    with bpy.context.temp_override(material=mat):
-        return op(**kw)
-
-
-def test_operator_import_file_replaces_settings(blender, tmp_path):
-    path = tmp_path / "both.shader"
-    path.write_text(cleaned("000#3"), encoding="utf-8")
-    mat = _new_material()
-    assert _call(bpy.ops.unity.shaderlab_import, mat, filepath=str(path)) == {"FINISHED"}
-    u = mat.unity
-    assert u.enabled and u.queue == "Transparent" and u.queue_offset == 0
-    assert tuple(u.color) == (1, 1, 1, 1) and u.cutoff == 0.5 and u.alpha_scale == 1 and u.lighting == "Lambert"
-    assert [(p.name, p.cull, p.zwrite, p.blend, p.src_blend, p.dst_blend, p.color_mask) for p in u.passes] == [
-        ("Pass 1", "Front", False, True, "SrcAlpha", "OneMinusSrcAlpha", {"R", "G", "B", "A"}),
-        ("Pass 2", "Back", False, True, "SrcAlpha", "OneMinusSrcAlpha", {"R", "G", "B", "A"}),
-    ]
-    # Texture settings are not in a .shader file: kept, unless asked to reset them.
-    assert tuple(u.main_tex_tiling) == (3.0, 4.0) and u.main_tex_filter == "Point"
-    assert _call(bpy.ops.unity.shaderlab_import, mat, filepath=str(path), reset_texture=True) == {"FINISHED"}
-    assert tuple(u.main_tex_tiling) == (1.0, 1.0) and u.main_tex_filter == "Bilinear"
-
-
-def test_operator_import_error_changes_nothing(blender, tmp_path):
-    mat = _new_material()
-    before = _snapshot(mat)
-    for i, text in enumerate([GOOD.replace("OneMinusSrcAlpha", "OneMinusSrcAlfa"), GOOD[:120],
-                              GOOD.replace("ColorMask RGB", "ColorMask 5")]):
-        path = tmp_path / f"bad{i}.shader"
-        path.write_text(text, encoding="utf-8")
-        with pytest.raises(RuntimeError) as err:
-            _call(bpy.ops.unity.shaderlab_import, mat, filepath=str(path))
-        assert f"bad{i}.shader:" in str(err.value)
-        assert _snapshot(mat) == before
-    with pytest.raises(RuntimeError, match="cannot read"):
-        _call(bpy.ops.unity.shaderlab_import, mat, filepath=str(tmp_path / "missing.shader"))
-    assert _snapshot(mat) == before
-
-
-def test_operator_import_clipboard(blender):
-    mat = _new_material()
-    before = _snapshot(mat)
-    text = cleaned("002#3")
-    assert _call(bpy.ops.unity.shaderlab_import_clipboard, mat, text=text) == {"FINISHED"}
-    u = mat.unity
-    assert u.enabled and u.queue == "Transparent" and len(u.passes) == 2
-    assert u.passes[0].color_mask == set() and u.passes[0].zwrite and not u.passes[0].blend
-    assert u.passes[1].blend and not u.passes[1].zwrite
-    # Headless Blender has no system clipboard: an empty clipboard is an error that changes nothing.
-    mat2 = _new_material("M2")
-    bpy.context.window_manager.clipboard = ""
-    if bpy.context.window_manager.clipboard == "":
-        with pytest.raises(RuntimeError, match="clipboard is empty"):
-            _call(bpy.ops.unity.shaderlab_import_clipboard, mat2)
-        assert _snapshot(mat2) == before
-    with pytest.raises(RuntimeError, match=r"<clipboard>:1:1"):
-        _call(bpy.ops.unity.shaderlab_import_clipboard, mat2, text="Pass { }")
-    assert _snapshot(mat2) == before
-
-
-def test_apply_is_atomic_when_assignment_fails(blender):
-    mat = _new_material()
-    before = _snapshot(mat)
-    result = parse_shaderlab(cleaned("000#3"))
-    broken = replace(result, material=replace(result.material, lighting="NotALighting"))
-    with pytest.raises(ValueError, match="NotALighting"):
-        blender.apply_result(mat, broken)
-    assert _snapshot(mat) == before
-
-
-def test_operator_export_then_import_gives_back_the_settings(blender, tmp_path):
-    mat = _new_material("Exported")
-    u = mat.unity
-    u.enabled = True
-    u.queue = "Transparent"
-    u.queue_offset = -3
-    u.lighting = "Unlit"
-    u.passes.clear()
-    queue, passes = preset("Alpha Blend ZWrite")
-    for p in passes + (Pass(name="Stencilled", stencil=True, stencil_ref=5, stencil_comp=CompareFunction.Greater,
-                            offset_factor=-1.0, offset_units=-2.0, alpha_test=True, ztest=CompareFunction.Always,
-                            blend=True, separate_alpha=True, src_blend=BlendFactor.DstColor,
-                            dst_blend=BlendFactor.Zero, src_blend_alpha=BlendFactor.One,
-                            dst_blend_alpha=BlendFactor.One, blend_op_alpha=BlendOp.Max),):
-        item = u.passes.add()
-        for k, v in pass_to_dict(p).items():
-            setattr(item, k, set(v) if k == "color_mask" else v)
-    before = _snapshot(mat)
-    out = tmp_path / "exported.shader"
-    assert _call(bpy.ops.unity.shaderlab_export, mat, filepath=str(out)) == {"FINISHED"}
-    text = out.read_text(encoding="utf-8")
-    assert text.startswith('Shader "Unity Passes/Exported"') and "Stencil" in text and "Greater" in text
-    other = bpy.data.materials.new("Other")
-    assert _call(bpy.ops.unity.shaderlab_import, other, filepath=str(out)) == {"FINISHED"}
-    got = _snapshot(other)
-    for key in ("main_tex_tiling", "main_tex_offset", "main_tex_filter", "main_tex_wrap"):
-        got.pop(key), before.pop(key)  # not in a .shader file
-    assert got["color"] == pytest.approx(before.pop("color")) and got.pop("color")
-    assert got == before
-
-
-def test_cli_export_from_a_blend_file(blender, tmp_path):
-    mat = _new_material("CliMat")
-    u = mat.unity
-    u.enabled = True
-    u.queue = "AlphaTest"
-    u.queue_offset = 0
-    u.passes.clear()
-    item = u.passes.add()
-    item.name = "Cutout"
-    item.alpha_test = True
-    item.cull = "Off"
-    mat.use_fake_user = True  # saved without an object using it
-    blend_path = tmp_path / "scene.blend"
-    bpy.ops.wm.save_as_mainfile(filepath=str(blend_path), copy=True)
-    out = tmp_path / "cli.shader"
-    r = _run(["-m", "blendlib", "shaderlab", "--export", str(blend_path), "--material", "CliMat", "-o", str(out)])
-    assert r.returncode == 0, r.stderr
-    result = parse_shaderlab(out.read_text(encoding="utf-8"))
-    assert result.name == "Unity Passes/CliMat" and result.material.queue is Queue.AlphaTest
-    assert result.passes == (Pass(name="Cutout", alpha_test=True, cull=Cull.Off),)
-    assert result.material.color == pytest.approx((0.1, 0.2, 0.3, 0.4))
-    bad = tmp_path / "bad.shader"
-    r = _run(["-m", "blendlib", "shaderlab", "--export", str(blend_path), "--material", "Nope", "-o", str(bad)])
-    assert r.returncode == 1 and not bad.exists()
-    (line,) = r.stderr.strip().splitlines()
-    assert line.startswith(f"error: {blend_path}: no material named 'Nope' (materials: ")
-    assert "CliMat" in line.split("(materials: ")[1]
-
-
-def test_reading_a_blender_material_agrees_with_the_bridge(blender):
-    """The exporter reads a material through the bridge: what its schema reads, registered or from
-    stored ID properties (the add-on unregistered)."""
-    from blendlib import blender
-
-    mat = _new_material("Read")
-    u = mat.unity
-    u.enabled = True
-    u.lighting = "Unlit"
-    u.passes[1].ztest = "Always"
-    u.passes[1].color_mask = {"R", "A"}
-    u.passes[2].stencil_comp = "Never"
-    u.passes[2].blend_op_alpha = "RevSub"
-    u.passes[2].dst_blend = "SrcAlphaSaturate"
-    want = blender.read_group(blender.unity_props(mat), blender.MATERIAL_FIELDS)
-
-    class Stored:  # what a reader sees when the add-on is not registered
-        name = mat.name
-        bl_system_properties_get = mat.bl_system_properties_get
-
-    for source in (mat, Stored()):
-        got = blender.material_from_blender(source)
-        assert got.queue.value == want["queue"] and got.queue_offset == want["queue_offset"] == 7
-        assert got.color == pytest.approx(want["color"]) and got.lighting is Lighting.Unlit
-        assert got.cutoff == pytest.approx(want["cutoff"]) and got.main_tex_filter.value == want["main_tex_filter"]
-        assert got.passes == tuple(blender.pass_from_values(p) for p in want["passes"])
-        assert got.passes[1].ztest is CompareFunction.Always and got.passes[1].color_mask == {"R", "A"}
-        assert got.passes[2].stencil_comp is CompareFunction.Never
-    u.enabled = False
-    disabled = blender.material_from_blender(mat)
-    assert disabled.passes == (Pass(),) and disabled.queue is Queue.Geometry
-
-
-def test_register_unregister_are_idempotent(blender):
-    blender.register()
-    blender.register()
-    assert hasattr(bpy.types, "UNITY_OT_shaderlab_export")
-    layout_calls = []
-
-    class FakeRow:
-        def operator(self, idname, **kw):
-            layout_calls.append(idname)
-
-    class FakeLayout:
-        def row(self, align=False):
-            return FakeRow()
-
-    blender.draw_import_export(FakeLayout())
-    assert layout_calls == ["unity.shaderlab_import", "unity.shaderlab_import_clipboard", "unity.shaderlab_export"]

@@ -1,17 +1,23 @@
 """Property-based fuzzing of the ShaderLab importer.
 
-Inputs are mutations of the book's listings (shared/seeds) and of the exported presets:
-bytes deleted, duplicated, swapped, replaced by ShaderLab-ish fragments (huge and
-non-finite numbers, braces, keywords, property references). Every outcome must be one of:
+Inputs are mutations of the book's listings (shared/seeds), of the exported presets and of
+Unity's own surface, fixed-function and particle shaders: bytes deleted, duplicated, swapped,
+replaced by ShaderLab-ish fragments (huge and non-finite numbers, braces, keywords, property
+references, surface pragmas and options, fixed-function blocks, keyword branches). Every
+outcome must be one of:
 
 - a :class:`ShaderLabError` whose text starts ``FILE:LINE:COL:`` with a position inside the text;
 - a result whose JSON is valid and finite (no ``Infinity``/``NaN``), and whose material builds.
+
+Unity ``.mat`` files (the fixtures' layouts) are mutated the same way: a one-line
+:class:`UnityFileError` naming the file, or values a shader imports with.
 """
 
 from __future__ import annotations
 
 import json
 import re
+from pathlib import Path
 
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -20,10 +26,13 @@ from blendlib.core.vocabulary import PASS_PRESETS, Material, preset
 from blendlib.formats.shaderlab import (
     MAX_NESTING,
     ShaderLabError,
+    UnityFileError,
     export_shaderlab,
     parse_shaderlab,
 )
+from blendlib.formats.shaderlab.material_file import parse_material_file
 from tests.formats.test_shaderlab import RAW, cleaned
+from tests.support.shared import BUILTIN_SHADERS
 
 FILENAME = "fuzz.shader"
 _POSITION_RE = re.compile(re.escape(FILENAME) + r":(\d+):(\d+): \S")
@@ -37,7 +46,20 @@ def _presets() -> list[str]:
     return out
 
 
-CORPUS = [cleaned(key) for key in sorted(RAW)] + _presets()
+#: Unity's own shaders of each kind the importer reads: surface (alpha:fade, alphatest), fixed-function
+#: (VertexLit, its AlphaTest and AlphaToMask; combiners with constants), particles, UI (stencil,
+#: globals, keyword branches), Standard (keywords, [_Prop] state), GrabPass.
+_UNITY = ["Alpha-Diffuse.shader", "AlphaTest-Diffuse.shader", "AlphaTest-VertexLit.shader", "Particle Add.shader",
+          "Particle VertexLit Blended.shader", "UI/UI-Default.shader", "Standard.shader",
+          "Particle Standard Unlit.shader", "Mobile/Mobile-Particle-Alpha.shader", "Lightmap-VertexLit.shader"]
+
+
+def _unity_shaders() -> list[str]:
+    folder = BUILTIN_SHADERS / "DefaultResourcesExtra"
+    return [(folder / name).read_text(encoding="utf-8-sig") for name in _UNITY if (folder / name).is_file()]
+
+
+CORPUS = [cleaned(key) for key in sorted(RAW)] + _presets() + _unity_shaders()
 
 FRAGMENTS = [
     "{", "}", "(", ")", "[", "]", ",", "=", '"', "//", "/*", "*/", "\n", " ",
@@ -47,26 +69,49 @@ FRAGMENTS = [
     '_P("p", Float) = 1e999', '_Color("c", Color) = (1e999, 0, 0, 1)', '_Cutoff("c", Range(0,1)) = 1e999',
     "CGPROGRAM", "ENDCG", "return fixed4(1-0.5,0,0,1);", "return fixed4(1e999,0,0,1);", "clip(a - _Cutoff);",
     "_LightColor0", '"Queue"="Transparent+1e999"', '"Queue"="99999999999999999999"', "\ufeff", "\x00", "é",
+    # surface shaders
+    "\n#pragma surface surf Lambert alpha:fade\n", "\n#pragma surface surf Standard alpha\n", "alphatest:_P",
+    "alphatest:", "decal:blend", "decal:add", "alpha:premul", "noforwardadd", "exclude_path:forward", "addshadow",
+    "nometa", "vertex:", "void surf (Input IN, inout SurfaceOutput o) { o.Albedo = 1; }",
+    # fixed-function
+    "SetTexture [_MainTex] { combine texture * primary DOUBLE, texture }", "SetTexture [_P] {", "combine",
+    "combine previous lerp (texture) constant", "constantColor (1, 2", "constantColor [_P]", "Material {",
+    "Material { Diffuse [_P] Shininess [_Color] }", "Diffuse (1,1,1,1)", "Lighting On", "Lighting [_P]",
+    "ColorMaterial AmbientAndDiffuse", "SeparateSpecular On", "Color (1,0,0", "Color [_P]",
+    "AlphaTest Greater [_P]", "AlphaTest", "AlphaTest Never 1e999", "AlphaToMask [_P]", "AlphaToMask True",
+    # other commands and programs
+    "GrabPass {", 'GrabPass { "_G" }', 'UsePass "X/Y"', 'UsePass "/"', 'Fallback "X"', "Fog { Mode Off }",
+    "BindChannels {", "BlendOp Screen", "BlendOp [_P]", "Blend 1 One One", "ColorMask RGB 1", "ZTest Never",
+    "ZTest [unity_GUIZTestMode]", "#ifdef _A\n", "#else\n", "#endif\n", "#if defined(_A) || !_B\n",
+    "#pragma shader_feature _A\n", "#pragma multi_compile _ _A\n", "if (!(a > _P)) discard;", "clip(-1);",
+    "i.color", "2.0f * i.color * _TintColor *", "c.rgb *= c.a;", '#include "UnitySprites.cginc"\n',
+    '"LightMode"="ForwardAdd"', '"LightMode"="Vertex"', '"LightMode"=""',
 ]
 
 
-@st.composite
-def mutated(draw) -> str:
-    text = draw(st.sampled_from(CORPUS))
-    for _ in range(draw(st.integers(1, 6))):
+def _mutate(draw, corpus: list[str], fragments: list[str], edits: int, span: int) -> str:
+    """One text of ``corpus`` with 1..``edits`` edits of up to ``span`` characters: deleted,
+    inserted or replaced by one of ``fragments``, or duplicated."""
+    text = draw(st.sampled_from(corpus))
+    for _ in range(draw(st.integers(1, edits))):
         n = len(text)
         i = draw(st.integers(0, n))
-        j = draw(st.integers(i, min(n, i + 40)))
+        j = draw(st.integers(i, min(n, i + span)))
         op = draw(st.sampled_from(["delete", "insert", "replace", "duplicate"]))
         if op == "delete":
             text = text[:i] + text[j:]
         elif op == "insert":
-            text = text[:i] + draw(st.sampled_from(FRAGMENTS)) + text[i:]
+            text = text[:i] + draw(st.sampled_from(fragments)) + text[i:]
         elif op == "replace":
-            text = text[:i] + draw(st.sampled_from(FRAGMENTS)) + text[j:]
+            text = text[:i] + draw(st.sampled_from(fragments)) + text[j:]
         else:
             text = text[:j] + text[i:j] + text[j:]
     return text
+
+
+@st.composite
+def mutated(draw) -> str:
+    return _mutate(draw, CORPUS, FRAGMENTS, 6, 40)
 
 
 def _reject_constant(name: str):
@@ -99,6 +144,43 @@ def _check(text: str) -> None:
 @given(mutated())
 def test_mutated_listings_give_a_positioned_error_or_finite_json(text):
     _check(text)
+
+
+PROJECT = Path(__file__).resolve().parents[1] / "fixtures" / "unity_project"
+MAT_CORPUS = [p.read_text(encoding="utf-8") for p in sorted(PROJECT.rglob("*.mat"))]
+MAT_FRAGMENTS = [
+    "\n", " ", ":", "- ", "{", "}", "[", "]", ",", "'", '"', "#", "&", "*", "!", "!u!21", "--- !u!21 &1\n",
+    "--- !u!1 &2 stripped\n", "%TAG !u! tag:unity3d.com,2011:\n", "data:\n", "first:\n", "second: ",
+    "name: _SrcBlend\n", "    - _ZWrite: ", "1e999", "nan", "-1", "00000000000000001000000000000000", "Off", ".5",
+    "m_Shader: {fileID: 46, guid: 0000000000000000f000000000000000, type: 0}\n", "m_CustomRenderQueue: ",
+    "{r: 1, g: 2}", "{x: nan, y: 1}", "m_ValidKeywords:\n  - _A\n", "\t", "\ufeff", "é",
+]
+CUSTOM_SHADER = (PROJECT / "Assets" / "Shaders" / "CustomBlend.shader").read_text(encoding="utf-8")
+
+
+@st.composite
+def mutated_material(draw) -> str:
+    return _mutate(draw, MAT_CORPUS, MAT_FRAGMENTS, 5, 30)
+
+
+@settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(mutated_material())
+def test_mutated_material_files_give_one_line_errors_or_values(text):
+    try:
+        mat = parse_material_file(text, "fuzz.mat")
+    except UnityFileError as exc:
+        assert str(exc).startswith("fuzz.mat") and "\n" not in str(exc)
+        return
+    assert all(abs(v) < float("inf") for v in mat.floats.values())
+    assert all(abs(c) < float("inf") for color in mat.colors.values() for c in color)
+    try:  # the values, keywords and queue as the custom shader imports them
+        result = parse_shaderlab(CUSTOM_SHADER, "custom.shader", values=mat.values, keywords=mat.keywords,
+                                 disabled_passes=mat.disabled_passes, material_name=mat.name,
+                                 custom_render_queue=mat.custom_render_queue)
+    except ShaderLabError as exc:
+        assert str(exc).startswith("custom.shader:") and "\n" not in str(exc)
+        return
+    json.loads(result.to_json(), parse_constant=_reject_constant)
 
 
 def test_the_corpus_itself_imports():

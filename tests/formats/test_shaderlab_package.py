@@ -6,6 +6,7 @@ import re
 
 import pytest
 
+from blendlib.core.vocabulary import Cull
 from blendlib.formats.shaderlab import ShaderLabError, parse_shaderlab
 from blendlib.formats.shaderlab.parser import Parser
 from blendlib.formats.shaderlab.tree import (
@@ -20,7 +21,8 @@ from tests.test_layers import ROOT, project_imports
 
 PACKAGE = ROOT / "blendlib" / "formats" / "shaderlab"
 #: The package's modules, each importing only those before it (the order of its docstring).
-ORDER = ["diagnostics", "lexer", "tree", "parser", "state", "programs", "importer", "exporter"]
+ORDER = ["diagnostics", "lexer", "tree", "parser", "state", "programs", "surface", "fixed_function", "assets",
+         "unity_yaml", "material_file", "record", "importer", "project", "exporter"]
 
 
 def test_each_module_imports_only_the_modules_before_it():
@@ -80,14 +82,15 @@ def test_the_parser_keeps_blocks_and_commands_as_written():
 
 
 def test_a_reference_names_the_property_declared_before_it():
-    text = 'Shader "T" { SubShader { Pass { Cull [_C] } } Properties { _C ("c", Float) = 0 } }'
+    """A name not declared before it is a global (SPEC §11.1): Unity reads it as 0 (Cull Off)."""
+    text = 'Shader "T" { SubShader { Pass { Cull [_C] } } Properties { _C ("c", Float) = 2 } }'
     shader = Parser(text, "t.shader").parse()
     (cull,) = shader.body[0].body[0].commands
     assert cull.values[0].declared is None and "_C" in shader.properties
-    with pytest.raises(ShaderLabError) as err:
-        parse_shaderlab(text, "t.shader")
-    assert (err.value.line, err.value.column) == _at(text, "_C]")
-    assert err.value.message == "Cull mode refers to [_C], which is not in Properties"
+    result = parse_shaderlab(text, "t.shader")
+    assert result.passes[0].cull is Cull.Off  # 0, not the later declaration's 2 (Back)
+    assert "{}:{}: Cull mode refers to [_C], which is not in Properties: a global, which Unity reads as 0 unless " \
+           "a script sets it; imported as 0".format(*_at(text, "_C]")) in result.warnings
 
 
 _PASS = 'Shader "T" {\nProperties { _P ("p", Float) = 7 }\nSubShader { Pass {\n%s\n} } }'
@@ -102,8 +105,8 @@ _PASS = 'Shader "T" {\nProperties { _P ("p", Float) = 7 }\nSubShader { Pass {\n%
      "Stencil Ref must be an integer 0..255, got 300"),
     ("Cull [_P] Pass { }", "_P]", "Pass inside a Pass",
      "Cull mode value 7 from the property is not supported"),
-    ("Offset [_Q], { }", "_Q]", "expected a value for Offset units",
-     "Offset factor refers to [_Q], which is not in Properties"),
+    ("Offset [_P], { } Blend SrcAlfa One", "{ } Blend", "expected a value for Offset units",
+     "expected a value for Offset units, found '{'"),
     # A syntax error before a bad value is.
     ("ZWrite { } Blend SrcAlfa One", "{ } Blend", "expected a value for ZWrite, found '{'",
      "expected a value for ZWrite, found '{'"),
@@ -119,15 +122,17 @@ def test_the_first_error_of_the_text_is_reported(body, bad, syntax, message):
 
 
 def test_warnings_of_the_parser_and_of_the_state_are_in_text_order():
-    text = 'Shader "T" { SubShader { Pass { AlphaToMask On Foo 1\nBlend 1 One One Stencil { CompBack Less } } } }'
+    text = ('Shader "T" { SubShader { Pass { ZTest [_Global] Foo 1\nBlend 1 One One Stencil { CompBack Less } '
+            "CGPROGRAM\nENDCG } } }")
     warnings = parse_shaderlab(text, "t.shader").warnings
 
     def at(needle):
         return "{}:{}: ".format(*_at(text, needle))
 
     assert list(warnings) == [
-        at("AlphaToMask") + "AlphaToMask On is not supported (no MSAA); the pass is imported without it",  # state
+        at("_Global") + "ZTest function refers to [_Global], which is not in Properties: a global, which Unity "
+                        "reads as 0 unless a script sets it; imported as 0",  # state
         at("Foo") + "unknown command 'Foo' in Pass ignored",  # parser
-        at("1 One") + "Blend for render target 1 applied to the only colour buffer",  # state
+        at("1 One") + "Blend for render target 1 ignored: the frame is render target 0",  # state
         at("CompBack") + "Stencil CompBack (per-face stencil) is not supported and ignored",  # state
     ]

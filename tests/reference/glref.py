@@ -185,6 +185,10 @@ void main() {
 }
 """
 
+#: The alpha test's comparisons by the number the fragment shader's ``alpha_comp`` holds.
+ALPHA_COMPS = (CompareFunction.GEqual, CompareFunction.Greater, CompareFunction.Less, CompareFunction.LEqual,
+               CompareFunction.Equal, CompareFunction.NotEqual, CompareFunction.Always, CompareFunction.Never)
+
 _FRAGMENT_SHADER = """
 #version 330
 in vec2 v_uv;
@@ -197,6 +201,7 @@ uniform float cutoff;
 uniform bool lambert;
 uniform bool has_tex;
 uniform bool alpha_test;
+uniform int alpha_comp;  // ALPHA_COMPS: 0 = GEqual (the book's clip(alpha - cutoff))
 uniform vec3 ambient;
 uniform vec3 light;
 uniform vec3 ldir;
@@ -207,7 +212,13 @@ void main() {
     vec4 t = has_tex ? texture(tex, uv) : vec4(1.0);
     vec3 albedo = t.rgb * color.rgb;
     float alpha = (t.a * color.a) * alpha_scale;
-    if (alpha_test && alpha - cutoff < 0.0) discard;
+    if (alpha_test) {
+        bool survives = alpha_comp == 0 ? !(alpha - cutoff < 0.0)
+            : alpha_comp == 1 ? alpha > cutoff : alpha_comp == 2 ? alpha < cutoff
+            : alpha_comp == 3 ? alpha <= cutoff : alpha_comp == 4 ? alpha == cutoff
+            : alpha_comp == 5 ? alpha != cutoff : alpha_comp == 6;
+        if (!survives) discard;
+    }
     vec3 rgb = albedo;
     if (lambert) {
         float len = length(v_nw);
@@ -532,6 +543,8 @@ class GLRenderer:
                 prog[name].value = value
         if "alpha_test" in prog:
             prog["alpha_test"].value = bool(p.alpha_test)
+        if "alpha_comp" in prog:
+            prog["alpha_comp"].value = ALPHA_COMPS.index(p.alpha_test_comp)
         if tex is not None:
             tex.use(0)
             if "tex" in prog:

@@ -605,7 +605,7 @@ def fragment(px, py, bw, win, zws, bias, use_offset, uv, nws, p, shader: Shader,
     nwf = lerp3(o, nws, 3)
     # §7 shading and alpha test
     rgba = shader.shade(uvf, nwf)
-    if p.alpha_test and rgba[3] - shader.cutoff < 0:
+    if p.alpha_test and not alpha_survives(rgba[3], shader.cutoff, p.alpha_test_comp):
         result = "alpha_test"
     elif buf.collect is not None:  # sorted reference, step 2: kept for the per-pixel sort
         if p.color_mask:
@@ -615,6 +615,18 @@ def fragment(px, py, bw, win, zws, bias, use_offset, uv, nws, p, shader: Shader,
         result = merge_fragment(px, py, d, rgba, p, buf)
     if log is not None:
         log.fragments.append((where[0], px, py, where[1], d, rgba, result))
+
+
+def alpha_survives(alpha: float, cutoff: float, comp: CompareFunction) -> bool:
+    """``alpha <comp> cutoff``, one fragment: GEqual is ``clip(alpha - cutoff)`` (dies when the
+    difference is negative), the others the legacy ``AlphaTest`` comparison of the two values."""
+    if comp is CompareFunction.GEqual:
+        return not alpha - cutoff < 0
+    return {
+        CompareFunction.Greater: alpha > cutoff, CompareFunction.Less: alpha < cutoff,
+        CompareFunction.LEqual: alpha <= cutoff, CompareFunction.Equal: alpha == cutoff,
+        CompareFunction.NotEqual: alpha != cutoff, CompareFunction.Always: True, CompareFunction.Never: False,
+    }[comp]
 
 
 def merge_fragment(px: int, py: int, d: int, rgba: list, p, buf: Buffers) -> str:

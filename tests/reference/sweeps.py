@@ -13,7 +13,7 @@ boundaries, so no pixel centre lies on an edge and the fill rule never decides
 - :func:`colormask_sweep`: all 16 ColorMask subsets, blended and not.
 - :func:`stencil_sweep`: every comparison x every op in pass / fail / zfail, with masks.
 - :func:`texture_sweep`: both filters x both wraps x three encodings x tiling/offset.
-- :func:`alpha_test_sweep`, :func:`offset_sweep`.
+- :func:`alpha_test_sweep`, :func:`alpha_test_comp_sweep` (every comparison), :func:`offset_sweep`.
 """
 
 from __future__ import annotations
@@ -216,6 +216,26 @@ def alpha_test_sweep(seed: int = 8) -> DrawScene:
     return _scene(w, h, rs)
 
 
+def alpha_test_comp_sweep(seed: int = 10) -> DrawScene:
+    """Every alpha-test comparison x cutoff, on texels whose alpha is below, equal to or above the
+    cutoff (values exact in float32 and float64, so Equal and the boundaries are decided alike)."""
+    rng = np.random.default_rng(seed)
+    cutoffs = [0.0, 0.25, 0.5, 1.0]
+    combos = list(itertools.product(CompareFunction, cutoffs))
+    cell = 4
+    w, h, origins = _cells(len(combos), cell=cell)
+    rs = [_background(rng, w, h, z=-1.0)]
+    alphas = np.array([0.0, 0.125, 0.25, 0.375, 0.5, 0.75, 1.0], dtype=np.float32)
+    for k, ((comp, cutoff), (x, y)) in enumerate(zip(combos, origins, strict=True)):
+        px = np.ones((cell, cell, 4), np.float32)
+        px[..., 3] = rng.choice(alphas, size=(cell, cell))
+        px[..., :3] = rng.uniform(0, 1, size=(cell, cell, 3))
+        mat = Material(name=f"c{k}", main_tex=Texture(px, encoding="Data"), main_tex_filter=TextureFilter.Point,
+                       cutoff=cutoff, lighting=Lighting.Unlit, passes=(Pass(alpha_test=True, alpha_test_comp=comp),))
+        rs.append(renderer(quad(x, y, x + cell, y + cell, z=0.0), mat, name=f"cell{k:04d}"))
+    return _scene(w, h, rs)
+
+
 def offset_sweep(seed: int = 9) -> DrawScene:
     """Polygon offset units on coincident quads: a base quad, then one with Offset 0,u and ZTest Less/LEqual."""
     rng = np.random.default_rng(seed)
@@ -251,5 +271,6 @@ SWEEPS = {
     "texture_linear": lambda: texture_sweep(ColorSpace.Linear, False),
     "texture_linear_hdr": lambda: texture_sweep(ColorSpace.Linear, True),
     "alpha_test": alpha_test_sweep,
+    "alpha_test_comp": alpha_test_comp_sweep,
     "offset": offset_sweep,
 }

@@ -1,7 +1,8 @@
 """Export: a :class:`~blendlib.core.vocabulary.Material` → a complete built-in-pipeline ShaderLab shader.
 
-The shader is in the style of the book's chapter 8 shaders (Properties, Tags, one ForwardBase
-Pass per pass with its state, a CG vert/frag doing the same Lambert or Unlit shading) and imports
+The shader is in the style of the book's chapter 8 shaders (Properties, Tags, one Pass per pass
+with its LightMode and state, a CG vert/frag doing the same Lambert or Unlit shading and alpha
+test) and imports
 back to the same settings — for the fields a ``.shader`` file holds: the texture image, its
 tiling/offset and sampler settings belong to the Unity material and texture asset, not the
 shader. :func:`canonical_pass` is what the round trip gives back for a pass.
@@ -13,15 +14,25 @@ import math
 from dataclasses import fields, replace
 from decimal import Decimal
 
-from ...core.vocabulary import Lighting, Material, Pass, Queue, float32_text, pass_state_commands, queue_text
+from ...core.vocabulary import (
+    CompareFunction,
+    Lighting,
+    Material,
+    Pass,
+    Queue,
+    float32_text,
+    pass_state_commands,
+    queue_text,
+)
 
 
 def canonical_pass(p: Pass) -> Pass:
     """The pass as a ``.shader`` file can state it: inactive blend/stencil fields at their defaults,
     offsets as the export writes them.
 
-    ``Blend Off`` carries no factors, a non-separate alpha state no alpha factors and
-    a pass without ``Stencil`` no stencil values; offsets are written as the shortest
+    ``Blend Off`` carries no factors, a non-separate alpha state no alpha factors, a pass
+    without an alpha test no comparison (``Always`` tests nothing) and a pass without
+    ``Stencil`` no stencil values; offsets are written as the shortest
     text of their float32 (what Blender stores, :func:`float32_text`). So export then
     import gives back ``canonical_pass(p)``; for passes edited in the UI this is ``p``
     itself at float32 precision unless fields hidden by a switched-off option were changed.
@@ -29,6 +40,10 @@ def canonical_pass(p: Pass) -> Pass:
     d = Pass()
     p = replace(p, offset_factor=float(float32_text(p.offset_factor)),
                 offset_units=float(float32_text(p.offset_units)))
+    if p.alpha_test and p.alpha_test_comp is CompareFunction.Always:  # keeps every fragment: no test
+        p = replace(p, alpha_test=False)
+    if not p.alpha_test:
+        p = replace(p, alpha_test_comp=d.alpha_test_comp)
     if not p.blend:
         p = replace(p, src_blend=d.src_blend, dst_blend=d.dst_blend, blend_op=d.blend_op, separate_alpha=False)
     if not p.separate_alpha:
@@ -109,6 +124,21 @@ _CG_ALPHA_TEST = """\
     // Alpha test: discard the fragment when alpha - _Cutoff < 0
     clip(texColor.a * _Color.a * _AlphaScale - _Cutoff);
 """
+#: The alpha test's other comparisons (what legacy ``AlphaTest <comp> [_Cutoff]`` did), in the CG.
+_CG_OPERATORS = {CompareFunction.Greater: ">", CompareFunction.Less: "<", CompareFunction.LEqual: "<=",
+                 CompareFunction.Equal: "==", CompareFunction.NotEqual: "!="}
+
+
+def _cg_alpha_test(comp: CompareFunction) -> str:
+    """The CG lines of an alpha test with comparison ``comp`` (GEqual: the book's ``clip``)."""
+    if comp is CompareFunction.GEqual:
+        return _CG_ALPHA_TEST
+    if comp is CompareFunction.Never:
+        return "    // Alpha test Never: discard every fragment\n    clip(-1);\n"
+    if comp is CompareFunction.Always:
+        return ""
+    return (f"    // Alpha test: keep the fragment when alpha {_CG_OPERATORS[comp]} _Cutoff\n"
+            f"    if (!(texColor.a * _Color.a * _AlphaScale {_CG_OPERATORS[comp]} _Cutoff)) discard;\n")
 
 _CG_LAMBERT = """\
     float3 worldNormal = normalize(i.worldNormal);
@@ -133,11 +163,11 @@ def export_shaderlab(material: Material, shader_name: str | None = None) -> str:
     """A complete ShaderLab shader (built-in pipeline, CG) with the material's queue, passes and shading.
 
     ``Properties`` hold ``_Color``, ``_MainTex``, ``_Cutoff`` and ``_AlphaScale`` with the
-    material's values as defaults; each pass states Cull/ZWrite/ZTest/Blend (and
-    BlendOp, ColorMask, Offset, Stencil where they differ from the defaults) and runs
-    the book's ForwardBase vertex/fragment program: Lambert (``_LightColor0``) or
-    Unlit, with ``clip(texColor.a * _Color.a * _AlphaScale - _Cutoff)`` in alpha-test
-    passes.
+    material's values as defaults; each pass states its ``LightMode`` tag and Cull/ZWrite/
+    ZTest/Blend (and BlendOp, ColorMask, AlphaToMask, Offset, Stencil where they differ from
+    the defaults) and runs the book's vertex/fragment program: Lambert (``_LightColor0``) or
+    Unlit, with ``clip(texColor.a * _Color.a * _AlphaScale - _Cutoff)`` in alpha-test passes
+    (GEqual), ``if (!(… > _Cutoff)) discard;`` for the other comparisons, ``clip(-1)`` for Never.
     """
     name = _shader_string(shader_name if shader_name is not None else f"Unity Passes/{material.name}")
     c = material.color
@@ -169,12 +199,12 @@ def export_shaderlab(material: Material, shader_name: str | None = None) -> str:
             "        Pass",
             "        {",
             f'            Name "{_shader_string(p.name)}"',
-            '            Tags { "LightMode"="ForwardBase" }',
+            f'            Tags {{ "LightMode"="{p.light_mode}" }}',
             "",
         ]
         out += ["            " + line for line in pass_state_commands(p)]
         out.append("")
-        program = _CG_HEAD + (_CG_ALPHA_TEST if p.alpha_test else "") + body
+        program = _CG_HEAD + (_cg_alpha_test(p.alpha_test_comp) if p.alpha_test else "") + body
         out += [("            " + line) if line else "" for line in program.splitlines()]
         out.append("        }")
     fallback = {Queue.AlphaTest: "Transparent/Cutout/VertexLit", Queue.Transparent: "Transparent/VertexLit",

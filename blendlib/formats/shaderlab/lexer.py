@@ -190,13 +190,16 @@ class Scanner:
 
     def skip_rest_of_line(self) -> None:
         """Skip to the end of the line, through a ``{ ... }`` block opening on it; stop before ``}``."""
+        self.skip_line_until(frozenset())
+
+    def skip_line_until(self, words: frozenset[str]) -> None:
+        """Skip the rest of the line like :meth:`skip_rest_of_line`, but stop before a word of
+        ``words`` (lower case) that starts there: the next command on the same line."""
         assert self._peeked is None
         i, text = self.pos, self.text
         while i < len(text):
             c = text[i]
-            if c in "\r\n" or text.startswith("//", i):
-                break
-            if c == "}":
+            if c in "\r\n" or text.startswith("//", i) or c == "}":
                 break
             if c == '"':
                 i = self._skip_string_at(i)
@@ -205,9 +208,18 @@ class Scanner:
                 line, col = self.where(i)
                 self.skip_raw_block(Token("punct", "{", line, col, i + 1), "the ignored command")
                 return
+            if words:
+                m = _IDENT_RE.match(text, i)
+                if m and m.group().lower() in words and not (i and (text[i - 1].isalnum() or text[i - 1] == "_")):
+                    break
             j = self._skip_comment_or_program_at(i)
             i = j if j is not None else i + 1
         self.pos = i
+
+    def raw_block(self, open_tok: Token, owner: str) -> str:
+        """The raw text inside the ``{ … }`` that ``open_tok`` opens; the scanner moves past its ``}``."""
+        self.skip_raw_block(open_tok, owner)
+        return self.text[open_tok.end : self.pos - 1]
 
     def raw_until_bracket_close(self, open_tok: Token) -> str:
         """Raw text after ``[`` up to the matching ``]`` (attribute text, may hold anything)."""

@@ -8,13 +8,17 @@ that name declared before it, the way a compiler binds a name to its declaration
 
 Read: ``Shader "name" { … }``; ``Properties`` (with attributes such as ``[Enum(…)]``); ``Category``
 blocks, nested up to :data:`MAX_NESTING` deep; the first ``SubShader`` (later ones are counted and
-skipped); ``Tags``, ``Pass``, ``Name``, ``UsePass`` (recorded) and ``Fallback``; the state commands
-of :data:`STATE_COMMANDS`; program blocks (``CGPROGRAM`` … ``ENDCG``) as text. Skipped with a
-warning: unknown commands (their line, or the ``{ … }`` block opening on it), ``GrabPass``, state
-commands outside a Category/SubShader/Pass, programs outside a Pass. Without a warning: the
-commands of :data:`QUIET_COMMANDS` in a SubShader or Pass are kept as commands that set nothing
-(a ``[_Prop]`` they name must still be declared); ``PackageRequirements { }``, ``CustomEditor``
-and ``Dependency`` are skipped.
+skipped); ``Tags``, ``Pass``, ``Name``, ``UsePass``, ``GrabPass`` and ``Fallback``; the state
+commands of :data:`STATE_COMMANDS` and the fixed-function ones of :data:`FIXED_FUNCTION_COMMANDS`
+(``SetTexture`` in a Pass) at Category, SubShader and Pass level; program blocks (``CGPROGRAM``
+… ``ENDCG``) as text, in a Pass or — a surface shader — in the SubShader.
+
+Commands that do not change what this renderer draws (:data:`IGNORED_COMMANDS`: ``Fog { }``,
+``BindChannels { }``, ``LOD``, ``ZClip``, ``Conservative``, ``Name`` outside a Pass) are consumed
+exactly — their arguments and blocks, nothing after them, so ``Cull Off Fog { Mode Off } ZWrite
+Off`` still sets ZWrite — and listed as warnings. An unknown command is skipped with a warning up
+to the next known command on its line (or through a ``{ … }`` block opening on it).
+``PackageRequirements { }``, ``CustomEditor`` and ``Dependency`` are skipped silently.
 
 Malformed text raises :class:`~.diagnostics.ShaderLabError` at the first problem; the tree read up
 to it stays in :attr:`Parser.shader` (see :mod:`.tree`).
@@ -30,8 +34,11 @@ from .lexer import Scanner, Token
 from .tree import (
     CategoryBlock,
     Command,
+    GrabPass,
     PassBlock,
+    ProgramBlock,
     Property,
+    SetTexture,
     ShaderBlock,
     SubShaderBlock,
     TagsBlock,
@@ -46,15 +53,37 @@ MAX_NESTING = 64
 STATE_COMMANDS = frozenset(
     ["cull", "zwrite", "ztest", "blend", "blendop", "colormask", "offset", "alphatomask", "stencil"]
 )
-#: Known commands that do not change what this renderer draws: kept with their value, nothing warned.
-QUIET_COMMANDS = frozenset(["lod", "lighting", "zclip", "conservative", "packagerequirements"])
+#: The fixed-function commands (legacy passes without a program, :mod:`.fixed_function`); like the
+#: state commands they may stand at Category, SubShader or Pass level. ``SetTexture`` is a Pass's.
+FIXED_FUNCTION_COMMANDS = frozenset(["lighting", "material", "color", "colormaterial", "separatespecular",
+                                     "alphatest"])
+#: Commands that do not change what this renderer draws, by what follows them: consumed exactly, warned.
+IGNORED_COMMANDS = {"fog": "block", "bindchannels": "block", "lod": "value", "zclip": "value",
+                    "conservative": "value", "name": "string"}
+#: Why each ignored command changes nothing here (the warning's reason).
+_IGNORED_WHY = {
+    "fog": "fog is not drawn", "bindchannels": "vertex data is bound by name here",
+    "lod": "the first SubShader is used, as under Unity's default unlimited maximum LOD",
+    "zclip": "depth is clamped to the far plane here", "conservative": "conservative rasterization is not drawn",
+    "name": "only a Pass has a name",
+}
 #: Per-face stencil commands inside ``Stencil { }`` (not supported: :mod:`.state` warns).
 STENCIL_FACE_COMMANDS = frozenset(
     ["compfront", "passfront", "failfront", "zfailfront", "compback", "passback", "failback", "zfailback"]
 )
+#: The commands inside ``Material { }`` (their values: a colour, Shininess a number).
+MATERIAL_BLOCK_COMMANDS = frozenset(["diffuse", "ambient", "specular", "shininess", "emission"])
+#: Every word that starts a command, for skipping an unknown one up to the next command on its line.
+COMMAND_WORDS = STATE_COMMANDS | FIXED_FUNCTION_COMMANDS | frozenset(IGNORED_COMMANDS) | frozenset(
+    ["settexture", "tags", "pass", "usepass", "grabpass", "packagerequirements"])
 
-# What each one-value state command's argument is, for messages.
-_VALUE_WHAT = {"cull": "Cull mode", "zwrite": "ZWrite", "ztest": "ZTest function", "alphatomask": "AlphaToMask"}
+#: What may stand in a Category (and, with SetTexture, in a Pass).
+COMMANDS_ANYWHERE = STATE_COMMANDS | FIXED_FUNCTION_COMMANDS | frozenset(IGNORED_COMMANDS) | frozenset(
+    ["packagerequirements"])
+
+# What each one-value command's argument is, for messages.
+_VALUE_WHAT = {"cull": "Cull mode", "zwrite": "ZWrite", "ztest": "ZTest function", "alphatomask": "AlphaToMask",
+               "lighting": "Lighting", "separatespecular": "SeparateSpecular", "colormaterial": "ColorMaterial"}
 
 
 class Parser:
@@ -113,11 +142,12 @@ class Parser:
             yield tok
 
     def skip_command(self, head: Token, warning: str | None) -> None:
-        """Skip a command not read: the rest of its line, or up to the end of a ``{ ... }`` block
-        opening on that line (stops before a ``}`` that closes the enclosing block)."""
+        """Skip a command not read: the rest of its line up to the next known command on it, or
+        up to the end of a ``{ ... }`` block opening on that line (stops before a ``}`` that
+        closes the enclosing block)."""
         if warning is not None:
             self.warn(warning, head)
-        self.s.skip_rest_of_line()
+        self.s.skip_line_until(COMMAND_WORDS)
 
     # top level -------------------------------------------------------------
     def parse(self) -> ShaderBlock:
@@ -178,9 +208,9 @@ class Parser:
                                        arg)
             elif word in ("customeditor", "customeditorforrenderpipeline", "dependency"):
                 self.skip_command(tok, None)
-            elif word in STATE_COMMANDS and in_category:
-                self.parse_command(tok, block.body)
-            elif word in STATE_COMMANDS:
+            elif word in COMMANDS_ANYWHERE and in_category:
+                self.parse_any_command(tok, block.body, owner)
+            elif word in STATE_COMMANDS or word in FIXED_FUNCTION_COMMANDS:
                 self.skip_command(tok, f"{tok.text} outside SubShader/Category ignored")
             elif word == "tags" and in_category:
                 tags = TagsBlock(tok)
@@ -284,8 +314,7 @@ class Parser:
                 if tok.code_kind.endswith("INCLUDE"):
                     self.shader.includes.append(tok.text)
                 else:
-                    self.warn(f"{tok.code_kind} directly in the SubShader (a surface shader?): "
-                              "the passes Unity generates from it are not imported", tok)
+                    subshader.body.append(ProgramBlock(tok, tok.text))
                 continue
             if tok.kind != "ident":
                 raise self.s.error(f"unexpected {tok.describe()} in SubShader", tok)
@@ -306,9 +335,9 @@ class Parser:
             elif word == "usepass":
                 arg = self.expect_string("pass path after UsePass")
                 subshader.body.append(UsePass(tok, arg.text))
-                self.warn(f'UsePass "{arg.text}" recorded, not imported (the other shader is not available)', tok)
             elif word == "grabpass":
-                self.skip_command(tok, "GrabPass ignored")
+                subshader.body.append(GrabPass(tok))
+                self.s.skip_raw_block(self.open_block(tok), "GrabPass")
             else:
                 self.parse_any_command(tok, subshader.body, "SubShader")
 
@@ -331,6 +360,11 @@ class Parser:
                 positions = self.parse_tags(tok, pass_block.tags)
                 if "queue" in positions:
                     self.warn("Queue is a SubShader tag; in a Pass's Tags it is ignored", positions["queue"])
+            elif word == "settexture":
+                texture = self.value("SetTexture texture")
+                open_block = self.open_block(tok)
+                pass_block.stages.append(SetTexture(tok, texture, self.s.raw_block(open_block, "SetTexture"),
+                                                    open_block))
             else:
                 self.parse_any_command(tok, pass_block.commands, "Pass")
 
@@ -350,22 +384,30 @@ class Parser:
         raise self.s.error(f"expected a value for {what}, found {tok.describe()}", tok)
 
     def parse_any_command(self, head: Token, into: list, owner: str) -> None:
-        """A command in a SubShader or Pass: a state or quiet command joins ``into``, another is skipped."""
-        if head.lower in STATE_COMMANDS:
+        """A command in a Category, SubShader or Pass: a state or fixed-function command joins
+        ``into``, an ignored one is consumed with a warning, another is skipped."""
+        word = head.lower
+        if word in STATE_COMMANDS or word in FIXED_FUNCTION_COMMANDS:
             self.parse_command(head, into)
-        elif head.lower in QUIET_COMMANDS:
-            self.parse_quiet(head, into)
+        elif word in IGNORED_COMMANDS:
+            self.parse_ignored(head)
+        elif word == "packagerequirements":
+            self.s.skip_raw_block(self.open_block(head), head.text)
         else:
             self.skip_command(head, f"unknown command {head.text!r} in {owner} ignored")
 
-    def parse_quiet(self, head: Token, into: list) -> None:
-        """A command of :data:`QUIET_COMMANDS`: its value is kept (a reference must still name a property)."""
-        if head.lower == "packagerequirements":
+    def parse_ignored(self, head: Token) -> None:
+        """A command of :data:`IGNORED_COMMANDS`: its argument or block consumed, a warning listed
+        (a ``[_Prop]`` argument is read, so it must still be well formed)."""
+        word = head.lower
+        shape = IGNORED_COMMANDS[word]
+        if shape == "block":
             self.s.skip_raw_block(self.open_block(head), head.text)
-            return
-        command = Command(head)
-        into.append(command)
-        command.values.append(self.value(head.text))
+        elif shape == "string":
+            self.expect_string(f"name after {head.text}")
+        else:
+            self.value(head.text)
+        self.warn(f"{head.text} ignored: {_IGNORED_WHY[word]}", head)
 
     def parse_command(self, head: Token, into: list) -> None:
         """A command of :data:`STATE_COMMANDS`, appended to ``into`` before its arguments are read."""
@@ -375,6 +417,15 @@ class Parser:
         word = head.lower
         if word in _VALUE_WHAT:
             values.append(self.value(_VALUE_WHAT[word]))
+        elif word == "color":
+            self.parse_color(command, "Color")
+        elif word == "material":
+            self.parse_material_block(command)
+        elif word == "alphatest":
+            values.append(self.value("AlphaTest comparison"))
+            nxt = self.s.peek()
+            if nxt.line == head.line and (nxt.kind == "number" or (nxt.kind == "punct" and nxt.text == "[")):
+                values.append(self.value("AlphaTest value"))
         elif word == "blend":
             self.parse_blend(command)
         elif word == "blendop":
@@ -412,6 +463,35 @@ class Parser:
             self.s.next()
             for _ in range(2):
                 command.values.append(self.value("blend factor"))
+
+    def parse_color(self, command: Command, what: str) -> None:
+        """A colour argument: ``(r, g, b[, a])`` (alpha 1 when left out) or a ``[_Prop]`` reference."""
+        if not self.at_punct("("):
+            command.values.append(self.value(what))
+            return
+        self.s.next()
+        parts = [self.expect_number(f"a component of {what}")]
+        while self.at_punct(","):
+            self.s.next()
+            parts.append(self.expect_number(f"a component of {what}"))
+        self.expect(")", f"after the {what} colour")
+        if not 3 <= len(parts) <= 4:
+            raise self.s.error(f"{what} colour needs 3 or 4 components", command.head)
+        command.color = (*parts, 1.0)[:4] if len(parts) == 3 else tuple(parts)
+
+    def parse_material_block(self, material: Command) -> None:
+        """``Material { Diffuse C Ambient C Specular C Shininess N Emission C }``."""
+        open_tok = self.open_block(material.head)
+        for tok in self.block_tokens(open_tok, "Material"):
+            if tok.kind != "ident" or tok.lower not in MATERIAL_BLOCK_COMMANDS:
+                raise self.s.error(f"unknown Material command {tok.describe()} (expected Diffuse, Ambient, "
+                                   "Specular, Shininess or Emission)", tok)
+            command = Command(tok)
+            material.commands.append(command)
+            if tok.lower == "shininess":
+                command.values.append(self.value("Material Shininess"))
+            else:
+                self.parse_color(command, f"Material {tok.text}")
 
     def parse_stencil(self, stencil: Command) -> None:
         open_tok = self.open_block(stencil.head)

@@ -6,13 +6,16 @@
 * :class:`CategoryBlock` — state :class:`Command` s, :class:`TagsBlock` s, nested Categories and SubShaders;
 * :class:`SubShaderBlock` — commands, :class:`PassBlock` s and :class:`UsePass` es (its Tags are
   kept as one dictionary with the position of the Queue tag);
-* :class:`PassBlock` — its name, tags, commands and program texts.
+* :class:`PassBlock` — its name, tags, commands (the fixed-function ones too, and its
+  :class:`SetTexture` stages) and program texts;
+* :class:`ProgramBlock` — a program written directly in a SubShader (a surface shader: Unity
+  generates passes in its place) and :class:`GrabPass` — both kept where they stand.
 
 A :class:`Command` keeps each argument as a :class:`Value` (a word, a number or a ``[_Prop]``
 reference with the declaration it names); what the words and numbers mean, and how Category,
 SubShader and Pass state combine, is :mod:`.state`'s business. Only the first SubShader is
-parsed; the others are counted (``subshader_count``). Unknown commands (and the few known ones
-without a value, such as ``CustomEditor``) have no node.
+parsed; the others are counted (``subshader_count``). Unknown commands (and the known ones that
+carry nothing, such as ``CustomEditor`` or ``Fog { }``) have no node.
 
 The parser builds the tree top-down — a node joins its parent before its own contents are read —
 so when it stops at a syntax error, the tree read so far is complete up to that point.
@@ -67,6 +70,9 @@ class Command:
     values: list[Value] = field(default_factory=list)
     render_target: Token | None = None
     commands: list[Command] = field(default_factory=list)
+    #: ``Color (r, g, b, a)`` and the colours of ``Material { }``: the literal, 4 floats (None: a
+    #: ``[_Prop]`` in ``values`` or no colour).
+    color: tuple[float, float, float, float] | None = None
 
     @property
     def name(self) -> str:
@@ -91,22 +97,55 @@ class UsePass:
 
 
 @dataclass
+class SetTexture:
+    """``SetTexture [_Tex] { combine … constantColor … }`` (a fixed-function texture stage): the
+    texture reference and the block's text as written (read by :mod:`.fixed_function`)."""
+
+    head: Token
+    texture: Value
+    block: str
+    block_token: Token  # the '{' (positions of what the block says)
+
+
+@dataclass
 class PassBlock:
-    """``Pass { … }``: its ``Name``, ``Tags``, state commands and ``CGPROGRAM``-like program texts."""
+    """``Pass { … }``: its ``Name``, ``Tags``, state commands, fixed-function texture stages and
+    ``CGPROGRAM``-like program texts."""
 
     head: Token
     name: str | None = None
     tags: dict[str, str] = field(default_factory=dict)
     commands: list[Command] = field(default_factory=list)
     programs: list[str] = field(default_factory=list)
+    stages: list[SetTexture] = field(default_factory=list)
+    #: Made by Unity from a surface shader's program (``SubShader``-level ``#pragma surface``), not
+    #: written: the :class:`~.surface.SurfacePragma` it was generated from (None: written).
+    surface: Any = None
+
+
+@dataclass
+class ProgramBlock:
+    """A ``CGPROGRAM`` … ``ENDCG`` (or HLSL) written directly in a SubShader: a surface shader,
+    whose passes Unity generates in its place."""
+
+    token: Token
+    text: str
+
+
+@dataclass
+class GrabPass:
+    """``GrabPass { … }``: copies the frame into a texture; it draws nothing itself."""
+
+    head: Token
 
 
 @dataclass
 class SubShaderBlock:
-    """``SubShader { … }``: state commands, passes and UsePasses in source order, and its tags."""
+    """``SubShader { … }``: state commands, passes, UsePasses, programs and GrabPasses in source
+    order, and its tags."""
 
     head: Token
-    body: list[Command | PassBlock | UsePass] = field(default_factory=list)
+    body: list[Command | PassBlock | UsePass | ProgramBlock | GrabPass] = field(default_factory=list)
     tags: dict[str, str] = field(default_factory=dict)
     queue_token: Token | None = None  # the value of its last "Queue" tag
 

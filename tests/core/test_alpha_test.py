@@ -1,0 +1,98 @@
+"""The alpha test's comparison (``Pass.alpha_test_comp``, SPEC §11.4): a fragment survives when
+``alpha <comp> _Cutoff``; GEqual is the book's ``clip(alpha - _Cutoff)``.
+
+Every comparison is also swept against the scalar and OpenGL references
+(``tests/reference/sweeps.py``: ``alpha_test_comp``); here the values are checked by hand, and
+draw calls fused for shared shading each test with their own comparison.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from blendlib import render_scene
+from blendlib.core import fragment
+from blendlib.core.scene import DrawScene
+from blendlib.core.vocabulary import CompareFunction, Lighting, Material, Pass, Texture, TextureFilter
+from tests.reference.scalar import render_reference
+from tests.reference.scenes import quad, renderer, screen_camera
+
+ALPHAS = np.array([0.0, 0.25, 0.5, 0.75, 1.0, np.nan])
+#: Which of ALPHAS survive against a cutoff of 0.5: the legacy AlphaTest command's comparisons
+#: (Unity manual, "ShaderLab: legacy alpha testing"); GEqual as clip(alpha - 0.5), under which a
+#: NaN difference is not negative and the fragment is kept.
+SURVIVORS = {
+    CompareFunction.GEqual: [False, False, True, True, True, True],
+    CompareFunction.Greater: [False, False, False, True, True, False],
+    CompareFunction.Less: [True, True, False, False, False, False],
+    CompareFunction.LEqual: [True, True, True, False, False, False],
+    CompareFunction.Equal: [False, False, True, False, False, False],
+    CompareFunction.NotEqual: [True, True, False, True, True, True],
+    CompareFunction.Always: [True] * 6,
+    CompareFunction.Never: [False] * 6,
+}
+
+
+@pytest.mark.parametrize("comp", list(CompareFunction))
+def test_every_comparison_by_hand(comp):
+    rgba = np.zeros((ALPHAS.size, 4))
+    rgba[:, 3] = ALPHAS
+    want = np.array(SURVIVORS[comp])
+    np.testing.assert_array_equal(fragment.alpha_test(rgba, None, None, 0.5, comp), want)
+    # The same alphas from a palette (flat triangles), and half from each.
+    palette, ids = rgba, np.arange(ALPHAS.size, dtype=np.int32)
+    np.testing.assert_array_equal(fragment.alpha_test(None, ids, palette, 0.5, comp), want)
+    mixed = np.where(np.arange(ALPHAS.size) % 2 == 0, ids, -1).astype(np.int32)
+    np.testing.assert_array_equal(fragment.alpha_test(rgba, mixed, palette, 0.5, comp), want)
+
+
+def test_geequal_is_the_default_and_the_books_clip():
+    rgba = np.zeros((ALPHAS.size, 4))
+    rgba[:, 3] = ALPHAS
+    np.testing.assert_array_equal(fragment.alpha_test(rgba, None, None, 0.5), ~(ALPHAS - 0.5 < 0))
+    assert Pass().alpha_test_comp is CompareFunction.GEqual
+
+
+def test_fused_calls_each_test_their_own_comparison(monkeypatch):
+    """Eight quads with one texture and material, one per comparison, are shaded together
+    (``fuse.fuse_shared_shading``) and each keeps exactly the texels its comparison passes: the
+    texture maps one texel to one pixel, so a quad's drawn pixels are counted by hand."""
+    from blendlib.core import pipeline
+
+    rng = np.random.default_rng(3)
+    cell = 4
+    texels = np.ones((cell, cell, 4), np.float32)
+    texels[..., :3] = rng.uniform(0.2, 1.0, (cell, cell, 3))
+    texels[..., 3] = rng.choice(np.array([0.0, 0.25, 0.5, 0.75, 1.0], np.float32), (cell, cell))
+    texture = Texture(texels, encoding="Data", name="alphas")
+    comps = list(CompareFunction)
+    renderers = []
+    for k, comp in enumerate(comps):
+        mat = Material(name="Cut", main_tex=texture, main_tex_filter=TextureFilter.Point, cutoff=0.5,
+                       lighting=Lighting.Unlit, passes=(Pass(alpha_test=True, alpha_test_comp=comp),))
+        renderers.append(renderer(quad(k * cell, 0, (k + 1) * cell, cell), mat, name=f"Quad{k}"))
+    clear = (0.0, 0.0, 0.0, 0.0)
+    scene = DrawScene(camera=screen_camera(cell * len(comps), cell), renderers=tuple(renderers), light=None,
+                      clear_color=clear)
+    groups = []
+    original = pipeline.fuse_shared_shading
+
+    def recording(prepared, memo=None):
+        out = original(prepared, memo)
+        groups.append((len(prepared), len(out)))
+        return out
+
+    monkeypatch.setattr(pipeline, "fuse_shared_shading", recording)
+    frame = render_scene(scene, workers=1)
+    assert groups and groups[0][1] < groups[0][0]  # the quads were shaded together
+    color, _, _ = render_reference(scene)
+    np.testing.assert_array_equal(frame.color, color)
+    alpha = texels[..., 3].astype(np.float64)
+    for k, comp in enumerate(comps):
+        drawn = int(np.any(frame.color[:, k * cell:(k + 1) * cell] != clear, axis=-1).sum())
+        expect = {CompareFunction.GEqual: alpha >= 0.5, CompareFunction.Greater: alpha > 0.5,
+                  CompareFunction.Less: alpha < 0.5, CompareFunction.LEqual: alpha <= 0.5,
+                  CompareFunction.Equal: alpha == 0.5, CompareFunction.NotEqual: alpha != 0.5,
+                  CompareFunction.Always: alpha == alpha, CompareFunction.Never: alpha != alpha}[comp]
+        assert drawn == int(expect.sum()), comp
