@@ -65,12 +65,13 @@ def test_every_material_gets_the_unity_settings_unitys_importer_sets(file):
 def test_names_that_exist_already_are_deduped_but_each_material_gets_its_own_settings():
     empty_scene()
     existing = bpy.data.materials.new("Transparent")  # what Blender's dedupe turns the import into Transparent.001
-    existing_values = blender.material_values(existing)
+    existing_material = blender.material_from_blender(existing)
     done = gltf_import.import_gltf(CORPUS / "vrm-addon" / "mtoon1_2_20_61_vrm0.vrm")
     names = [m.name for m in done.materials]
     assert names == ["Opaque", "Cutout", "Transparent.001", "TransparentWithZWrite"]
     assert blender.material_from_blender(done.materials[2]).render_queue == 2952
-    assert blender.material_values(existing) == existing_values  # untouched
+    assert blender.material_from_blender(existing) == existing_material  # untouched: renders as before
+    assert not blender.material_values(existing)["enabled"]
 
 
 @needs_corpus

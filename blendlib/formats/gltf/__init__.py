@@ -10,7 +10,8 @@ One module per step, each importing only those above it:
   (:class:`GltfError`: one line naming the file);
 * :mod:`.textures` — a texture's sampler and ``KHR_texture_transform`` as UniGLTF loads them;
 * :mod:`.mtoon` — MToon's four passes (0.x and 1.0) for given property values;
-* :mod:`.records` — :class:`ImportedMaterial`, :class:`GltfImport`, the JSON material record;
+* :mod:`.records` — :class:`ImportedMaterial`, :class:`GltfImport` (their JSON: the ShaderLab
+  package's material record per material);
 * :mod:`.unigltf` — plain glTF: UniUnlit and Standard;
 * :mod:`.vrm0` — VRM 0.x ``materialProperties`` (UniVRM's legacy loader: values as stored);
 * :mod:`.vrm1` — VRM 1.0 ``VRMC_materials_mtoon`` through MToon's validator;
@@ -21,7 +22,7 @@ One module per step, each importing only those above it:
 from .container import GltfDocument, GltfError, document_from_json, read_document
 from .importer import import_file, import_material, import_materials, vrm_version
 from .mtoon import BLEND_CLIP_MTOON0, BLEND_CLIP_MTOON1
-from .records import SHADING_APPROXIMATION, GltfImport, ImportedMaterial, material_record
+from .records import SHADING_APPROXIMATION, GltfImport, ImportedMaterial
 
 __all__ = [
     "BLEND_CLIP_MTOON0",
@@ -35,7 +36,6 @@ __all__ = [
     "import_file",
     "import_material",
     "import_materials",
-    "material_record",
     "read_document",
     "vrm_version",
 ]

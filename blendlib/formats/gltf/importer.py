@@ -40,12 +40,17 @@ def import_material(document: GltfDocument, index: int, vrm: str | None) -> Impo
         if vrm == "0.x":
             entries = document.json["extensions"]["VRM"].get("materialProperties") or []
             entry = entries[index] if index < len(entries) else None
-            return vrm0_material(document, index, entry, lambda i: gltf_material(document, i))
-        if MTOON1_EXTENSION in (material.get("extensions") or {}):
-            return vrm1_material(document, index)
-        return gltf_material(document, index)
+            imported = vrm0_material(document, index, entry, lambda i: gltf_material(document, i))
+        elif MTOON1_EXTENSION in (material.get("extensions") or {}):
+            imported = vrm1_material(document, index)
+        else:
+            imported = gltf_material(document, index)
     except MaterialError as exc:
         raise GltfError(f"{document.path}: {exc}") from None
+    image = document.texture_image(imported.main_tex) if imported.main_tex is not None else None
+    if image is not None:  # which image _MainTex is (the record's main_tex is a file path: none here)
+        imported.extra["main_tex_image"] = document.image_name(image)
+    return imported
 
 
 def import_materials(document: GltfDocument) -> GltfImport:

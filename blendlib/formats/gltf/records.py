@@ -9,8 +9,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ...core import colorspace
-from ...core.vocabulary import Material, pass_draws
-from ..shaderlab import ShaderLabResult, parse_queue
+from ...core.vocabulary import Material
+from ..shaderlab import material_record, parse_queue
 
 #: The one warning of every import (SPEC §11.6): the colour is approximated, the rest is exact.
 SHADING_APPROXIMATION = ("MToon and PBR shading are approximated by Lambert of _Color x _MainTex; "
@@ -40,21 +40,9 @@ class ImportedMaterial:
     extra: dict[str, Any] = field(default_factory=dict)
 
     def record(self) -> dict[str, Any]:
-        """The material's JSON record, the one ``shaderlab --json`` prints (name, material, passes
-        with ``light_mode``/``drawn``/``reason``, warnings, extra)."""
-        return material_record(self.material, self.warnings, self.extra)
-
-
-def material_record(material: Material, warnings: tuple[str, ...], extra: dict[str, Any]) -> dict[str, Any]:
-    """The material record of ``shaderlab --json`` — built through :class:`ShaderLabResult` and each
-    pass's forward-path rule (``drawn`` as in a scene with one directional light, ``reason``) until the
-    ShaderLab importer states that record in one function of its own."""
-    out = ShaderLabResult(material, tuple(warnings), dict(extra)).to_dict()
-    for record, p in zip(out["passes"], material.passes, strict=True):
-        how, reason = pass_draws(p, material.passes)
-        record["drawn"] = how == "once"
-        record["reason"] = reason
-    return out
+        """The material's JSON record: THE record ``shaderlab --json`` prints
+        (:func:`blendlib.formats.shaderlab.material_record`)."""
+        return material_record(self.material.name, self.material, self.warnings, self.extra)
 
 
 @dataclass(frozen=True)
