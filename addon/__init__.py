@@ -3,6 +3,7 @@
 - :mod:`.material_settings`: ``Material.unity`` / ``Scene.unity``, the "Unity Material" and
   "Unity Camera" panels, the pass operators and presets, migration of older files.
 - :mod:`.shaderlab`: Import / Export ShaderLab.
+- :mod:`.vrm_import`: File › Import › VRM/glTF with Unity settings.
 - :mod:`.sort_analysis`: Render Properties › Unity Sort Analysis and its F12 passes.
 - :mod:`.engine`: the "Unity Passes" render engine (``UNITY_PASSES``), F12 and the viewport.
 - :mod:`.frame_debugger`: the "Unity Frame Debugger" in the Image Editor.
@@ -42,9 +43,9 @@ def _features():
     """The feature packages in registration order (unregistered in reverse): the Unity settings
     first (everything else reads them), the sort analysis' ``ViewLayer.unity_analysis`` before the
     engine whose render passes depend on it."""
-    from . import engine, frame_debugger, material_settings, shaderlab, sort_analysis
+    from . import engine, frame_debugger, material_settings, shaderlab, sort_analysis, vrm_import
 
-    return (material_settings, sort_analysis, engine, shaderlab, frame_debugger)
+    return (material_settings, sort_analysis, engine, shaderlab, vrm_import, frame_debugger)
 
 
 def register() -> None:

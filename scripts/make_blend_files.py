@@ -25,7 +25,7 @@ import numpy as np
 from mathutils import Vector
 
 from blendlib import blender
-from scripts import scenekit
+from scripts import scenekit, vrm_avatar
 from scripts.scenekit import ALPHA_BLEND as BLEND
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -602,6 +602,7 @@ SCENES = {
     "render_queues": build_render_queues,
     "gamma_linear": build_gamma_linear,
     "lights": build_lights,
+    "vrm_avatar": lambda: vrm_avatar.build(new_file, save, image),  # 11: scripts/vrm_avatar.py
 }
 
 

@@ -35,6 +35,8 @@ CAPTIONS = (
     ("gamma_linear", "Gamma", "9a Gamma colour space: blending encoded values"),
     ("gamma_linear", "Linear", "9b Linear colour space: blending in linear light"),
     ("lights", "Lights", "10 Additional lights: ForwardAdd once per per-pixel light"),
+    ("vrm_avatar", "Avatar", "11a VRM avatar: the skirt's ZWrite hides the stockings"),
+    ("vrm_avatar", "AvatarFace", "11b VRM avatar: eyebrows over bangs, lashes over lenses"),
 )
 
 TILE = (480, 270)

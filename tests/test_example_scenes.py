@@ -47,6 +47,7 @@ EXPECTED_FILES = {
     "render_queues.blend": ["RenderQueues"],
     "gamma_linear.blend": ["Gamma", "Linear"],
     "lights.blend": ["Lights"],
+    "vrm_avatar.blend": ["Avatar", "AvatarFace"],  # phenomena: tests/test_vrm_avatar_example.py
 }
 
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 import bpy
 
 from blendlib.blender import derived_light_values, light_settings, read_pass
+from blendlib.blender.vrm_addon import summary as vrm_addon_summary
 from blendlib.core.vocabulary import NEVER, PASS_PRESETS, Queue, pass_draws, pass_state_text, queue_text
 
 from .. import ENGINE_ID
@@ -102,7 +103,12 @@ class UNITY_PT_material(_MaterialPanel, bpy.types.Panel):
         row.menu(UNITY_MT_presets.bl_idname, icon="PRESET")
         row.operator(UNITY_OT_fill_from_principled.bl_idname, icon="NODE_MATERIAL")
         draw_import_export(layout)
-        if not unity.enabled:
+        vrm_line = None if unity.enabled else vrm_addon_summary(context.material)
+        if vrm_line is not None:  # read-only: the state comes from the VRM Add-on's MToon settings
+            box = layout.box()
+            box.label(text=vrm_line, icon="INFO")
+            box.label(text="Off: renders as UniVRM draws the VRM Add-on's export (these settings are unused).")
+        elif not unity.enabled:
             box = layout.box()
             box.label(text="Off: renders opaque (queue Geometry, one default pass, Lambert)", icon="INFO")
             box.label(text="with the Principled BSDF Base Color/Alpha and its linked Image Texture.")

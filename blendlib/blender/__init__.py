@@ -7,6 +7,9 @@
 - :mod:`.render`: render a scene (as F12 does, or through a given depsgraph; the rule is in its
   docstring), write a Frame into an Image.
 - :mod:`.files`: open .blend files, find scenes.
+- :mod:`.gltf_import`: ``.vrm`` / ``.glb`` / ``.gltf`` through Blender's glTF importer, each material with
+  the Unity settings UniVRM / UniGLTF set; :mod:`.vrm_addon`: the VRM Add-on for Blender's MToon
+  materials, read (and written) in the add-on's format, drawn as UniVRM draws its export.
 """
 
 from __future__ import annotations

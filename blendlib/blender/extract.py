@@ -8,6 +8,7 @@ bpy is imported inside functions.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -15,6 +16,8 @@ import numpy as np
 from ..core import colorspace
 from ..core.scene import Camera, DrawScene, ForwardLight, Light, Mesh, Renderer, SceneError
 from ..core.vocabulary import ColorSpace, LightType, Material, SortMode, Texture, VertexColor
+from ..formats.gltf import SHADING_APPROXIMATION
+from . import vrm_addon
 from .lights import forward_light, is_forward_light
 from .schema import material_from_values, material_values, scene_settings
 
@@ -95,6 +98,12 @@ class _Extractor:
         values = material_values(mat)
         texture = self.texture if with_texture else (lambda image: None)
         if not values["enabled"]:
+            derived = vrm_addon.derived_material(mat)  # the VRM Add-on's MToon: as UniVRM draws its export
+            if derived is not None:
+                imported, image, _ = derived
+                if SHADING_APPROXIMATION not in self.warnings:
+                    self.warnings.append(SHADING_APPROXIMATION)
+                return replace(imported.material, name=mat.name, main_tex=texture(image))
             color, image = principled_inputs(mat)
             return Material(name=mat.name, color=color, main_tex=texture(image))
         return material_from_values(mat.name, values, texture(values["main_tex"]))

@@ -1,4 +1,4 @@
-"""Command line: ``python -m blendlib render|compare|shaderlab|drawlist|pixel|analyze ...``.
+"""Command line: ``python -m blendlib render|compare|shaderlab|drawlist|pixel|analyze|import ...``.
 
 Each subcommand is a module with ``add_parser(subparsers)`` and ``run(args)``, imported when the
 parser is built (after :mod:`.interrupts` has installed the signal handling). Errors are one
@@ -20,7 +20,7 @@ import sys
 from . import interrupts
 from .errors import CliError
 
-COMMAND_NAMES = ("render", "compare", "shaderlab", "drawlist", "pixel", "analyze")
+COMMAND_NAMES = ("render", "compare", "shaderlab", "drawlist", "pixel", "analyze", "import_")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -1,0 +1,136 @@
+"""The VRM avatar example (blend_files/vrm_avatar.blend, scripts/vrm_avatar.py): the classic VRM sort
+problems in numbers, and its VRM export (tests/fixtures/vrm_avatar.vrm) drawing as the .blend does.
+
+Every material is a VRM Add-on MToon material (Unity settings off) of a VRM 1.0 armature, so the
+states below are MToon's validator's (SPEC §11.6): Opaque 2000, Cutout 2450, Transparent 3000 +
+clamp(offset, −9, 0), Transparent With Z-Write 2501 + clamp(offset, 0, 9). Transparent objects
+(2501–3000) are drawn back to front by the distance from the camera to their bounds' centre. The
+geometry's numbers are the script's: lenses at y = −0.172 and temples to y = +0.019 put the glasses'
+centre at y = −0.077, behind the eyelashes at −0.142; the eyebrows (y = −0.125) lie behind the bangs
+(radius 0.152–0.166 around the head's centre) but in front of the hair's centre.
+"""
+
+from __future__ import annotations
+
+import bpy
+import numpy as np
+import pytest
+
+from blendlib import blender
+from blendlib.blender import vrm_addon
+from blendlib.core.drawlist import draw_calls
+from blendlib.explain.framedebug import pixel_histories
+from blendlib.explain.sorted_reference import analyze
+from blendlib.formats.gltf import import_file
+from tests.support import goldens as mg
+
+FIXTURE = mg.ROOT / "tests" / "fixtures" / "vrm_avatar.vrm"
+
+
+@pytest.fixture(scope="module")
+def scenes():
+    return mg.load_draw_scenes(mg.BLEND_DIR / "vrm_avatar.blend")
+
+
+def project(draw, point) -> tuple[int, int]:
+    """The pixel (x from the left, y from the top) a world point falls on."""
+    cam = draw.camera
+    clip = np.asarray(cam.projection, np.float64) @ np.asarray(cam.view_matrix, np.float64) @ np.array([*point, 1.0])
+    ndc = clip[:3] / clip[3]
+    return int((ndc[0] * 0.5 + 0.5) * cam.width), int((0.5 - ndc[1] * 0.5) * cam.height)
+
+
+def around(draw, point, radius=3):
+    x0, y0 = project(draw, point)
+    return [(x, y) for y in range(y0 - radius, y0 + radius + 1) for x in range(x0 - radius, x0 + radius + 1)]
+
+
+def first_calls(draw) -> dict[tuple[str, int], object]:
+    """Each renderer's first draw call (its FORWARD_BASE pass)."""
+    out = {}
+    for call in draw_calls(draw):
+        out.setdefault((call.renderer.name, call.renderer.slot), call)
+    return out
+
+
+def drawn_over_nearer(history, front: str, behind: str) -> bool:
+    """A written fragment of ``front`` followed later by a written, farther fragment of ``behind``."""
+    written = [f for f in history.fragments if f.result == "written"]
+    for i, near in enumerate(written):
+        if near.call.renderer.name != front:
+            continue
+        if any(f.call.renderer.name == behind and f.depth_code > near.depth_code for f in written[i + 1:]):
+            return True
+    return False
+
+
+def test_queues_and_the_object_order_that_makes_the_errors(scenes):
+    calls = first_calls(scenes["AvatarFace"])
+    queue = {name: call.queue for (name, _), call in calls.items()}
+    assert queue["Head"] == queue["Eyes"] == 2000 and queue["Ribbon"] == 2450
+    assert queue["Hair"] == queue["Eyebrows"] == queue["Eyelashes"] == queue["Leg.L"] == 3000
+    assert calls[("Glasses", 0)].queue == 2000 and calls[("Glasses", 1)].queue == 3000
+    assert queue["Skirt"] == 2501  # Transparent With Z-Write, offset 0
+    glasses = calls[("Glasses", 1)].renderer
+    assert glasses.bounds_center[1] == pytest.approx((-0.173 + 0.019) / 2, abs=1e-4)
+    order = [key for key in calls]
+    # back to front by the bounds' centres: the hair and the glasses come before what lies behind them
+    assert order.index(("Hair", 0)) < order.index(("Eyebrows", 0))
+    assert order.index(("Glasses", 1)) < order.index(("Eyelashes", 0))
+    assert calls[("Glasses", 1)].distance > calls[("Eyelashes", 0)].distance
+    assert calls[("Hair", 0)].distance > calls[("Eyebrows", 0)].distance
+
+
+def test_eyebrows_over_bangs_and_eyelashes_over_lenses(scenes):
+    face = scenes["AvatarFace"]
+    brows = around(face, (0.05, -0.125, 1.378))
+    lashes = around(face, (-0.05, -0.142, 1.338))
+    histories, frame = pixel_histories(face, brows + lashes)
+    brow_hits = [h for h in histories[:len(brows)] if drawn_over_nearer(h, "Hair", "Eyebrows")]
+    lash_hits = [h for h in histories[len(brows):] if drawn_over_nearer(h, "Glasses", "Eyelashes")]
+    assert len(brow_hits) >= 5 and len(lash_hits) >= 10
+    analysis = analyze(face)
+    # The sorted reference blends those fragments far to near: the frame differs there.
+    for h in brow_hits + lash_hits:
+        assert np.abs(analysis.frame.color[h.y, h.x] - analysis.reference[h.y, h.x]).max() > 0
+    assert analysis.pair_pixels(("Hair", 0), ("Eyebrows", 0)) >= len(brow_hits)
+    assert analysis.pair_pixels(("Glasses", 1), ("Eyelashes", 0)) >= len(lash_hits)
+    # The hair cards overlap themselves: farther cards blended over nearer ones of the same draw.
+    assert analysis.pair_pixels(("Hair", 0), ("Hair", 0)) > 1000
+
+
+def test_the_skirt_writes_depth_first_and_hides_the_stockings(scenes):
+    full = scenes["Avatar"]
+    pixels = around(full, (0.085, -0.06, 0.60), radius=2)
+    histories, frame = pixel_histories(full, pixels)
+    analysis = analyze(full)
+    for h in histories:
+        skirt = [f for f in h.fragments if f.call.renderer.name == "Skirt" and f.result == "written"]
+        leg = [f for f in h.fragments if f.call.renderer.name == "Leg.L" and f.call.state.name == "FORWARD_BASE"]
+        outline = [f for f in h.fragments if f.call.renderer.name == "Leg.L" and f.call.state.name != "FORWARD_BASE"]
+        assert skirt and leg, (h.x, h.y)
+        # queue 2501 before 3000: the skirt's nearer fragment wrote depth, the stocking behind it fails
+        assert h.fragments.index(skirt[0]) < h.fragments.index(leg[0])
+        assert all(f.result == "depth" for f in leg if f.depth_code > skirt[0].depth_code)
+        # the stockings have no outline: MToon's outline pass discards every fragment (clip(-1))
+        assert all(f.result == "alpha_test" for f in outline)
+        assert np.abs(analysis.frame.color[h.y, h.x] - analysis.reference[h.y, h.x]).max() > 0
+
+
+def test_the_vrm_export_draws_as_the_blend():
+    """tests/fixtures/vrm_avatar.vrm (scripts/export_vrm_avatar.py) gives every material the Unity state
+    the .blend's VRM Add-on settings give it."""
+    exported = {m.material.name: m for m in import_file(FIXTURE).materials}
+    blender.open_blend(mg.BLEND_DIR / "vrm_avatar.blend")
+    names = [m.name for m in bpy.data.materials if vrm_addon.addon_mtoon(m) is not None]
+    assert sorted(names) == sorted(exported)
+    modes = set()
+    for name in names:
+        imported, image, mtoon = vrm_addon.derived_material(bpy.data.materials[name])
+        assert imported.material == exported[name].material, name
+        assert (image is None) == (exported[name].main_tex is None)
+        modes.add(mtoon.render_mode)
+        assert imported.extra["outline"]["mode"] == exported[name].extra["outline"]["mode"]
+    assert modes == {"Opaque", "Cutout", "Transparent", "Transparent With Z-Write"}
+    outlines = {exported[n].extra["outline"]["mode"] for n in names}
+    assert outlines == {"none", "world", "screen"}
