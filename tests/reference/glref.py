@@ -49,7 +49,6 @@ from blendlib.core.outline import outline_key
 from blendlib.core.scene import DrawScene, validate_scene
 from blendlib.core.vocabulary import (
     LAST_OPAQUE_QUEUE,
-    ONCE,
     QUEUE_NUMBERS,
     BlendFactor,
     BlendOp,
