@@ -20,10 +20,10 @@ BLEND_DIR = REPO / "blend_files"
 #: list through OpenGL (Mesa llvmpipe), Blender's EEVEE (1 sample) and Workbench.
 BACKENDS = ("project", "opengl", "eevee", "workbench")
 #: Every scene group the command line can select (``--scenes``), in run order.
-SCENE_GROUPS = ("S1", "S2", "S2p", "S3", "S4", "scaling")
+SCENE_GROUPS = ("S1", "S2", "S2p", "S3", "S4", "S5", "S6", "msaa", "scaling")
 #: Scene groups whose project worker also times the frame debugger and the sorted reference
 #: against a plain render.
-EXPLAIN_GROUPS = ("S1", "S2", "S3")
+EXPLAIN_GROUPS = ("S1", "S2", "S2p", "S3", "S5", "S6")
 #: The viewport series' frame size (every S3 scene through blendlib.blender.viewport), and --quick's.
 VIEWPORT_SIZE, VIEWPORT_QUICK = (960, 540), (320, 180)
 
@@ -66,6 +66,19 @@ def plan_cases(scenes: str, *, quick: bool = False, blend_dir: Path | str = BLEN
     if "S4" in wanted:
         cases.append(dict(id="S4", group="S4", kind="monkey", levels=3 if quick else 5,
                           width=full_hd[0], height=full_hd[1], label="subdivided monkey, opaque"))
+    if "S5" in wanted:  # the VRM avatar example (issue 28), its first scene
+        cases.append(dict(id="S5", group="S5", kind="blend", path=str((BLEND_DIR / "vrm_avatar.blend").resolve()),
+                          scene="Avatar", width=full_hd[0], height=full_hd[1],
+                          label="VRM avatar: hair cards, outlines, four MToon modes",
+                          viewport=list(VIEWPORT_QUICK if quick else VIEWPORT_SIZE)))
+    if "S6" in wanted:
+        cases.append(dict(id="S6", group="S6", kind="particles", count=2_000 if quick else 20_000,
+                          width=full_hd[0], height=full_hd[1],
+                          label="particles: camera-facing quads, vertex colours, Alpha Blended + Additive"))
+    if "MSAA" in wanted:  # the price of 4x MSAA: S1 and S2 again with 4 samples per pixel
+        for base in [c for c in plan_cases("S1,S2", quick=quick, explain=False)]:
+            cases.append(dict(base, id=f"{base['id']} 4x", group="msaa", msaa=4, base=base["id"],
+                              label=f"{base['label']}, 4x MSAA"))
     if "SCALING" in wanted:
         tris = [2_000, 8_000, 32_000] if quick else [10_000, 30_000, 100_000, 300_000, 1_000_000]
         for t in tris:

@@ -23,7 +23,7 @@ def build_case(case: dict):
     start from an empty file); returns the scene."""
     if case["kind"] == "blend":
         bpy.ops.wm.open_mainfile(filepath=case["path"], load_ui=False)
-        scene = bpy.context.scene
+        scene = bpy.data.scenes[case["scene"]] if case.get("scene") else bpy.context.scene
         _render_settings(scene, case["width"], case["height"])
         return scene
 
@@ -31,10 +31,15 @@ def build_case(case: dict):
     _render_settings(scene, case["width"], case["height"])
     scene.world.color = (0.05, 0.05, 0.05)
     scenekit.add_sun(scene, energy=2.0, rotation=(0.6, 0.2, 0.8))
-    builders = {"sphere": _sphere, "planes": _planes, "planes-perspective": _planes_perspective, "monkey": _monkey}
+    builders = {"sphere": _sphere, "planes": _planes, "planes-perspective": _planes_perspective, "monkey": _monkey,
+                "particles": _particles}
     if case["kind"] not in builders:
         raise ValueError(f"unknown case kind {case['kind']!r}")
     builders[case["kind"]](scene, case, case["width"], case["height"])
+    if case.get("msaa", 1) > 1:
+        from blendlib import blender
+
+        blender.write_scene_settings(scene, msaa=int(case["msaa"]))
     bpy.context.view_layer.update()
     return scene
 
@@ -164,3 +169,82 @@ def _monkey(scene, case: dict, w: int, h: int) -> None:
     obj.data.shade_smooth()
     obj.data.materials.append(_material("Clay", (0.8, 0.6, 0.5), 1.0, transparent=False, cull="Back"))
     scenekit.add_camera(scene, (0.0, -6.5, 0.4), target=(0.0, 0.0, 0.0))
+
+
+def _sprite_texture():
+    """32 x 32 soft round particle sprite: white, alpha falling from 1 at the centre to 0 at the rim."""
+    n = 32
+    c = (np.arange(n) + 0.5) / n * 2.0 - 1.0
+    r = np.sqrt(c[None, :] ** 2 + c[:, None] ** 2)
+    alpha = np.clip(1.0 - r, 0.0, 1.0) ** 1.5
+    img = bpy.data.images.new("ParticleSprite", n, n, alpha=True)
+    img.alpha_mode = "STRAIGHT"
+    rgba = np.ones((n, n, 4), np.float32)
+    rgba[..., 3] = np.round(alpha * 255.0) / 255.0
+    img.pixels.foreach_set(rgba.ravel())
+    img.pack()
+    return img
+
+
+def _particle_material(name: str, dst_blend: str, sprite):
+    """Unity's legacy Particles/Alpha Blended (``Blend SrcAlpha OneMinusSrcAlpha``) or Particles/Additive
+    (``Blend SrcAlpha One``): ``Cull Off Lighting Off ZWrite Off``, Transparent queue,
+    ``2 * i.color * _TintColor * tex`` (the shaders' text)."""
+    mat = scenekit.unity_material(name, queue="Transparent", main_tex=sprite, vertex_color="Particle",
+                                  tint_color=(0.5, 0.5, 0.5, 0.5),
+                                  passes=[dict(blend=True, zwrite=False, cull="Off", src_blend="SrcAlpha",
+                                               dst_blend=dst_blend)])
+    mat.use_nodes = True
+    bsdf = next(n for n in mat.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
+    bsdf.inputs["Alpha"].default_value = 0.5
+    mat.surface_render_method = "BLENDED"
+    mat.use_backface_culling = False
+    return mat
+
+
+def particle_quads_mesh(name: str, count: int, seed: int, eye, size_range=(0.15, 0.6)):
+    """``count`` quads facing the point ``eye`` (camera-facing billboards, as a particle system's
+    renderer builds them), centred at random in a 6 x 4 x 4 box around the origin, with UVs over
+    the whole sprite and random vertex colours (a "Col" byte colour attribute, alpha 0.3-1).
+    Positions from :func:`_lcg` (the same on every machine)."""
+    states = _lcg(seed)
+    r = np.array([next(states) for _ in range(count * 8)], np.float64).reshape(count, 8) / 2**31
+    centre = np.stack([(r[:, 0] - 0.5) * 6.0, (r[:, 1] - 0.5) * 4.0, (r[:, 2] - 0.5) * 4.0], -1)
+    half = (size_range[0] + (size_range[1] - size_range[0]) * r[:, 3]) * 0.5
+    to_eye = np.asarray(eye, np.float64) - centre
+    to_eye /= np.linalg.norm(to_eye, axis=1, keepdims=True)
+    right = np.cross(np.array([0.0, 0.0, 1.0]), to_eye)
+    right /= np.linalg.norm(right, axis=1, keepdims=True)
+    up = np.cross(to_eye, right)
+    corners = np.array([(-1, -1), (1, -1), (1, 1), (-1, 1)], np.float64)
+    co = (centre[:, None, :] + half[:, None, None] * (corners[None, :, 0, None] * right[:, None, :]
+                                                       + corners[None, :, 1, None] * up[:, None, :]))
+    me = bpy.data.meshes.new(name)
+    me.vertices.add(count * 4)
+    me.vertices.foreach_set("co", co.astype(np.float32).ravel())
+    me.loops.add(count * 4)
+    me.loops.foreach_set("vertex_index", np.arange(count * 4, dtype=np.int32))
+    me.polygons.add(count)
+    me.polygons.foreach_set("loop_start", np.arange(0, count * 4, 4, dtype=np.int32))
+    uv = me.uv_layers.new(name="UVMap")
+    uv.uv.foreach_set("vector", np.tile(np.array([0, 0, 1, 0, 1, 1, 0, 1], np.float32), count))
+    col = me.color_attributes.new("Col", "BYTE_COLOR", "CORNER")
+    rgba = np.stack([0.2 + 0.8 * r[:, 4], 0.2 + 0.8 * r[:, 5], 0.2 + 0.8 * r[:, 6], 0.3 + 0.7 * r[:, 7]], -1)
+    col.data.foreach_set("color", np.repeat(rgba, 4, axis=0).astype(np.float32).ravel())
+    me.color_attributes.active_color = col
+    me.update()
+    me.validate(verbose=False)
+    return me
+
+
+def _particles(scene, case: dict, w: int, h: int) -> None:
+    """S6: ``count`` camera-facing particle quads with vertex colours, half Particles/Alpha Blended,
+    half Particles/Additive (two draw calls, as two particle systems), overlapping heavily."""
+    eye = (0.0, -9.0, 0.0)
+    sprite = _sprite_texture()
+    half = int(case["count"]) // 2
+    for k, (label, dst) in enumerate((("AlphaBlended", "OneMinusSrcAlpha"), ("Additive", "One"))):
+        me = particle_quads_mesh(f"Particles{label}", half, 777 + k, eye)
+        me.materials.append(_particle_material(f"Particles/{label}", dst, sprite))
+        scenekit.add_object(scene.collection, f"Particles {label}", me)
+    scenekit.add_camera(scene, eye, target=(0.0, 0.0, 0.0))
