@@ -330,6 +330,7 @@ def build(new_file, save, image) -> None:
     scenekit.set_resolution(face, full.render.resolution_x, full.render.resolution_y)
     face.render.engine = full.render.engine
     face.view_settings.view_transform = "Standard"
+    face.render.dither_intensity = 0.0  # F12 shows Unity's stored values, as in every example file
     face.world = full.world
     face.collection.children.link(avatar)
     face.collection.objects.link(sun)

@@ -88,6 +88,12 @@ def crash_note(note: str) -> Iterator[None]:
         watcher.wait()
 
 
+def load_bpy() -> None:
+    """Import bpy (loading Blender takes about a second): the command line calls this inside a
+    deferred-interrupt block, so a Ctrl+C meanwhile is acted on after it."""
+    import bpy  # noqa: F401
+
+
 def open_blend(path: Any, *, quiet: bool = False, crash: str | None = None) -> Any:
     """Open a .blend file (replacing Blender's current data) and return ``bpy.data``.
 

@@ -46,7 +46,9 @@ def require_bpy() -> None:
     if importlib.util.find_spec("bpy") is None:
         raise CliError("the bpy module is not installed (pip install bpy==5.0.1, or run bash scripts/setup.sh)")
     with interrupts.deferred():
-        import bpy  # noqa: F401 - loading Blender takes about a second
+        from ..blender.files import load_bpy
+
+        load_bpy()
 
 
 def open_scene(blend: Path, scene_name: str | None):

@@ -48,6 +48,9 @@ def test_coverage_rows_in_a_band_are_the_full_rows_there():
     keep = (full.y >= 9) & (full.y < 23)
     assert 0 < part.count < full.count
     for name in raster.Rows.__dataclass_fields__:
+        if getattr(full, name) is None:  # per-sample masks: MSAA only
+            assert getattr(part, name) is None, name
+            continue
         np.testing.assert_array_equal(getattr(part, name), getattr(full, name)[keep])
 
 
