@@ -25,7 +25,7 @@ import numpy as np
 from mathutils import Vector
 
 from blendlib import blender
-from scripts import scenekit, vrm_avatar
+from scripts import scenekit, unity_builtins, vrm_avatar
 from scripts.scenekit import ALPHA_BLEND as BLEND
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -603,6 +603,7 @@ SCENES = {
     "gamma_linear": build_gamma_linear,
     "lights": build_lights,
     "vrm_avatar": lambda: vrm_avatar.build(new_file, save, image),  # 11: scripts/vrm_avatar.py
+    "unity_builtins": lambda: unity_builtins.build(new_file, save, image, label),  # 12: scripts/unity_builtins.py
 }
 
 

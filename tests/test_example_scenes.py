@@ -48,6 +48,7 @@ EXPECTED_FILES = {
     "gamma_linear.blend": ["Gamma", "Linear"],
     "lights.blend": ["Lights"],
     "vrm_avatar.blend": ["Avatar", "AvatarFace"],  # phenomena: tests/test_vrm_avatar_example.py
+    "unity_builtins.blend": ["UnityBuiltins"],  # phenomena: tests/test_unity_builtins_example.py
 }
 
 
