@@ -31,7 +31,6 @@ particles in one draw call, in the mesh's order); each quad's four corners share
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import bpy
@@ -41,6 +40,7 @@ from blendlib import blender
 from blendlib.formats import shaderlab
 from scripts import scenekit
 from scripts.make_unity_shader_table import default_corpus
+from scripts.scenekit import QUAD_UV, cube_mesh, quad_mesh, sphere_mesh
 
 ROOT = Path(__file__).resolve().parent.parent
 #: The Standard materials (.mat, Unity's YAML) imported by the scene.
@@ -136,9 +136,8 @@ def cutout_pixels() -> np.ndarray:
 def crate_pixels() -> np.ndarray:
     """16x16 tinted glass crate: orange, alpha 153, with an opaque two-texel frame."""
     t = np.zeros((16, 16, 4), np.uint8)
-    t[...] = (250, 170, 90, 153)
-    t[:2, :], t[-2:, :], t[:, :2], t[:, -2:] = (120, 70, 30, 255), (120, 70, 30, 255), (120, 70, 30, 255), (
-        120, 70, 30, 255)
+    t[...] = (120, 70, 30, 255)
+    t[2:-2, 2:-2] = (250, 170, 90, 153)
     return t
 
 
@@ -152,9 +151,6 @@ def backdrop_pixels() -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------- meshes
-
-
-QUAD_UV = ((0, 0), (1, 0), (1, 1), (0, 1))
 
 
 def colored_quads(name: str, rects, colors):
@@ -173,34 +169,6 @@ def colored_quads(name: str, rects, colors):
     attribute.data.foreach_set("color_srgb", values.ravel())
     me.color_attributes.active_color = attribute
     return me
-
-
-def cube_mesh(name: str, size: float):
-    """A cube with each face mapped to the whole texture (outward winding)."""
-    s = size / 2
-    verts = [(x, y, z) for z in (-s, s) for y in (-s, s) for x in (-s, s)]
-    faces = ((0, 1, 5, 4), (1, 3, 7, 5), (4, 5, 7, 6), (2, 0, 4, 6), (3, 2, 6, 7), (2, 3, 1, 0))
-    return scenekit.mesh(name, verts, faces, [QUAD_UV] * 6)
-
-
-def sphere_mesh(name: str, radius: float, segments=32, rings=16):
-    """A smooth UV sphere (poles single vertices, outward winding), no UVs."""
-    verts = [(0.0, 0.0, radius)]
-    for r in range(1, rings):
-        t = math.pi * r / rings
-        verts += [(radius * math.sin(t) * math.cos(2 * math.pi * k / segments),
-                   radius * math.sin(t) * math.sin(2 * math.pi * k / segments), radius * math.cos(t))
-                  for k in range(segments)]
-    verts.append((0.0, 0.0, -radius))
-
-    def ring(r, k):
-        return 1 + (r - 1) * segments + k % segments
-
-    faces = [(0, ring(1, k), ring(1, k + 1)) for k in range(segments)]
-    faces += [(ring(r, k), ring(r + 1, k), ring(r + 1, k + 1), ring(r, k + 1))
-              for r in range(1, rings - 1) for k in range(segments)]
-    faces += [(len(verts) - 1, ring(rings - 1, k + 1), ring(rings - 1, k)) for k in range(segments)]
-    return scenekit.mesh(name, verts, faces, smooth=True)
 
 
 # ---------------------------------------------------------------------------- materials
@@ -243,8 +211,7 @@ def build(new_file, save, image, label) -> None:
 
     backdrop = shader_material(corpus, f"{extra}/Unlit/Unlit-Normal.shader", "Backdrop (Unlit/Texture)",
                                main_tex=image("Backdrop Blocks", backdrop_pixels()), main_tex_filter="Point")
-    put("Backdrop", scenekit.mesh("Backdrop", [(-5.2, 0, -2.9), (5.2, 0, -2.9), (5.2, 0, 2.9), (-5.2, 0, 2.9)],
-                                  [(0, 1, 2, 3)], [QUAD_UV]), (0, 1.5, 0), backdrop)
+    put("Backdrop", quad_mesh("Backdrop", 10.4, 5.8), (0, 1.5, 0), backdrop)
 
     textures = {"disc": image("Particle Disc", disc_pixels()), "shade": image("Particle Shade", shade_pixels())}
     for name, (file, x, tex, colors) in PARTICLE_SYSTEMS.items():
@@ -262,9 +229,7 @@ def build(new_file, save, image, label) -> None:
     put("UI Panel", colored_quads("UI Panel", [(0, 0, 1.5, 0.9)], [(120, 190, 255, 230)]), (0.0, 0, row), panel)
     glass = shader_material(corpus, f"{extra}/Unlit/Unlit-Alpha.shader", "Glass Pane (Unlit/Transparent)",
                             main_tex=image("Glass Bands", glass_pixels()), main_tex_filter="Point")
-    put("Glass Pane", scenekit.mesh("Glass Pane", [(-0.55, 0, -0.55), (0.55, 0, -0.55), (0.55, 0, 0.55),
-                                                   (-0.55, 0, 0.55)], [(0, 1, 2, 3)], [QUAD_UV]),
-        (2.9, 0, row), glass)
+    put("Glass Pane", quad_mesh("Glass Pane", 1.1, 1.1), (2.9, 0, row), glass)
     for text, x in (("Sprites/Default", -2.9), ("UI/Default", 0.0), ("Unlit/Transparent", 2.9)):
         label(text, (x, -0.2, row - 0.72), size=0.17)
 
