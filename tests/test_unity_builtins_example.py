@@ -318,3 +318,18 @@ def test_standard_fade_and_transparent_differ_in_the_alpha_they_leave(draw, fram
         expected = quantise(lit[mask][:, :3] / 255.0 * a + behind[mask][:, :3] / 255.0 * (1.0 - a))
         assert np.abs(frame[mask][:, :3] - expected).max() <= 1, name
     assert quantise(a * a + (1.0 - a)) == 192
+
+
+# --------------------------------------------------------------------------- the builder
+
+
+def test_the_builder_names_the_missing_corpus_in_one_line(monkeypatch, tmp_path):
+    """scripts/unity_builtins.py needs Unity's built-in shader source; without it, one clear line."""
+    from scripts import unity_builtins
+
+    monkeypatch.setattr(unity_builtins, "default_corpus", lambda: tmp_path / "unity-builtin-shaders-2019.4")
+    with pytest.raises(SystemExit) as exc:
+        unity_builtins.builtin_shaders()
+    message = str(exc.value)
+    assert "\n" not in message and str(tmp_path / "unity-builtin-shaders-2019.4") in message
+    assert "shared/corpus/unity-builtin-shaders-2019.4" in message
