@@ -21,8 +21,8 @@ UI Panel                                    UI/Default          a uGUI image, ve
 Glass Pane                                  Unlit/Transparent   the texture's own alpha
 Transparent Diffuse Cube                    Legacy …/Diffuse    lit, alpha:fade (ColorMask RGB)
 Cutout Cube                                 …/Cutout/Diffuse    texels below _Cutoff 0.5 discarded
-Standard Fade / Standard Transparent        Standard (.mat)     the same colour: Fade multiplies the
-                                                                frame's alpha, Transparent does not
+Standard Fade / Standard Transparent        Standard (.mat)     the same colour blend; the frame's alpha
+                                                                a·a + (1 − a) (Fade) vs 1 (Transparent)
 ==========================================  ==================  ==========================================
 
 Particle quads are one mesh per particle system (one renderer, as a ParticleSystemRenderer draws its
