@@ -25,8 +25,9 @@ import numpy as np
 from mathutils import Vector
 
 from blendlib import blender
-from scripts import scenekit, vrm_avatar
+from scripts import scenekit, unity_builtins, vrm_avatar
 from scripts.scenekit import ALPHA_BLEND as BLEND
+from scripts.scenekit import QUAD_UV, cube_mesh, quad_mesh, sphere_mesh
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -135,32 +136,6 @@ def stripe_texture():
 # ---------------------------------------------------------------------------
 # Meshes (from numbers; face order = draw order)
 # ---------------------------------------------------------------------------
-
-
-QUAD_UV = ((0, 0), (1, 0), (1, 1), (0, 1))
-
-
-def quad_mesh(name: str, w: float = 1.0, h: float = 1.0):
-    """A w x h quad in the XZ plane facing -Y (towards the camera), UV 0..1."""
-    x, z = w / 2, h / 2
-    return scenekit.mesh(name, [(-x, 0, -z), (x, 0, -z), (x, 0, z), (-x, 0, z)], [(0, 1, 2, 3)], [QUAD_UV])
-
-
-#: Cube faces (outward winding), each mapped to the whole texture.
-CUBE_FACES = (
-    (0, 1, 5, 4),  # -Y front
-    (1, 3, 7, 5),  # +X
-    (4, 5, 7, 6),  # +Z top
-    (2, 0, 4, 6),  # -X
-    (3, 2, 6, 7),  # +Y back
-    (2, 3, 1, 0),  # -Z bottom
-)
-
-
-def cube_mesh(name: str, size: float = 1.0):
-    s = size / 2
-    verts = [(x, y, z) for z in (-s, s) for y in (-s, s) for x in (-s, s)]
-    return scenekit.mesh(name, verts, CUBE_FACES, [QUAD_UV] * 6)
 
 
 def torus_mesh(name: str, major=1.0, minor=0.38, n_major=40, n_minor=16):
@@ -524,26 +499,6 @@ def build_gamma_linear():
     save("gamma_linear")
 
 
-def sphere_mesh(name: str, radius=1.0, segments=32, rings=16):
-    """A smooth UV sphere (poles single vertices, outward winding)."""
-    verts = [(0.0, 0.0, radius)]
-    for r in range(1, rings):
-        t = math.pi * r / rings
-        verts += [(radius * math.sin(t) * math.cos(2 * math.pi * k / segments),
-                   radius * math.sin(t) * math.sin(2 * math.pi * k / segments), radius * math.cos(t))
-                  for k in range(segments)]
-    verts.append((0.0, 0.0, -radius))
-
-    def ring(r, k):
-        return 1 + (r - 1) * segments + k % segments
-
-    faces = [(0, ring(1, k), ring(1, k + 1)) for k in range(segments)]
-    faces += [(ring(r, k), ring(r + 1, k), ring(r + 1, k + 1), ring(r, k + 1))
-              for r in range(1, rings - 1) for k in range(segments)]
-    faces += [(len(verts) - 1, ring(rings - 1, k + 1), ring(rings - 1, k)) for k in range(segments)]
-    return scenekit.mesh(name, verts, faces, smooth=True)
-
-
 def forward_light(name: str, kind: str, location, color, *, direction=None, power=None, **unity):
     """A Point or Spot light; ``power`` (W) with Unity values derived from it (Light.unity's
     "use Blender values"), else the Unity values ``unity`` stored (intensity, range, spot_angle)."""
@@ -603,6 +558,7 @@ SCENES = {
     "gamma_linear": build_gamma_linear,
     "lights": build_lights,
     "vrm_avatar": lambda: vrm_avatar.build(new_file, save, image),  # 11: scripts/vrm_avatar.py
+    "unity_builtins": lambda: unity_builtins.build(new_file, save, image, label),  # 12: scripts/unity_builtins.py
 }
 
 

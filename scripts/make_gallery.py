@@ -37,6 +37,7 @@ CAPTIONS = (
     ("lights", "Lights", "10 Additional lights: ForwardAdd once per per-pixel light"),
     ("vrm_avatar", "Avatar", "11a VRM avatar: the skirt's ZWrite hides the stockings"),
     ("vrm_avatar", "AvatarFace", "11b VRM avatar: eyebrows over bangs, lashes over lenses"),
+    ("unity_builtins", "UnityBuiltins", "12 Unity's built-in shaders: particles, sprite, UI, Standard"),
 )
 
 TILE = (480, 270)

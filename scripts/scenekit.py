@@ -129,3 +129,52 @@ def unity_material(name: str, **settings):
         settings["color"] = color
     blender.write_material(mat, enabled=True, **settings)
     return mat
+
+
+# ---------------------------------------------------------------------------- meshes the example scenes share
+
+QUAD_UV = ((0, 0), (1, 0), (1, 1), (0, 1))
+
+
+def quad_mesh(name: str, w: float = 1.0, h: float = 1.0):
+    """A w x h quad in the XZ plane facing -Y (towards the camera), UV 0..1."""
+    x, z = w / 2, h / 2
+    return mesh(name, [(-x, 0, -z), (x, 0, -z), (x, 0, z), (-x, 0, z)], [(0, 1, 2, 3)], [QUAD_UV])
+
+
+#: Cube faces (outward winding), each mapped to the whole texture.
+CUBE_FACES = (
+    (0, 1, 5, 4),  # -Y front
+    (1, 3, 7, 5),  # +X
+    (4, 5, 7, 6),  # +Z top
+    (2, 0, 4, 6),  # -X
+    (3, 2, 6, 7),  # +Y back
+    (2, 3, 1, 0),  # -Z bottom
+)
+
+
+def cube_mesh(name: str, size: float = 1.0):
+    """A cube of edge ``size`` centred on the origin, each face mapped to the whole texture."""
+    s = size / 2
+    verts = [(x, y, z) for z in (-s, s) for y in (-s, s) for x in (-s, s)]
+    return mesh(name, verts, CUBE_FACES, [QUAD_UV] * 6)
+
+
+def sphere_mesh(name: str, radius=1.0, segments=32, rings=16):
+    """A smooth UV sphere (poles single vertices, outward winding)."""
+    verts = [(0.0, 0.0, radius)]
+    for r in range(1, rings):
+        t = math.pi * r / rings
+        verts += [(radius * math.sin(t) * math.cos(2 * math.pi * k / segments),
+                   radius * math.sin(t) * math.sin(2 * math.pi * k / segments), radius * math.cos(t))
+                  for k in range(segments)]
+    verts.append((0.0, 0.0, -radius))
+
+    def ring(r, k):
+        return 1 + (r - 1) * segments + k % segments
+
+    faces = [(0, ring(1, k), ring(1, k + 1)) for k in range(segments)]
+    faces += [(ring(r, k), ring(r + 1, k), ring(r + 1, k + 1), ring(r, k + 1))
+              for r in range(1, rings - 1) for k in range(segments)]
+    faces += [(len(verts) - 1, ring(rings - 1, k + 1), ring(rings - 1, k)) for k in range(segments)]
+    return mesh(name, verts, faces, smooth=True)
