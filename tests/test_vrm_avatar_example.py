@@ -16,6 +16,7 @@ import bpy
 import numpy as np
 import pytest
 
+import blendlib
 from blendlib import blender
 from blendlib.blender import vrm_addon
 from blendlib.core.drawlist import draw_calls
@@ -209,3 +210,36 @@ def test_screen_outline_of_the_top_is_a_constant_share_of_the_screen_height(scen
     names = {(c.renderer.name, c.state.name) for c in draw_calls(full)}
     assert {n for n, p in names if p == "FORWARD_BASE_OUTLINE"} == {"Head", "Neck", "Arm.L", "Arm.R", "Top",
                                                                      "Shoe.L", "Shoe.R"}
+
+
+# ---------------------------------------------------------------------------- advice in VRM terms
+
+
+def test_advice_speaks_vrm_and_apply_fixes_the_eyebrows_as_measured():
+    """The hair and the eyebrows are both Transparent at 3000 + clamp(offset, -9, 0) = 3000 (MToonValidator):
+    the hair cannot go above 3000, so the advice lowers the eyebrows' Render Queue Offset Number to -1
+    (queue 2999: drawn before every hair card); the eyelashes likewise before the lenses. The hair's
+    self-overlap gets Transparent With Z-Write (2501 + clamp(0, 0, 9) = 2501, ZWrite On). Applied to the
+    VRM Add-on's settings, the eyebrows' pair is gone and the frame differs on the pixels the advice
+    measured."""
+    blender.open_blend(mg.BLEND_DIR / "vrm_avatar.blend")
+    scene = bpy.data.scenes["AvatarFace"]
+    scene.render.resolution_percentage = mg.GOLDEN_PERCENTAGE
+    analysis = blendlib.analyze(scene)
+    items = {(a["front"], a["behind"]): a for a in analysis.advice}
+    brows, lashes, hair = items["Hair", "Eyebrows"], items["Glasses", "Eyelashes"], items["Hair", "Hair"]
+    assert brows["change"] == {"material": "Eyebrows", "vrm": {"render_queue_offset_number": -1}, "vrm_spec": "1.0"}
+    assert lashes["change"] == {"material": "Eyelashes", "vrm": {"render_queue_offset_number": -1},
+                                "vrm_spec": "1.0"}
+    assert hair["change"] == {"material": "Hair", "vrm": {"transparent_with_z_write": True}, "vrm_spec": "1.0"}
+    assert "Render Queue Offset Number of VRM material 'Eyebrows' to -1 (queue 2999)" in brows["text"]
+    assert brows["inversions_after"] == 0 < brows["inversions_before"]
+    assert brows["differing_after"] < brows["differing_before"] == analysis.differing
+    assert hair["inversions_after"] == 0
+    vrm_addon.apply_settings(bpy.data.materials["Eyebrows"], brows["change"]["vrm"])
+    after = blendlib.analyze(scene)
+    assert after.pair_pixels(("Hair", 0), ("Eyebrows", 0)) == 0
+    assert after.differing == brows["differing_after"]
+    # the VRM export of the fixed material: renderQueueOffsetNumber -1, which UniVRM draws at 2999
+    exported = vrm_addon.derived_material(bpy.data.materials["Eyebrows"])[0]
+    assert exported.extra["render_queue_offset_number"] == -1 and exported.material.render_queue == 2999

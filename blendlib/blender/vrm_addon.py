@@ -29,10 +29,12 @@ its first item, 0.0) selects the exporter (:mod:`blendlib.formats.gltf.vrm_addon
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 from ..formats.gltf.records import ImportedMaterial
 from ..formats.gltf.vrm_addon import ALPHA_MODES, OUTLINE_WIDTH_MODES, AddonMToon, AddonTexture, addon_material
+from ..formats.gltf.vrm_advice import VrmSettings
 
 EXTENSION_KEY = "vrm_addon_extension"
 OUTPUT_NODE = "Mtoon1Material.Mtoon1Output"
@@ -232,6 +234,78 @@ def summary(mat: Any) -> str | None:
         words.append("AlphaToMask On")
     words.append(f"outline {imported.extra['outline']['mode']}")
     return f"VRM Add-on MToon: {mtoon.render_mode} → {', '.join(words)} (VRM {spec_version(mat)} export)"
+
+
+# --------------------------------------------------------------------------- advice in VRM terms
+
+
+def advice_settings() -> dict[str, VrmSettings]:
+    """Per material name, the VRM Add-on settings its state comes from: every add-on MToon material
+    whose Unity settings are off (``settings=`` of :func:`blendlib.explain.advice.advise`). Reads
+    bpy: call it on the main thread, with the DrawScene."""
+    import bpy
+
+    from .schema import material_values
+
+    out = {}
+    for mat in bpy.data.materials:
+        mtoon = None if material_values(mat)["enabled"] else addon_mtoon(mat)
+        if mtoon is not None:
+            out[mat.name] = VrmSettings(mtoon, spec_version(mat))
+    return out
+
+
+#: The settings the advice writes, and the socket that holds each from add-on 2.20.62 (2.20.55 for the
+#: alpha mode); the ID property path of the others (``mtoon0_render_queue`` has no socket).
+_ADVICE_SOCKETS = {"render_queue_offset_number": "Render Queue Offset Number",
+                   "transparent_with_z_write": "Transparent With Z-Write", "alpha_mode": "Alpha Mode"}
+_ADVICE_IDS = {"render_queue_offset_number": ("extensions", "vrmc_materials_mtoon"),
+               "transparent_with_z_write": ("extensions", "vrmc_materials_mtoon"), "mtoon0_render_queue": ()}
+
+
+def apply_settings(mat: Any, fields: dict[str, Any]) -> AddonMToon:
+    """Write advised VRM settings (``AddonMToon`` field → value: ``render_queue_offset_number``,
+    ``mtoon0_render_queue``, ``transparent_with_z_write``, ``alpha_mode``) where the add-on keeps them:
+    the ID properties ``vrm_addon_extension.mtoon1`` and the output group's sockets (the add-on
+    2.20.61 mirrors them, 2.20.62 reads the sockets), so its export carries the fix. Returns the
+    settings read back; ValueError (one line, nothing written) for a material that is not the
+    add-on's, an unknown field or an alpha mode an add-on older than 2.20.55 keeps in ``blend_method``."""
+    from .schema import material_values
+
+    mtoon = addon_mtoon(mat)
+    if mtoon is None:
+        raise ValueError(f"material {mat.name!r} is not a VRM Add-on MToon material")
+    if material_values(mat)["enabled"]:
+        raise ValueError(f"material {mat.name!r}: its Unity settings are on and decide what it draws; "
+                         "change those (or turn them off to use the VRM Add-on's)")
+    unknown = sorted(set(fields) - {*_ADVICE_SOCKETS, *_ADVICE_IDS})
+    if unknown:
+        raise ValueError(f"material {mat.name!r}: no VRM setting {unknown[0]!r} to write")
+    wanted = replace(mtoon, **fields)  # checks the alpha mode's name
+    if "alpha_mode" in fields and mtoon.addon_version < SOCKETS_FOR_ALPHA:
+        raise ValueError(f"material {mat.name!r}: the VRM Add-on {'.'.join(map(str, mtoon.addon_version))} keeps "
+                         "the alpha mode in the material's blend method; set it in the add-on's panel")
+    mtoon1 = _get(_extension(mat), "mtoon1")
+    node = _output_node(mat)
+    if "alpha_mode" in fields and node.inputs.get(_ADVICE_SOCKETS["alpha_mode"]) is None:
+        raise ValueError(f"material {mat.name!r}: the VRM Add-on's output group has no Alpha Mode socket")
+    for key, value in fields.items():
+        stored = ALPHA_MODES.index(value) if key == "alpha_mode" else int(value)
+        path = _ADVICE_IDS.get(key)
+        if path is not None:
+            group = mtoon1
+            for name in path:
+                if group.get(name) is None:
+                    group[name] = {}
+                group = group[name]
+            group[key] = stored
+        socket = node.inputs.get(_ADVICE_SOCKETS.get(key, "")) if key in _ADVICE_SOCKETS else None
+        if socket is not None:
+            socket.default_value = float(stored)
+    got = addon_mtoon(mat)
+    if any(getattr(got, key) != getattr(wanted, key) for key in fields):
+        raise ValueError(f"material {mat.name!r}: the VRM settings did not read back as written")
+    return got
 
 
 # --------------------------------------------------------------------------- writing (the add-on's format)
