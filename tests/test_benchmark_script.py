@@ -128,7 +128,16 @@ def test_help_lists_every_option():
                    "--blend-dir", "--workers", "--chunk-candidates", "--profile", "--no-explain", "--from-json",
                    "--log"):
         assert option in proc.stdout
-    assert "S1,S2,S2p,S3,S4,scaling" in proc.stdout and "project,opengl,eevee,workbench" in proc.stdout
+    assert "S1,S2,S2p,S3,S4,S5,scaling" in proc.stdout and "project,opengl,eevee,workbench" in proc.stdout
+
+
+def test_s5_is_the_vrm_avatar_at_full_hd_with_every_series(tmp_path):
+    from scripts.benchmark.cases import plan_cases
+
+    (case,) = plan_cases("S5")
+    assert (case["kind"], case["width"], case["height"], case["viewport"]) == ("blend", 1920, 1080, [1920, 1080])
+    assert case["path"].endswith("blend_files/vrm_avatar.blend") and case["explain"] is True
+    assert plan_cases("S5", blend_dir=tmp_path) == []  # no avatar there: skipped with a note
 
 
 def test_plot_has_one_panel_per_kind_of_figure(tmp_path):

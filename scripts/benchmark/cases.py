@@ -20,10 +20,10 @@ BLEND_DIR = REPO / "blend_files"
 #: list through OpenGL (Mesa llvmpipe), Blender's EEVEE (1 sample) and Workbench.
 BACKENDS = ("project", "opengl", "eevee", "workbench")
 #: Every scene group the command line can select (``--scenes``), in run order.
-SCENE_GROUPS = ("S1", "S2", "S2p", "S3", "S4", "scaling")
+SCENE_GROUPS = ("S1", "S2", "S2p", "S3", "S4", "S5", "scaling")
 #: Scene groups whose project worker also times the frame debugger and the sorted reference
 #: against a plain render.
-EXPLAIN_GROUPS = ("S1", "S2", "S3")
+EXPLAIN_GROUPS = ("S1", "S2", "S3", "S5")
 #: The viewport series' frame size (every S3 scene through blendlib.blender.viewport), and --quick's.
 VIEWPORT_SIZE, VIEWPORT_QUICK = (960, 540), (320, 180)
 
@@ -66,6 +66,15 @@ def plan_cases(scenes: str, *, quick: bool = False, blend_dir: Path | str = BLEN
     if "S4" in wanted:
         cases.append(dict(id="S4", group="S4", kind="monkey", levels=3 if quick else 5,
                           width=full_hd[0], height=full_hd[1], label="subdivided monkey, opaque"))
+    if "S5" in wanted:  # issue 28: the VRM avatar (its whole figure, scene Avatar) at full HD
+        avatar = Path(blend_dir) / "vrm_avatar.blend"
+        if avatar.is_file():
+            cases.append(dict(id="S5", group="S5", kind="blend", path=str(avatar.resolve()),
+                              width=full_hd[0], height=full_hd[1],
+                              label="the VRM avatar (blend_files/vrm_avatar.blend)",
+                              viewport=list(VIEWPORT_QUICK if quick else full_hd)))
+        else:
+            print(f"note: S5 skipped: no vrm_avatar.blend in {blend_dir}", file=sys.stderr)
     if "SCALING" in wanted:
         tris = [2_000, 8_000, 32_000] if quick else [10_000, 30_000, 100_000, 300_000, 1_000_000]
         for t in tris:

@@ -166,7 +166,7 @@ def _explain(results: list[dict]) -> list[Target]:
 def _viewport(results: list[dict]) -> list[Target]:
     """The viewport's frames of every S3 scene, each after an edit or a view change, whichever
     is slower (JSON of runs before the view-change series: after an edit)."""
-    vps = [r for r in results if r.get("viewport")]
+    vps = [r for r in results if r.get("viewport") and r["case"]["group"] == "S3"]  # S5 (1080p) has no target
     if not vps:
         return []
     w, h = vps[0]["viewport"]["size"]
