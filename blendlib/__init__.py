@@ -91,7 +91,9 @@ def analyze(scene=None, *, advice: bool = True, max_advice: int = 5, **kwargs):
     """The sorted reference, sort error, inversions, overdraw and advice of a ``bpy.types.Scene``
     (default: the context scene) as F12 renders it: a :class:`blendlib.explain.sorted_reference.Analysis`.
     A :class:`DrawScene` is analysed directly. ``advice``: check a fix for each of the
-    ``max_advice`` largest inversion pairs (:mod:`blendlib.explain.advice`). Other keyword
+    ``max_advice`` largest inversion pairs (:mod:`blendlib.explain.advice`), in VRM terms for the
+    VRM Add-on's materials (``settings``: :func:`blendlib.blender.vrm_addon.advice_settings`, read
+    from the open file for a ``bpy.types.Scene``; pass it with a DrawScene). Other keyword
     arguments go to :func:`blendlib.explain.sorted_reference.analyze` (``progress``,
     ``should_cancel``, ``workers``)."""
     from .core.scene import DrawScene
@@ -99,8 +101,10 @@ def analyze(scene=None, *, advice: bool = True, max_advice: int = 5, **kwargs):
 
     if not isinstance(scene, DrawScene):
         from . import blender
+        from .blender import vrm_addon
 
         scene = blender.draw_scene_final(scene)
+        kwargs.setdefault("settings", vrm_addon.advice_settings())
     return analyze_and_advise(scene, max_advice=max_advice if advice else 0, **kwargs)
 
 

@@ -9,8 +9,9 @@ material renders as UniVRM draws the add-on's export. All four MToon modes and b
 =================  ===========================  ======================================================
 material           mode                         what it shows
 =================  ===========================  ======================================================
-Skin, Eyes, Top,   Opaque (Skin, Shoes: world   drawn first, front to back
-Shoes, Frame       outline; Top: screen)
+Skin, Eyes, Top,   Opaque (Skin, Shoes: world   drawn first, front to back; the outlines (4 mm in
+Shoes, Frame       outline; Top: screen)        world space, 1 % of the screen height) grow their
+                                                silhouettes (the outline pass, Cull Front)
 Ribbon             Cutout (0.5, double sided)   holes by the alpha test, queue 2450
 Hair               Transparent, double sided    cards overlapping themselves in a scrambled order
 Eyebrows           Transparent                  drawn over the nearer bangs (object centre nearer)
@@ -256,12 +257,13 @@ def materials(image) -> dict:
     skin = srgb_to_linear((250, 214, 192)) + (1.0,)
     return {
         "Skin": mtoon_material("Skin", base_color_factor=skin, outline_width_mode="worldCoordinates",
-                               outline_width_factor=0.002),
+                               outline_width_factor=0.004, outline_color_factor=srgb_to_linear((120, 70, 60))),
         "Eyes": mtoon_material("Eyes", base_color_factor=srgb_to_linear((40, 60, 120)) + (1.0,)),
         "Top": mtoon_material("Top", base_color_factor=srgb_to_linear((50, 60, 110)) + (1.0,),
-                              outline_width_mode="screenCoordinates", outline_width_factor=0.004),
+                              outline_width_mode="screenCoordinates", outline_width_factor=0.01,
+                              outline_color_factor=srgb_to_linear((20, 25, 50))),
         "Shoes": mtoon_material("Shoes", base_color_factor=srgb_to_linear((80, 45, 30)) + (1.0,),
-                                outline_width_mode="worldCoordinates", outline_width_factor=0.002),
+                                outline_width_mode="worldCoordinates", outline_width_factor=0.004),
         "Frame": mtoon_material("Frame", base_color_factor=srgb_to_linear((30, 30, 35)) + (1.0,)),
         "Ribbon": mtoon_material("Ribbon", alpha_mode="MASK", alpha_cutoff=0.5, double_sided=True,
                                  texture=image("Ribbon", ribbon_pixels()), mtoon0_render_queue=2450),
@@ -330,7 +332,7 @@ def build(new_file, save, image) -> None:
     scenekit.set_resolution(face, full.render.resolution_x, full.render.resolution_y)
     face.render.engine = full.render.engine
     face.view_settings.view_transform = "Standard"
-    face.render.dither_intensity = 0.0  # F12 shows Unity's stored values, as in every example file
+    face.render.dither_intensity = 0.0  # F12 and its saved 8-bit images hold Unity's stored values
     face.world = full.world
     face.collection.children.link(avatar)
     face.collection.objects.link(sun)

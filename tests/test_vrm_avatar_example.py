@@ -16,6 +16,7 @@ import bpy
 import numpy as np
 import pytest
 
+import blendlib
 from blendlib import blender
 from blendlib.blender import vrm_addon
 from blendlib.core.drawlist import draw_calls
@@ -107,13 +108,12 @@ def test_the_skirt_writes_depth_first_and_hides_the_stockings(scenes):
     for h in histories:
         skirt = [f for f in h.fragments if f.call.renderer.name == "Skirt" and f.result == "written"]
         leg = [f for f in h.fragments if f.call.renderer.name == "Leg.L" and f.call.state.name == "FORWARD_BASE"]
-        outline = [f for f in h.fragments if f.call.renderer.name == "Leg.L" and f.call.state.name != "FORWARD_BASE"]
         assert skirt and leg, (h.x, h.y)
         # queue 2501 before 3000: the skirt's nearer fragment wrote depth, the stocking behind it fails
         assert h.fragments.index(skirt[0]) < h.fragments.index(leg[0])
         assert all(f.result == "depth" for f in leg if f.depth_code > skirt[0].depth_code)
-        # the stockings have no outline: MToon's outline pass discards every fragment (clip(-1))
-        assert all(f.result == "alpha_test" for f in outline)
+        # the stockings have no outline (outlineWidthMode none: MToon's outline pass clips everything)
+        assert {f.call.state.name for f in h.fragments if f.call.renderer.name == "Leg.L"} == {"FORWARD_BASE"}
         assert np.abs(analysis.frame.color[h.y, h.x] - analysis.reference[h.y, h.x]).max() > 0
 
 
@@ -134,3 +134,112 @@ def test_the_vrm_export_draws_as_the_blend():
     assert modes == {"Opaque", "Cutout", "Transparent", "Transparent With Z-Write"}
     outlines = {exported[n].extra["outline"]["mode"] for n in names}
     assert outlines == {"none", "world", "screen"}
+
+
+# ---------------------------------------------------------------------------- MToon's outlines
+
+
+def pixel_ray(draw, x: float, y: float) -> tuple[np.ndarray, np.ndarray]:
+    """The camera ray (origin, unit direction) through the point (x from the left, y from the top, in pixels)."""
+    cam = draw.camera
+    inverse = np.linalg.inv(np.asarray(cam.projection, np.float64) @ np.asarray(cam.view_matrix, np.float64))
+    ndc = np.array([x / cam.width * 2 - 1, 1 - y / cam.height * 2, 1.0, 1.0])
+    far = inverse @ ndc
+    origin = np.asarray(cam.position, np.float64)
+    direction = far[:3] / far[3] - origin
+    return origin, direction / np.linalg.norm(direction)
+
+
+def silhouette_x(draw, y: float, center, radius: float, x_inside: float) -> float:
+    """Where, going right along row ``y`` from ``x_inside`` (inside the disc), the camera rays stop
+    meeting the sphere (``center``, ``radius``): bisection on the ray's distance from the centre."""
+    def distance(x):
+        origin, direction = pixel_ray(draw, x, y)
+        to_center = np.asarray(center, np.float64) - origin
+        return float(np.linalg.norm(to_center - (to_center @ direction) * direction))
+
+    lo, hi = x_inside, float(draw.camera.width)
+    for _ in range(60):
+        mid = (lo + hi) / 2
+        lo, hi = (mid, hi) if distance(mid) < radius else (lo, mid)
+    return lo
+
+
+def coverage(histories, renderer: str, outline: bool) -> list[bool]:
+    """Per pixel: whether ``renderer``'s outline pass (or its other passes) put a fragment there."""
+    return [any(f.call.renderer.name == renderer and (f.call.state.outline_mode.value != "Off") is outline
+                for f in h.fragments) for h in histories]
+
+
+def test_world_outline_of_the_head_is_outline_width_factor_metres_wide(scenes):
+    """VRM 1.0 world mode (MToon_GetOutlineVertex): ``worldPos + worldNormal * outlineWidthFactor``; the
+    skin's factor is 0.004, so the outline is the head sphere grown from 0.14 m to 0.144 m, drawn with
+    Cull Front: around the head a ring where only the outline pass reaches, as wide on screen as the two
+    spheres' silhouettes are apart."""
+    face = scenes["AvatarFace"]
+    head = (0.0, 0.0, 1.30)
+    x0, y = project(face, head)
+    row = [(x, y) for x in range(x0, face.camera.width)]
+    histories, _ = pixel_histories(face, row)
+    base, line = coverage(histories, "Head", False), coverage(histories, "Head", True)
+    last_base = max(i for i, hit in enumerate(base) if hit)
+    last_line = max(i for i, hit in enumerate(line) if hit)
+    assert all(line[: last_line + 1])  # the outline covers the head and the ring
+    ring = last_line - last_base  # pixels only the outline reaches
+    width = silhouette_x(face, y + 0.5, head, 0.144, x0 + 0.5) - silhouette_x(face, y + 0.5, head, 0.14, x0 + 0.5)
+    assert 1.0 < width < 3.0 and abs(ring - width) < 1.0, (ring, width)
+    # visible: the outermost outline fragment is written (nothing opaque over it, FORWARD_BASE's colour)
+    outer = [f for f in histories[last_line].fragments if f.call.renderer.name == "Head"]
+    assert [f.result for f in outer] == ["written"] and outer[0].call.state.name == "FORWARD_BASE_OUTLINE"
+
+
+def test_screen_outline_of_the_top_is_a_constant_share_of_the_screen_height(scenes):
+    """VRM 1.0 screen mode: ``clip.xy += normalize(n_clip.xy) * 2 * outlineWidthFactor * min(w, P[1][1])``
+    with x scaled by the aspect (H/W) and ``saturate(1 - n_view.z²)``. Nearer than ``P[1][1]`` the NDC offset
+    is ``2 * 0.01`` of the half height: 0.01 x the height in pixels at the top's sides (n_view.z ~ 0)."""
+    full = scenes["Avatar"]
+    cam = full.camera
+    assert float(np.linalg.norm(np.asarray(cam.position) - np.array([0.0, 0.0, 0.95]))) < cam.projection[1][1]
+    x0, y = project(full, (0.0, 0.0, 0.95))
+    row = [(x, y) for x in range(x0, x0 + 60)]
+    histories, _ = pixel_histories(full, row)
+    base, line = coverage(histories, "Top", False), coverage(histories, "Top", True)
+    ring = max(i for i, hit in enumerate(line) if hit) - max(i for i, hit in enumerate(base) if hit)
+    assert abs(ring - 0.01 * cam.height) < 1.0, ring
+    # no outline on the materials whose outlineWidthMode is none (the skirt, the hair, the lenses)
+    names = {(c.renderer.name, c.state.name) for c in draw_calls(full)}
+    assert {n for n, p in names if p == "FORWARD_BASE_OUTLINE"} == {"Head", "Neck", "Arm.L", "Arm.R", "Top",
+                                                                     "Shoe.L", "Shoe.R"}
+
+
+# ---------------------------------------------------------------------------- advice in VRM terms
+
+
+def test_advice_speaks_vrm_and_apply_fixes_the_eyebrows_as_measured():
+    """The hair and the eyebrows are both Transparent at 3000 + clamp(offset, -9, 0) = 3000 (MToonValidator):
+    the hair cannot go above 3000, so the advice lowers the eyebrows' Render Queue Offset Number to -1
+    (queue 2999: drawn before every hair card); the eyelashes likewise before the lenses. The hair's
+    self-overlap gets Transparent With Z-Write (2501 + clamp(0, 0, 9) = 2501, ZWrite On). Applied to the
+    VRM Add-on's settings, the eyebrows' pair is gone and the frame differs on the pixels the advice
+    measured."""
+    blender.open_blend(mg.BLEND_DIR / "vrm_avatar.blend")
+    scene = bpy.data.scenes["AvatarFace"]
+    scene.render.resolution_percentage = mg.GOLDEN_PERCENTAGE
+    analysis = blendlib.analyze(scene)
+    items = {(a["front"], a["behind"]): a for a in analysis.advice}
+    brows, lashes, hair = items["Hair", "Eyebrows"], items["Glasses", "Eyelashes"], items["Hair", "Hair"]
+    assert brows["change"] == {"material": "Eyebrows", "vrm": {"render_queue_offset_number": -1}, "vrm_spec": "1.0"}
+    assert lashes["change"] == {"material": "Eyelashes", "vrm": {"render_queue_offset_number": -1},
+                                "vrm_spec": "1.0"}
+    assert hair["change"] == {"material": "Hair", "vrm": {"transparent_with_z_write": True}, "vrm_spec": "1.0"}
+    assert "Render Queue Offset Number of VRM material 'Eyebrows' to -1 (queue 2999)" in brows["text"]
+    assert brows["inversions_after"] == 0 < brows["inversions_before"]
+    assert brows["differing_after"] < brows["differing_before"] == analysis.differing
+    assert hair["inversions_after"] == 0
+    vrm_addon.apply_settings(bpy.data.materials["Eyebrows"], brows["change"]["vrm"])
+    after = blendlib.analyze(scene)
+    assert after.pair_pixels(("Hair", 0), ("Eyebrows", 0)) == 0
+    assert after.differing == brows["differing_after"]
+    # the VRM export of the fixed material: renderQueueOffsetNumber -1, which UniVRM draws at 2999
+    exported = vrm_addon.derived_material(bpy.data.materials["Eyebrows"])[0]
+    assert exported.extra["render_queue_offset_number"] == -1 and exported.material.render_queue == 2999

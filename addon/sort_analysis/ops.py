@@ -1,6 +1,7 @@
 """Operators: analyse the scene's sorting (a job: one progress bar over the render, step 2 and
 the advice's measurements; Esc cancels any of them and keeps the previous list); apply a
-suggested queue offset or sort setting."""
+suggested queue offset or sort setting, or a VRM Add-on setting where the material's state
+comes from the VRM Add-on (so that the fix survives its export)."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ import bpy
 
 import blendlib
 from blendlib import blender
+from blendlib.blender import vrm_addon
 
 from ..jobs import JobOperator
 from .properties import store
@@ -29,7 +31,8 @@ class UNITY_OT_sort_analyze(JobOperator, bpy.types.Operator):
         """The analysis of the scene as F12 renders it, its DrawScene read here on the main thread
         (None: reported why not)."""
         draw = self.read_scene(partial(blender.draw_scene_final, context.scene))
-        return None if draw is None else partial(blendlib.analyze, draw)
+        # the VRM Add-on's settings, read here with the scene: advice in their terms (the job reads no bpy)
+        return None if draw is None else partial(blendlib.analyze, draw, settings=vrm_addon.advice_settings())
 
     def execute(self, context):
         work = self._work(context)
@@ -46,7 +49,7 @@ class UNITY_OT_sort_analyze(JobOperator, bpy.types.Operator):
 
 
 class UNITY_OT_sort_apply_advice(bpy.types.Operator):
-    """Apply the selected inversion's suggested queue offset or sort setting"""
+    """Apply the selected inversion's suggested queue offset, sort setting or VRM Add-on setting"""
 
     bl_idname = "unity.sort_apply_advice"
     bl_label = "Apply Advice"
@@ -68,7 +71,19 @@ class UNITY_OT_sort_apply_advice(bpy.types.Operator):
                                    "use the 'Alpha Blend ZWrite' preset, split the mesh or sort its faces)")
             return {"CANCELLED"}
         change = json.loads(results.items[index].change)
-        if "material" in change:
+        if "vrm" in change:
+            mat = bpy.data.materials.get(change["material"])
+            if mat is None:
+                self.report({"ERROR"}, f"Unity Passes: material {change['material']!r} not found")
+                return {"CANCELLED"}
+            try:
+                vrm_addon.apply_settings(mat, change["vrm"])
+            except ValueError as exc:
+                self.report({"ERROR"}, f"Unity Passes: {exc}")
+                return {"CANCELLED"}
+            written = ", ".join(f"{key} {value}" for key, value in change["vrm"].items())
+            done = f"material {mat.name!r}: VRM Add-on {written}"
+        elif "material" in change:
             mat = bpy.data.materials.get(change["material"])
             if mat is None or not hasattr(mat, "unity"):
                 self.report({"ERROR"}, f"Unity Passes: material {change['material']!r} not found")

@@ -14,11 +14,12 @@ the material (``mtoon1.addon_version``), as its own migration reads them
   ``Alpha Cutoff``;
 * double sided: ``not material.use_backface_culling`` (every version);
 * ``transparent_with_z_write``, ``render_queue_offset_number``, ``outline_width_mode`` (0 none,
-  1 world, 2 screen), ``outline_width_factor``, the base colour and its texture: before 2.20.62 the ID
-  properties (``extensions.vrmc_materials_mtoon``, ``pbr_metallic_roughness``; absent = the add-on's
-  defaults: sampler filters NEAREST, wraps REPEAT); from 2.20.62 the sockets ``Transparent With
-  Z-Write``, ``Render Queue Offset Number``, ``Outline Width Mode``, ``Outline Width``, ``Lit Color``,
-  ``Lit Color Alpha`` and the texture's nodes ``Mtoon1BaseColorTexture.Image`` / ``.Uv``;
+  1 world, 2 screen), ``outline_width_factor``, ``outline_color_factor``, the base colour and its
+  texture: before 2.20.62 the ID properties (``extensions.vrmc_materials_mtoon``,
+  ``pbr_metallic_roughness``; absent = the add-on's defaults: sampler filters NEAREST, wraps
+  REPEAT); from 2.20.62 the sockets ``Transparent With Z-Write``, ``Render Queue Offset Number``,
+  ``Outline Width Mode``, ``Outline Width``, ``Outline Color``, ``Lit Color``, ``Lit Color Alpha``
+  and the texture's nodes ``Mtoon1BaseColorTexture.Image`` / ``.Uv``;
 * VRM 0.x only: ``mtoon0_render_queue`` (2000), ``mtoon0_front_cull_mode`` (False),
   ``mtoon0_outline_scaled_max_distance`` (1).
 
@@ -28,10 +29,12 @@ its first item, 0.0) selects the exporter (:mod:`blendlib.formats.gltf.vrm_addon
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 from ..formats.gltf.records import ImportedMaterial
 from ..formats.gltf.vrm_addon import ALPHA_MODES, OUTLINE_WIDTH_MODES, AddonMToon, AddonTexture, addon_material
+from ..formats.gltf.vrm_advice import VrmSettings
 
 EXTENSION_KEY = "vrm_addon_extension"
 OUTPUT_NODE = "Mtoon1Material.Mtoon1Output"
@@ -144,6 +147,7 @@ def addon_mtoon(mat: Any) -> AddonMToon | None:
         offset = int(_get(mtoon_ids, "render_queue_offset_number", default=0))
         outline = int(_get(mtoon_ids, "outline_width_mode", default=0))
         width = float(_get(mtoon_ids, "outline_width_factor", default=0.0))
+        outline_color = tuple(float(v) for v in _get(mtoon_ids, "outline_color_factor", default=(0.0, 0.0, 0.0)))
         factor = tuple(float(v) for v in _get(base_ids, "base_color_factor", default=(1.0, 1.0, 1.0, 1.0)))
         texture = _texture_from_ids(base_info)
         sources["mtoon"] = "ID properties (add-on before 2.20.62)"
@@ -152,6 +156,7 @@ def addon_mtoon(mat: Any) -> AddonMToon | None:
         offset = int(round(float(_socket(node, "Render Queue Offset Number", 0))))
         outline = int(round(float(_socket(node, "Outline Width Mode", 0))))
         width = float(_socket(node, "Outline Width", 0.0))
+        outline_color = tuple(float(v) for v in _socket(node, "Outline Color", (0.0, 0.0, 0.0))[:3])
         lit = _socket(node, "Lit Color", (1.0, 1.0, 1.0, 1.0))
         factor = (float(lit[0]), float(lit[1]), float(lit[2]), float(_socket(node, "Lit Color Alpha", 1.0)))
         texture = _texture_from_nodes(mat, base_info)
@@ -161,7 +166,8 @@ def addon_mtoon(mat: Any) -> AddonMToon | None:
         double_sided=not mat.use_backface_culling, transparent_with_z_write=zwrite,
         render_queue_offset_number=offset,
         outline_width_mode=OUTLINE_WIDTH_MODES[outline] if 0 <= outline < 3 else "none",
-        outline_width_factor=width, base_color_factor=factor, base_color_texture=texture,
+        outline_width_factor=width, outline_color_factor=outline_color, base_color_factor=factor,
+        base_color_texture=texture,
         mtoon0_render_queue=int(_get(mtoon1, "mtoon0_render_queue", default=2000)),
         mtoon0_front_cull_mode=bool(_get(mtoon1, "mtoon0_front_cull_mode", default=0)),
         mtoon0_outline_scaled_max_distance=float(_get(mtoon1, "mtoon0_outline_scaled_max_distance", default=1.0)),
@@ -230,12 +236,85 @@ def summary(mat: Any) -> str | None:
     return f"VRM Add-on MToon: {mtoon.render_mode} → {', '.join(words)} (VRM {spec_version(mat)} export)"
 
 
+# --------------------------------------------------------------------------- advice in VRM terms
+
+
+def advice_settings() -> dict[str, VrmSettings]:
+    """Per material name, the VRM Add-on settings its state comes from: every add-on MToon material
+    whose Unity settings are off (``settings=`` of :func:`blendlib.explain.advice.advise`). Reads
+    bpy: call it on the main thread, with the DrawScene."""
+    import bpy
+
+    from .schema import material_values
+
+    out = {}
+    for mat in bpy.data.materials:
+        mtoon = None if material_values(mat)["enabled"] else addon_mtoon(mat)
+        if mtoon is not None:
+            out[mat.name] = VrmSettings(mtoon, spec_version(mat))
+    return out
+
+
+#: The settings the advice writes, and the socket that holds each from add-on 2.20.62 (2.20.55 for the
+#: alpha mode); the ID property path of the others (``mtoon0_render_queue`` has no socket).
+_ADVICE_SOCKETS = {"render_queue_offset_number": "Render Queue Offset Number",
+                   "transparent_with_z_write": "Transparent With Z-Write", "alpha_mode": "Alpha Mode"}
+_ADVICE_IDS = {"render_queue_offset_number": ("extensions", "vrmc_materials_mtoon"),
+               "transparent_with_z_write": ("extensions", "vrmc_materials_mtoon"), "mtoon0_render_queue": ()}
+
+
+def apply_settings(mat: Any, fields: dict[str, Any]) -> AddonMToon:
+    """Write advised VRM settings (``AddonMToon`` field → value: ``render_queue_offset_number``,
+    ``mtoon0_render_queue``, ``transparent_with_z_write``, ``alpha_mode``) where the add-on keeps them:
+    the ID properties ``vrm_addon_extension.mtoon1`` and the output group's sockets (the add-on
+    2.20.61 mirrors them, 2.20.62 reads the sockets), so its export carries the fix. Returns the
+    settings read back; ValueError (one line, nothing written) for a material that is not the
+    add-on's, an unknown field or an alpha mode an add-on older than 2.20.55 keeps in ``blend_method``."""
+    from .schema import material_values
+
+    mtoon = addon_mtoon(mat)
+    if mtoon is None:
+        raise ValueError(f"material {mat.name!r} is not a VRM Add-on MToon material")
+    if material_values(mat)["enabled"]:
+        raise ValueError(f"material {mat.name!r}: its Unity settings are on and decide what it draws; "
+                         "change those (or turn them off to use the VRM Add-on's)")
+    unknown = sorted(set(fields) - {*_ADVICE_SOCKETS, *_ADVICE_IDS})
+    if unknown:
+        raise ValueError(f"material {mat.name!r}: no VRM setting {unknown[0]!r} to write")
+    wanted = replace(mtoon, **fields)  # checks the alpha mode's name
+    if "alpha_mode" in fields and mtoon.addon_version < SOCKETS_FOR_ALPHA:
+        raise ValueError(f"material {mat.name!r}: the VRM Add-on {'.'.join(map(str, mtoon.addon_version))} keeps "
+                         "the alpha mode in the material's blend method; set it in the add-on's panel")
+    mtoon1 = _get(_extension(mat), "mtoon1")
+    node = _output_node(mat)
+    if "alpha_mode" in fields and node.inputs.get(_ADVICE_SOCKETS["alpha_mode"]) is None:
+        raise ValueError(f"material {mat.name!r}: the VRM Add-on's output group has no Alpha Mode socket")
+    for key, value in fields.items():
+        stored = ALPHA_MODES.index(value) if key == "alpha_mode" else int(value)
+        path = _ADVICE_IDS.get(key)
+        if path is not None:
+            group = mtoon1
+            for name in path:
+                if group.get(name) is None:
+                    group[name] = {}
+                group = group[name]
+            group[key] = stored
+        socket = node.inputs.get(_ADVICE_SOCKETS.get(key, "")) if key in _ADVICE_SOCKETS else None
+        if socket is not None:
+            socket.default_value = float(stored)
+    got = addon_mtoon(mat)
+    if any(getattr(got, key) != getattr(wanted, key) for key in fields):
+        raise ValueError(f"material {mat.name!r}: the VRM settings did not read back as written")
+    return got
+
+
 # --------------------------------------------------------------------------- writing (the add-on's format)
 
 #: The add-on version the writer stores: the corpus files' (alpha mode in sockets, the rest in ID properties).
 WRITTEN_VERSION = (2, 20, 61)
 _FLOAT_SOCKETS = ("Double Sided", "Transparent With Z-Write", "Render Queue Offset Number", "Lit Color Alpha",
                   "Outline Width Mode", "Outline Width", "Alpha Mode", "Alpha Cutoff")
+_COLOR_SOCKETS = ("Lit Color", "Outline Color")
 
 
 def _output_group() -> Any:
@@ -247,9 +326,9 @@ def _output_group() -> Any:
     if group is None:
         group = bpy.data.node_groups.new(OUTPUT_GROUP, "ShaderNodeTree")
     names = {item.name for item in group.interface.items_tree if getattr(item, "in_out", None) == "INPUT"}
-    for name in ("Lit Color", *_FLOAT_SOCKETS):
+    for name in (*_COLOR_SOCKETS, *_FLOAT_SOCKETS):
         if name not in names:
-            kind = "NodeSocketColor" if name == "Lit Color" else "NodeSocketFloat"
+            kind = "NodeSocketColor" if name in _COLOR_SOCKETS else "NodeSocketFloat"
             group.interface.new_socket(name, in_out="INPUT", socket_type=kind)
     return group
 
@@ -275,7 +354,8 @@ def write_addon_mtoon(mat: Any, mtoon: AddonMToon) -> None:
         "extensions": {"vrmc_materials_mtoon": {
             "transparent_with_z_write": int(mtoon.transparent_with_z_write),
             "render_queue_offset_number": int(mtoon.render_queue_offset_number),
-            "outline_width_mode": mode, "outline_width_factor": float(mtoon.outline_width_factor)}},
+            "outline_width_mode": mode, "outline_width_factor": float(mtoon.outline_width_factor),
+            "outline_color_factor": [float(c) for c in mtoon.outline_color_factor]}},
         "mtoon0_render_queue": int(mtoon.mtoon0_render_queue),
         "mtoon0_front_cull_mode": int(mtoon.mtoon0_front_cull_mode),
         "mtoon0_outline_scaled_max_distance": float(mtoon.mtoon0_outline_scaled_max_distance),
@@ -307,6 +387,7 @@ def write_addon_mtoon(mat: Any, mtoon: AddonMToon) -> None:
     for name, value in sockets.items():
         node.inputs[name].default_value = value
     node.inputs["Lit Color"].default_value = tuple(mtoon.base_color_factor)
+    node.inputs["Outline Color"].default_value = (*mtoon.outline_color_factor, 1.0)
 
 
 def write_armature_spec_version(armature: Any, spec: str) -> None:

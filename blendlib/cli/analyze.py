@@ -95,13 +95,14 @@ def run(args: argparse.Namespace) -> int:
         raise CliError("--advice must be 0 or more")
     named = {"--reference": reference, "--error": error, "--overdraw": overdraw}
     outputs.check_distinct({"FILE.blend": blend, **{k: v for k, v in named.items() if v is not None}})
+    from ..blender.vrm_addon import advice_settings
     from ..core.records import RenderCancelled
     from ..core.scene import SceneError
     from ..explain.advice import analyze_and_advise
 
     draw = load_draw_scene(args)
     try:
-        result = analyze_and_advise(draw, max_advice=args.advice)
+        result = analyze_and_advise(draw, max_advice=args.advice, settings=advice_settings())
     except SceneError as exc:
         raise CliError(str(exc)) from None
     except RenderCancelled:

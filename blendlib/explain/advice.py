@@ -7,11 +7,18 @@ sort point to B's, or the other built-in mode). Each candidate is measured; the 
 leaves the fewest inverted pixels of the pair (then the fewest differing pixels, measured
 against the original sorted reference: the image the artist means) is advised.
 
+A material whose state comes from settings of its own (``settings``: the VRM Add-on's MToon,
+:class:`MaterialSettings`) is advised in their terms instead of a queue offset — its queue setting
+within its clamp, a render mode that writes depth or tests alpha — and no scene sort setting is
+proposed for its pairs (the application that draws the avatar sorts as Unity's default); each
+change is measured the same way.
+
 For a renderer that overlaps itself no queue or sort setting helps. The measured technique is
 the depth prepass (preset "Alpha Blend ZWrite"): it removes the inversions, but it shows only
 the front layer, so the frame still differs from the sorted reference — the technique's price,
 reported as ``differing_after``. Splitting the mesh or sorting its triangles (Blender's Mesh ›
-Sort Elements) are named too; they depend on the view and are not measured.
+Sort Elements) are named too; they depend on the view and are not measured. A material with
+settings of its own is advised its render modes instead (VRM: Transparent With Z-Write, Cutout).
 
 **What a measurement re-renders** (:class:`_Measurer`): a candidate changes only the order of
 the draw calls (queues, sort settings) or one renderer's passes (the prepass), so its frame is
@@ -30,8 +37,9 @@ Advice sits on top of the analysis (:mod:`.sorted_reference` knows nothing of it
 from __future__ import annotations
 
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import replace
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -41,7 +49,7 @@ from ..core.merger import FrameBuffers, Outcome
 from ..core.pipeline import render_scene
 from ..core.records import FrameObserver, RenderCancelled
 from ..core.scene import DrawScene, Renderer
-from ..core.vocabulary import LAST_OPAQUE_QUEUE, SortMode, preset, queue_text
+from ..core.vocabulary import LAST_OPAQUE_QUEUE, Material, SortMode, preset, queue_text
 from .fragment_store import is_sorted_queue
 from .progress import Progress
 from .sorted_reference import Analysis, analyze, sort_error
@@ -52,6 +60,19 @@ PREPASS_PRESET = "Alpha Blend ZWrite"
 ADVICE_WEIGHT = 0.35
 
 Key = tuple[str, int]
+
+
+class MaterialSettings(Protocol):
+    """Where a material's Unity state comes from when that is not its Unity settings (e.g. the VRM
+    Add-on's MToon: :class:`blendlib.formats.gltf.vrm_advice.VrmSettings`): the advice then proposes
+    changes of those settings, so that a fix is written where it lives and survives export."""
+
+    def options(self, old: Material, *, after: int | None = None, before: int | None = None
+                ) -> list[tuple[dict[str, Any], Material, str]]:
+        """Changes to try, each (the change as JSON, the Material then drawn, a sentence): ones that
+        draw ``old`` after queue ``after`` / before queue ``before``, and ones that stop it sorting
+        (e.g. writing depth); none asked (both None): those only (a self-overlap)."""
+        ...
 
 
 def _renderer(scene: DrawScene, key: Key) -> Renderer:
@@ -77,26 +98,52 @@ def _label(key: Key) -> str:
     return f"'{key[0]}'" if key[1] == 0 else f"'{key[0]}' (slot {key[1]})"
 
 
-def _pair_candidates(scene: DrawScene, a: Renderer, b: Renderer) -> list[tuple[dict, DrawScene, str]]:
-    """(change, changed scene, sentence) for a pair: A is in front but drawn before B."""
+def with_material(scene: DrawScene, material: Material) -> DrawScene:
+    """The scene with every renderer of the material named ``material.name`` drawing ``material``."""
+    return replace(scene, renderers=tuple(
+        replace(r, material=material) if r.material.name == material.name else r for r in scene.renderers))
+
+
+def _settings_candidates(scene: DrawScene, renderer: Renderer, source: MaterialSettings, purpose: str,
+                         **wanted: int | None) -> list[tuple[dict, DrawScene, str]]:
+    """A material's own settings (``source.options``) as candidates: change, changed scene, sentence
+    (ending with ``purpose``, e.g. "so that 'A' draws after 'B'")."""
+    return [(change, with_material(scene, material), f"{sentence} {purpose}".rstrip())
+            for change, material, sentence in source.options(renderer.material, **wanted)]
+
+
+def _pair_candidates(scene: DrawScene, a: Renderer, b: Renderer,
+                     settings: Mapping[str, MaterialSettings] | None = None) -> list[tuple[dict, DrawScene, str]]:
+    """(change, changed scene, sentence) for a pair: A is in front but drawn before B. A material
+    in ``settings`` is changed through its own settings (e.g. VRM's), the others by a queue offset;
+    a scene's sort setting is proposed only when neither material has settings of its own (a VRM
+    application sorts as Unity's default: the avatar cannot carry a sort mode)."""
     out = []
+    settings = settings or {}
     qa, qb = a.material.render_queue, b.material.render_queue
+    own = a.material.name in settings or b.material.name in settings
     if a.material.name != b.material.name:
+        after = f"so that {_label((a.name, a.slot))} draws after {_label((b.name, b.slot))}"
+        before = f"so that {_label((b.name, b.slot))} draws before {_label((a.name, a.slot))}"
         target = qb + 1  # A after B
-        if target <= 3999:
+        if a.material.name in settings:
+            out += _settings_candidates(scene, a, settings[a.material.name], after, after=qb)
+        elif target <= 3999:
             offset = target - a.material.queue.number
             out.append(({"material": a.material.name, "queue_offset": offset},
                         with_queue_offset(scene, a.material.name, offset),
                         f"set material '{a.material.name}' to queue {queue_text(a.material.queue, offset)} "
-                        f"({target}) so that {_label((a.name, a.slot))} draws after {_label((b.name, b.slot))}"))
+                        f"({target}) {after}"))
         target = qa - 1  # B before A
-        if target >= 2501:
+        if b.material.name in settings:
+            out += _settings_candidates(scene, b, settings[b.material.name], before, before=qa)
+        elif target >= 2501:
             offset = target - b.material.queue.number
             out.append(({"material": b.material.name, "queue_offset": offset},
                         with_queue_offset(scene, b.material.name, offset),
                         f"set material '{b.material.name}' to queue {queue_text(b.material.queue, offset)} "
-                        f"({target}) so that {_label((b.name, b.slot))} draws before {_label((a.name, a.slot))}"))
-    if qa == qb:
+                        f"({target}) {before}"))
+    if qa == qb and not own:
         axis = np.asarray(b.bounds_center, np.float64) - np.asarray(a.bounds_center, np.float64)
         length = float(np.linalg.norm(axis))
         if length > 0 and np.isfinite(length):
@@ -196,12 +243,13 @@ class _Snapshot(FrameObserver):
 
 def _signature(scene: DrawScene, calls: list[DrawCall]) -> tuple:
     """What a draw list draws, call by call: the renderer (its place in the scene), pass, its
-    state and light. Candidates change only queues, sort settings and one renderer's passes, so
+    state, light, and its material's cutoff and colour. Candidates change only queues, sort
+    settings and one material's passes, cutoff and colour (a render mode of its own settings), so
     equal signatures mean equal frames."""
     place = {id(r): k for k, r in enumerate(scene.renderers)}
     lights = {id(light): k for k, light in enumerate(scene.lights)}
-    return tuple((place[id(c.renderer)], c.pass_index, c.state, None if c.light is None else lights[id(c.light)])
-                 for c in calls)
+    return tuple((place[id(c.renderer)], c.pass_index, c.state, None if c.light is None else lights[id(c.light)],
+                  c.renderer.material.cutoff, c.renderer.material.color) for c in calls)
 
 
 class _Measurer:
@@ -265,17 +313,24 @@ def _cleared(scene: DrawScene) -> FrameBuffers:
 
 def advise(scene: DrawScene, analysis: Analysis, limit: int = 5, workers: int | None = None, *,
            progress: Callable[[float], None] | None = None,
-           should_cancel: Callable[[], bool] | None = None) -> list[dict]:
+           should_cancel: Callable[[], bool] | None = None,
+           settings: Mapping[str, MaterialSettings] | None = None) -> list[dict]:
     """Advice items for the ``limit`` largest inversion pairs (fields of docs/json.md), each checked.
-    ``progress``/``should_cancel`` as for :func:`~.sorted_reference.analyze`."""
+    ``progress``/``should_cancel`` as for :func:`~.sorted_reference.analyze`; ``settings``: per
+    material name, the settings its state comes from (:class:`MaterialSettings`; a material there
+    is advised in their terms, a self-overlap by its settings that write depth or test alpha)."""
+    settings = settings or {}
     bar = Progress(progress)
     inversions = analysis.inversions[:limit]
     plans = []
     for inv in inversions:
-        if inv.self_overlap:
+        front = _renderer(scene, inv.front)
+        if inv.self_overlap and front.material.name in settings:
+            plans.append((inv, _settings_candidates(scene, front, settings[front.material.name], "")))
+        elif inv.self_overlap:
             plans.append((inv, [(None, with_prepass(scene, inv.front), None)]))
         else:
-            plans.append((inv, _pair_candidates(scene, _renderer(scene, inv.front), _renderer(scene, inv.behind))))
+            plans.append((inv, _pair_candidates(scene, front, _renderer(scene, inv.behind), settings)))
     measurer = _Measurer(scene, analysis, [(inv.front, inv.behind) for inv in inversions], workers, should_cancel)
     total = max(1, sum(len(candidates) for _, candidates in plans))
     done = 0
@@ -293,6 +348,15 @@ def advise(scene: DrawScene, analysis: Analysis, limit: int = 5, workers: int | 
             score = (pixels[pair], differing)
             if best is None or score < best[0]:
                 best = (score, change, sentence)
+        if inv.self_overlap and best is not None and best[1] is not None:  # a setting of its own
+            (pairs, differing), change, sentence = best
+            price = ("; what lies behind its nearer layers is hidden, so more of the frame differs from the "
+                     "sorted reference" if differing > before_differing else "")
+            items.append({**base, "change": change, "inversions_after": pairs, "differing_after": differing,
+                          "text": (f"{_label(inv.front)} overlaps itself on {inv.pixels} pixels: {sentence} "
+                                   f"(checked: {inv.pixels} → {pairs} inverted pixels, {before_differing} → "
+                                   f"{differing} differing{price})")})
+            continue
         if inv.self_overlap:
             (pairs, differing), _, _ = best
             items.append({**base, "change": None, "technique": "depth prepass", "preset": PREPASS_PRESET,
@@ -327,19 +391,20 @@ def analyze_and_advise(
     workers: int | None = None,
     progress: Callable[[float], None] | None = None,
     should_cancel: Callable[[], bool] | None = None,
+    settings: Mapping[str, MaterialSettings] | None = None,
     **kwargs,
 ) -> Analysis:
     """:func:`~.sorted_reference.analyze` of ``scene``, its ``advice`` filled with a checked fix
     for each of the ``max_advice`` largest inversion pairs (:func:`advise`; 0: none). One
-    ``progress`` fraction runs over both. Other keyword arguments go to ``analyze`` (``memory``,
-    ``memory_limit``). Raises as ``analyze`` does."""
+    ``progress`` fraction runs over both; ``settings`` as for :func:`advise`. Other keyword arguments
+    go to ``analyze`` (``memory``, ``memory_limit``). Raises as ``analyze`` does."""
     bar = Progress(progress)
     share = 1.0 if max_advice <= 0 else 1.0 / (1.0 + ADVICE_WEIGHT * max_advice)
     analysis = analyze(scene, workers=workers, progress=bar.part(0.0, share), should_cancel=should_cancel,
                        keep_step1=max_advice > 0, **kwargs)
     if max_advice > 0 and analysis.inversions:
         analysis.advice = advise(scene, analysis, limit=max_advice, workers=workers, progress=bar.part(share, 1.0),
-                                 should_cancel=should_cancel)
+                                 should_cancel=should_cancel, settings=settings)
     analysis.step1 = None  # the advice's: not part of the result
     bar(1.0)
     return analysis

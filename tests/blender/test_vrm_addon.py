@@ -14,7 +14,7 @@ import pytest
 
 from blendlib import blender
 from blendlib.blender import vrm_addon
-from blendlib.core.vocabulary import Cull
+from blendlib.core.vocabulary import Cull, OutlineMode
 from blendlib.formats.gltf import SHADING_APPROXIMATION, import_file
 from blendlib.formats.gltf.vrm_addon import AddonMToon
 from tests.support.blender_fixtures import add_plane, empty_scene
@@ -37,6 +37,11 @@ def test_each_blend_equals_its_own_export(spec, version):
         assert vrm_addon.spec_version(mat) == version
         imported, image, mtoon = vrm_addon.derived_material(mat)
         assert imported.material == exported[name].material, name
+        # the outline (mode, width, max distance, colour): the same program on the same pass, the same record
+        outline = [p for p in imported.material.passes if p.outline_mode is not OutlineMode.Off]
+        expected = {"Opaque": [OutlineMode.World], "Cutout": []}.get(name, [OutlineMode.Screen])
+        assert [p.outline_mode for p in outline] == expected, name
+        assert imported.extra["outline"] == exported[name].extra["outline"], name
         assert (image.name if image else None) == {"Opaque": "1.png", "Transparent": "16.png",
                                                    "TransparentWithZWrite": "3.png"}.get(name)
         assert mtoon.addon_version == (2, 20, 61)

@@ -14,10 +14,11 @@ import pytest
 from blendlib.core.vocabulary import (
     BlendFactor,
     BlendOp,
-    CompareFunction,
     Cull,
     Lighting,
     LightMode,
+    OutlineFormula,
+    OutlineMode,
     Queue,
     TextureFilter,
     TextureWrap,
@@ -78,7 +79,7 @@ def test_vrm1_render_queue_clamps(mode, zwrite, offset, queue):
     ("BLEND", True, SrcAlpha, OMSA, True, False, 1e-5),
 ])
 def test_vrm1_state_per_mode(mode, zwrite, src, dst, zw, a2m, clip):
-    m = _mtoon1(mode, zwrite=zwrite, cutoff=0.3).material
+    m = _mtoon1(mode, zwrite=zwrite, cutoff=0.3, outline=("worldCoordinates", 0.02)).material
     base, outline, add, _ = m.passes
     assert (base.src_blend, base.dst_blend, base.zwrite, base.alpha_to_mask) == (src, dst, zw, a2m)
     assert (add.src_blend, add.dst_blend, add.zwrite) == (src, One, False)
@@ -87,18 +88,28 @@ def test_vrm1_state_per_mode(mode, zwrite, src, dst, zw, a2m, clip):
         assert m.cutoff == pytest.approx(clip, rel=1e-6)
     # "front-face culling is always used for drawing outlines ... regardless of the doubleSided value"
     assert outline.cull is Cull.Front
+    # the outline pass: FORWARD_BASE's blend, ZWrite and clip, Offset 1, 1
+    assert (outline.src_blend, outline.dst_blend, outline.zwrite, outline.alpha_test) == (src, dst, zw, base.alpha_test)
 
 
 def test_vrm1_double_sided_and_outline():
     both = _mtoon1("OPAQUE", double_sided=True, outline=("screenCoordinates", 0.01))
     base, outline, add, shadow = both.material.passes
     assert (base.cull, add.cull, shadow.cull, outline.cull) == (Cull.Off, Cull.Off, Cull.Off, Cull.Front)
-    assert not outline.alpha_test  # an outline mode: the outline pass draws
+    assert outline.name == "FORWARD_BASE_OUTLINE" and not outline.alpha_test
+    # screenCoordinates → _MTOON_OUTLINE_SCREEN: MToon_GetOutlineVertex's screen branch, width outlineWidthFactor
+    assert (outline.outline_mode, outline.outline_width, outline.outline_formula) == (
+        OutlineMode.Screen, pytest.approx(0.01, rel=1e-7), OutlineFormula.MToon10)
     assert both.extra["outline"] == {"mode": "screen", "width": pytest.approx(0.01), "width_world_m": None,
-                                     "formula": "1.0"}
+                                     "formula": "1.0", "color": [0.0, 0.0, 0.0]}
+    world = _mtoon1("OPAQUE", outline=("worldCoordinates", 0.0625)).material.passes[1]
+    assert (world.outline_mode, world.outline_width, world.outline_formula) == (
+        OutlineMode.World, 0.0625, OutlineFormula.MToon10)  # metres along the world normal
     one = _mtoon1("OPAQUE", double_sided=False)
     assert one.material.passes[0].cull is Cull.Back
-    assert one.material.passes[1].alpha_test_comp is CompareFunction.Never  # outline none: clip(-1)
+    # outlineWidthMode none (the default): the outline pass clips everything (clip(-1)): not drawn
+    assert [p.name for p in one.material.passes] == ["FORWARD_BASE", "FORWARD_ADD", "ShadowCaster"]
+    assert all(p.outline_mode is OutlineMode.Off for p in one.material.passes)
 
 
 def test_vrm1_unknown_alpha_mode_is_opaque_with_a_warning():
@@ -162,11 +173,39 @@ def test_vrm0_missing_values_take_mtoons_defaults():
     # MToon.shader: _CullMode 2.0, _OutlineCullMode 1.0, _SrcBlend 1.0, _DstBlend 0.0, _ZWrite 1.0,
     # _AlphaToMask 0.0; renderQueue absent = -1 = "Queue" = "Geometry".
     m = _vrm0({"shader": "VRM/MToon"}).material
-    base, outline, add, shadow = m.passes
+    base, add, shadow = m.passes  # no outline keyword: the outline pass clips everything
     assert m.render_queue == 2000 and m.queue is Queue.Geometry
-    assert (base.cull, outline.cull, base.src_blend, base.dst_blend, base.zwrite, base.alpha_to_mask) == (
-        Cull.Back, Cull.Front, One, Zero, True, False)
+    assert (base.cull, base.src_blend, base.dst_blend, base.zwrite, base.alpha_to_mask) == (
+        Cull.Back, One, Zero, True, False)
     assert not base.alpha_test and m.color == (1.0, 1.0, 1.0, 1.0)
+    # _OutlineWidth 0.5, _OutlineScaledMaxDistance 1 and _OutlineCullMode 1 (Front) when only the keyword is set
+    world = _vrm0({"shader": "VRM/MToon", "floatProperties": {"_OutlineWidthMode": 1},
+                   "keywordMap": {"MTOON_OUTLINE_WIDTH_WORLD": True}})
+    outline = world.material.passes[1]
+    assert (outline.name, outline.cull, outline.outline_mode, outline.outline_width, outline.outline_formula,
+            outline.outline_max_distance) == ("FORWARD_BASE_ONLY_OUTLINE", Cull.Front, OutlineMode.World, 0.5,
+                                              OutlineFormula.MToon0x, 1.0)
+    assert world.extra["outline"]["color"] == [0.0, 0.0, 0.0, 1.0]  # _OutlineColor = (0,0,0,1)
+    assert not world.warnings
+
+
+def test_vrm0_outline_screen_mode_values_and_the_keyword_rule():
+    entry = {"shader": "VRM/MToon", "floatProperties": {"_OutlineWidthMode": 2, "_OutlineWidth": 0.75,
+                                                        "_OutlineScaledMaxDistance": 4, "_OutlineCullMode": 2},
+             "keywordMap": {"MTOON_OUTLINE_WIDTH_SCREEN": True},
+             "vectorProperties": {"_OutlineColor": [0.25, 0.5, 1.0, 1.0]}}
+    imported = _vrm0(entry)
+    outline = imported.material.passes[1]
+    # MToon 0.x screen: 0.01 * _OutlineWidth * normalize(n_clip.xy) * min(w, _OutlineScaledMaxDistance)
+    assert (outline.outline_mode, outline.outline_width, outline.outline_formula, outline.outline_max_distance,
+            outline.cull) == (OutlineMode.Screen, 0.75, OutlineFormula.MToon0x, 4.0, Cull.Back)
+    assert imported.extra["outline"]["color"] == [0.25, 0.5, 1.0, 1.0]
+    # _OutlineWidthMode 1 without the keyword: the shader reads the keyword (clip(-1)); a warning says so.
+    entry = {"shader": "VRM/MToon", "floatProperties": {"_OutlineWidthMode": 1, "_OutlineWidth": 2}}
+    lone = _vrm0(entry)
+    assert [p.name for p in lone.material.passes] == ["FORWARD_BASE", "FORWARD_ADD", "ShadowCaster"]
+    assert lone.warnings == ("material 'M': _OutlineWidthMode 1 disagrees with the keywords (outline none); "
+                             "UniVRM sets the keywords from keywordMap, so the outline is none",)
 
 
 def test_vrm0_values_are_kept_as_stored_without_validation():

@@ -12,7 +12,16 @@ from __future__ import annotations
 
 import pytest
 
-from blendlib.core.vocabulary import BlendFactor, BlendOp, CompareFunction, Cull, LightMode, pass_draws
+from blendlib.core.vocabulary import (
+    BlendFactor,
+    BlendOp,
+    CompareFunction,
+    Cull,
+    LightMode,
+    OutlineFormula,
+    OutlineMode,
+    pass_draws,
+)
 from blendlib.formats.gltf import BLEND_CLIP_MTOON0, BLEND_CLIP_MTOON1, SHADING_APPROXIMATION, import_file
 from tests.support.gltf_docs import corpus_dir
 
@@ -20,6 +29,7 @@ CORPUS = corpus_dir()
 pytestmark = pytest.mark.skipif(CORPUS is None, reason="shared/corpus not found beside the repository")
 
 One, Zero, SrcAlpha, OMSA = BlendFactor.One, BlendFactor.Zero, BlendFactor.SrcAlpha, BlendFactor.OneMinusSrcAlpha
+World, Screen, MToon0x, MToon10 = OutlineMode.World, OutlineMode.Screen, OutlineFormula.MToon0x, OutlineFormula.MToon10
 
 
 def _materials(name):
@@ -27,35 +37,46 @@ def _materials(name):
     return result, {m.material.name: m for m in result.materials}
 
 
-def _check_mtoon(imported, *, queue, cull, outline_cull, src, dst, zwrite, alpha_to_mask, clip, outline_drawn,
+def _check_mtoon(imported, *, queue, cull, outline_cull, src, dst, zwrite, alpha_to_mask, clip, outline,
                  outline_name):
-    """Every pass of an MToon material against the pass headers with these property values."""
+    """Every pass of an MToon material against the pass headers with these property values;
+    ``outline``: None (no outline keyword: the pass clips everything, ``clip(-1)``, and is not listed)
+    or (OutlineMode, width, OutlineFormula, max distance) of its vertex program."""
     m = imported.material
     assert m.render_queue == queue
-    base, outline, add, shadow = m.passes
-    assert [p.name for p in m.passes] == ["FORWARD_BASE", outline_name, "FORWARD_ADD", "ShadowCaster"]
-    assert [p.light_mode for p in m.passes] == [LightMode.ForwardBase, LightMode.ForwardBase, LightMode.ForwardAdd,
-                                                LightMode.ShadowCaster]
-    for p, p_cull, p_dst in ((base, cull, dst), (outline, outline_cull, dst), (add, cull, One)):
+    if outline is None:
+        base, add, shadow = m.passes
+        assert [p.name for p in m.passes] == ["FORWARD_BASE", "FORWARD_ADD", "ShadowCaster"]
+        drawn = [base, add]
+    else:
+        base, line, add, shadow = m.passes
+        assert [p.name for p in m.passes] == ["FORWARD_BASE", outline_name, "FORWARD_ADD", "ShadowCaster"]
+        assert line.light_mode is LightMode.ForwardBase
+        assert (line.outline_mode, line.outline_width, line.outline_formula, line.outline_max_distance) == (
+            outline[0], pytest.approx(outline[1], rel=1e-7), outline[2], outline[3])
+        assert (line.cull, line.zwrite, line.offset_factor, line.offset_units) == (outline_cull, zwrite, 1.0, 1.0)
+        assert (line.alpha_test, line.alpha_test_comp) == (clip is not None, CompareFunction.GEqual)
+        drawn = [base, line, add]
+    assert [p.light_mode for p in (base, add, shadow)] == [LightMode.ForwardBase, LightMode.ForwardAdd,
+                                                           LightMode.ShadowCaster]
+    for p in drawn:
+        p_cull, p_dst = (outline_cull, dst) if p.outline_mode is not OutlineMode.Off else (
+            (cull, One) if p is add else (cull, dst))
         assert (p.cull, p.blend, p.src_blend, p.dst_blend, p.blend_op) == (p_cull, True, src, p_dst, BlendOp.Add)
         # BlendOp Add, Max: the alpha channel takes max(src, dst).
         assert (p.separate_alpha, p.src_blend_alpha, p.dst_blend_alpha, p.blend_op_alpha) == (True, src, p_dst,
                                                                                             BlendOp.Max)
         assert p.ztest is CompareFunction.LEqual
         assert p.alpha_to_mask is alpha_to_mask
-    assert (base.zwrite, outline.zwrite, add.zwrite) == (zwrite, zwrite, False)
-    assert (outline.offset_factor, outline.offset_units) == (1.0, 1.0)
+    assert (base.zwrite, add.zwrite) == (zwrite, False)
     assert (base.offset_factor, base.offset_units, add.offset_units) == (0.0, 0.0, 0.0)
+    assert base.outline_mode is add.outline_mode is OutlineMode.Off
     assert (shadow.cull, shadow.zwrite, shadow.blend) == (cull, True, False)
     assert base.alpha_test is add.alpha_test is (clip is not None)
     if clip is not None:
         assert m.cutoff == pytest.approx(clip, rel=1e-6) and base.alpha_test_comp is CompareFunction.GEqual
-    if outline_drawn:
-        assert outline.alpha_test is (clip is not None) and outline.alpha_test_comp is CompareFunction.GEqual
-    else:  # clip(-1): every fragment of the outline pass is discarded
-        assert outline.alpha_test and outline.alpha_test_comp is CompareFunction.Never
-    # ShadowCaster never draws; the other three do (ForwardAdd per extra light).
-    assert [pass_draws(p, m.passes)[0] for p in m.passes] == ["once", "once", "per light", "never"]
+    # ShadowCaster never draws; the others do (ForwardAdd per extra light).
+    assert [pass_draws(p, m.passes)[0] for p in m.passes] == ["once"] * (len(drawn) - 1) + ["per light", "never"]
 
 
 def test_vrm0_export_imports_as_the_legacy_loader_draws_it():
@@ -63,22 +84,24 @@ def test_vrm0_export_imports_as_the_legacy_loader_draws_it():
     assert result.vrm == "0.x"
     assert result.warnings[0] == SHADING_APPROXIMATION
     # Opaque: renderQueue -1 (MToon's "Queue" = "Geometry"), _CullMode 1 (Front), _OutlineCullMode 1,
-    # _SrcBlend 1 _DstBlend 0 _ZWrite 1, no alpha keyword, MTOON_OUTLINE_WIDTH_WORLD.
+    # _SrcBlend 1 _DstBlend 0 _ZWrite 1, no alpha keyword, MTOON_OUTLINE_WIDTH_WORLD, _OutlineWidth 6.25,
+    # _OutlineScaledMaxDistance 2.
     _check_mtoon(mats["Opaque"], queue=2000, cull=Cull.Front, outline_cull=Cull.Front, src=One, dst=Zero,
-                 zwrite=True, alpha_to_mask=False, clip=None, outline_drawn=True,
+                 zwrite=True, alpha_to_mask=False, clip=None, outline=(World, 6.25, MToon0x, 2.0),
                  outline_name="FORWARD_BASE_ONLY_OUTLINE")
     # Cutout: renderQueue 2450, _CullMode 2, _ALPHATEST_ON, _Cutoff 0.25, no outline keyword.
     _check_mtoon(mats["Cutout"], queue=2450, cull=Cull.Back, outline_cull=Cull.Front, src=One, dst=Zero,
-                 zwrite=True, alpha_to_mask=False, clip=0.25, outline_drawn=False,
+                 zwrite=True, alpha_to_mask=False, clip=0.25, outline=None,
                  outline_name="FORWARD_BASE_ONLY_OUTLINE")
     # Transparent: renderQueue 2952 kept as stored, _CullMode 1, _SrcBlend 5 _DstBlend 10 _ZWrite 0,
-    # _ALPHABLEND_ON (clip at 1/1024, D3D11), MTOON_OUTLINE_WIDTH_SCREEN.
+    # _ALPHABLEND_ON (clip at 1/1024, D3D11), MTOON_OUTLINE_WIDTH_SCREEN, _OutlineWidth 0 (the pass draws,
+    # pushed by nothing), _OutlineScaledMaxDistance 2.
     _check_mtoon(mats["Transparent"], queue=2952, cull=Cull.Front, outline_cull=Cull.Front, src=SrcAlpha,
-                 dst=OMSA, zwrite=False, alpha_to_mask=False, clip=1 / 1024, outline_drawn=True,
+                 dst=OMSA, zwrite=False, alpha_to_mask=False, clip=1 / 1024, outline=(Screen, 0.0, MToon0x, 2.0),
                  outline_name="FORWARD_BASE_ONLY_OUTLINE")
-    # TransparentWithZWrite: renderQueue 2550, _CullMode 2, 5/10, _ZWrite 1, _ALPHABLEND_ON.
+    # TransparentWithZWrite: renderQueue 2550, _CullMode 2, 5/10, _ZWrite 1, _ALPHABLEND_ON, SCREEN 2.5, max 1.
     _check_mtoon(mats["TransparentWithZWrite"], queue=2550, cull=Cull.Back, outline_cull=Cull.Front, src=SrcAlpha,
-                 dst=OMSA, zwrite=True, alpha_to_mask=False, clip=1 / 1024, outline_drawn=True,
+                 dst=OMSA, zwrite=True, alpha_to_mask=False, clip=1 / 1024, outline=(Screen, 2.5, MToon0x, 1.0),
                  outline_name="FORWARD_BASE_ONLY_OUTLINE")
     assert BLEND_CLIP_MTOON0 == 0.0009765625
 
@@ -102,7 +125,11 @@ def test_vrm0_colours_and_main_tex_are_the_stored_unity_values():
     cutout = mats["Cutout"]
     assert cutout.main_tex is None and cutout.material.main_tex_tiling == (1.0, 1.0)
     assert mats["Opaque"].extra["outline"] == {"mode": "world", "width": 6.25, "width_world_m": 0.0625,
-                                              "scaled_max_distance": 2.0, "formula": "0.x"}
+                                              "scaled_max_distance": 2.0, "formula": "0.x",
+                                              "color": [0.0, 0.0, pytest.approx(0.7297400528407231), 1.0]}
+    # Cutout: _OutlineColor [0, 0, 0, 1] stored, no outline keyword (_OutlineWidthMode 0 agrees: no warning).
+    assert mats["Cutout"].extra["outline"]["color"] == [0.0, 0.0, 0.0, 1.0]
+    assert not any("_OutlineWidthMode" in w for m in mats.values() for w in m.warnings)
 
 
 def test_vrm1_export_imports_through_mtoons_validator():
@@ -110,22 +137,24 @@ def test_vrm1_export_imports_through_mtoons_validator():
     assert result.vrm == "1.0"
     # Cutout: MASK, cutoff 0.25, doubleSided false, offset -8 forced to 0: 2450, AlphaToMask On.
     _check_mtoon(mats["Cutout"], queue=2450, cull=Cull.Back, outline_cull=Cull.Front, src=One, dst=Zero,
-                 zwrite=True, alpha_to_mask=True, clip=0.25, outline_drawn=False, outline_name="FORWARD_BASE_OUTLINE")
-    # Opaque: doubleSided true → Cull Off, offset -9 forced to 0: 2000; outline worldCoordinates.
+                 zwrite=True, alpha_to_mask=True, clip=0.25, outline=None, outline_name="FORWARD_BASE_OUTLINE")
+    # Opaque: doubleSided true → Cull Off, offset -9 forced to 0: 2000; outline worldCoordinates 0.0625 m.
     _check_mtoon(mats["Opaque"], queue=2000, cull=Cull.Off, outline_cull=Cull.Front, src=One, dst=Zero,
-                 zwrite=True, alpha_to_mask=False, clip=None, outline_drawn=True, outline_name="FORWARD_BASE_OUTLINE")
+                 zwrite=True, alpha_to_mask=False, clip=None, outline=(World, 0.0625, MToon10, 1.0),
+                 outline_name="FORWARD_BASE_OUTLINE")
     # Transparent: BLEND, offset 8 clamped to 0 → 3000, ZWrite Off, clip at EPS_COL.
     _check_mtoon(mats["Transparent"], queue=3000, cull=Cull.Off, outline_cull=Cull.Front, src=SrcAlpha, dst=OMSA,
-                 zwrite=False, alpha_to_mask=False, clip=1e-5, outline_drawn=True,
+                 zwrite=False, alpha_to_mask=False, clip=1e-5, outline=(Screen, 0.0, MToon10, 1.0),
                  outline_name="FORWARD_BASE_OUTLINE")
     # TransparentWithZWrite: BLEND + transparentWithZWrite, offset 9 → 2501 + 9 = 2510.
     _check_mtoon(mats["TransparentWithZWrite"], queue=2510, cull=Cull.Back, outline_cull=Cull.Front, src=SrcAlpha,
-                 dst=OMSA, zwrite=True, alpha_to_mask=False, clip=1e-5, outline_drawn=True,
+                 dst=OMSA, zwrite=True, alpha_to_mask=False, clip=1e-5, outline=(Screen, 0.0125, MToon10, 1.0),
                  outline_name="FORWARD_BASE_OUTLINE")
     assert BLEND_CLIP_MTOON1 == pytest.approx(1e-5, rel=1e-7)
     assert mats["TransparentWithZWrite"].extra["render_queue_offset_number"] == 9
     assert mats["TransparentWithZWrite"].extra["render_queue_offset_validated"] == 9
     assert mats["Transparent"].extra["render_queue_offset_validated"] == 0
+    assert mats["Opaque"].extra["outline"]["color"] == [0.0, 0.0, 0.5]  # outlineColorFactor as stored (linear)
 
 
 def test_vrm1_base_color_is_linear_converted_and_texture_transform_flipped():
@@ -146,13 +175,13 @@ def test_material_vrm_legacy_shaders_and_gltf_fallbacks():
     result, mats = _materials("material.vrm")
     # MToonUnversioned: VRM/MToon, renderQueue -1, _CullMode 0 → Cull Off, no outline keyword.
     _check_mtoon(mats["MToonUnversioned"], queue=2000, cull=Cull.Off, outline_cull=Cull.Front, src=One, dst=Zero,
-                 zwrite=True, alpha_to_mask=False, clip=None, outline_drawn=False,
+                 zwrite=True, alpha_to_mask=False, clip=None, outline=None,
                  outline_name="FORWARD_BASE_ONLY_OUTLINE")
     # TransparentZWrite: VRM/UnlitTransparentZWrite → MToon TransparentWithZWrite, Cull Back, the stored
     # renderQueue 2600 restored (outside MToon's 2501..2550), Unlit white x texture.
     tzw = mats["TransparentZWrite"]
     _check_mtoon(tzw, queue=2600, cull=Cull.Back, outline_cull=Cull.Front, src=SrcAlpha, dst=OMSA, zwrite=True,
-                 alpha_to_mask=False, clip=1 / 1024, outline_drawn=False, outline_name="FORWARD_BASE_ONLY_OUTLINE")
+                 alpha_to_mask=False, clip=1 / 1024, outline=None, outline_name="FORWARD_BASE_ONLY_OUTLINE")
     assert tzw.material.lighting.value == "Unlit" and tzw.material.color == (1.0, 1.0, 1.0, 1.0)
     assert tzw.main_tex == 2
     # VRM_USE_GLTFSHADER and PBR: Standard, opaque, 2000, Cull Back although doubleSided is true.

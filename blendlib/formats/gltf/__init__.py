@@ -16,7 +16,8 @@ One module per step, each importing only those above it:
 * :mod:`.vrm0` — VRM 0.x ``materialProperties`` (UniVRM's legacy loader: values as stored);
 * :mod:`.vrm1` — VRM 1.0 ``VRMC_materials_mtoon`` through MToon's validator;
 * :mod:`.importer` — which importer takes which material; :func:`import_file`;
-* :mod:`.vrm_addon` — the VRM Add-on for Blender's MToon settings as the JSON its exporters write.
+* :mod:`.vrm_addon` — the VRM Add-on for Blender's MToon settings as the JSON its exporters write;
+* :mod:`.vrm_advice` — sort advice in those settings' terms (queue within MToon's clamps, render modes).
 """
 
 from .container import GltfDocument, GltfError, document_from_json, read_document

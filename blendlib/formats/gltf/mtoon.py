@@ -33,15 +33,20 @@ The fragment programs (``MToonCore.cginc`` @f230f388; ``vrmc_materials_mtoon_geo
   expressed as an alpha test with the material's cutoff set to that threshold (the lead's decision);
 * neither: alpha 1, no clip.
 
-The outline pass discards everything (``clip(-1)``) unless an outline width mode is on (0.x:
-keyword ``MTOON_OUTLINE_WIDTH_WORLD``/``_SCREEN``; 1.0: ``outlineWidthMode``): it is listed with
-``AlphaTest Never`` then, which discards every fragment as the shader does. Its vertex program
-(the push along the normal) is not part of the pass state here yet.
+The outline pass discards everything (``clip(-1)`` under ``MTOON_CLIP_IF_OUTLINE_IS_NONE``) unless
+an outline width mode is on (0.x: keyword ``MTOON_OUTLINE_WIDTH_WORLD``/``_SCREEN``; 1.0:
+``outlineWidthMode``), so without one it is not listed: it draws nothing. With one, its vertex
+program pushes the vertices out along the normal (:mod:`blendlib.core.outline`): the pass carries
+``outline_mode`` World/Screen, ``outline_width`` (0.x ``_OutlineWidth``, 1.0
+``outlineWidthFactor``), ``outline_formula`` (MToon0x / MToon10) and ``outline_max_distance`` (0.x
+``_OutlineScaledMaxDistance``). The outline colour (``_OutlineColor``, ``outlineColorFactor``) is
+recorded, not drawn: the pass shades like FORWARD_BASE (the approximation of MToon's colour, SPEC
+§11.6).
 """
 
 from __future__ import annotations
 
-from ...core.vocabulary import BlendFactor, BlendOp, CompareFunction, Cull, LightMode, Pass
+from ...core.vocabulary import BlendFactor, BlendOp, CompareFunction, Cull, LightMode, OutlineFormula, OutlineMode, Pass
 
 #: MToon 0.x's BLEND clip: ``const half EPSILON_FP16 = 0.0009765625;`` (MToonCore.cginc).
 BLEND_CLIP_MTOON0 = 0.0009765625
@@ -50,29 +55,36 @@ BLEND_CLIP_MTOON0 = 0.0009765625
 BLEND_CLIP_MTOON1 = 9.999999747378752e-06
 
 OUTLINE_NONE, OUTLINE_WORLD, OUTLINE_SCREEN = "none", "world", "screen"
+_OUTLINE_PROGRAM = {OUTLINE_WORLD: OutlineMode.World, OUTLINE_SCREEN: OutlineMode.Screen}
 
 
 def mtoon_passes(*, version: str, cull: Cull, outline_cull: Cull, src: BlendFactor, dst: BlendFactor,
-                 zwrite: bool, alpha_to_mask: bool, alpha_test: bool, outline_mode: str) -> tuple[Pass, ...]:
-    """The four passes of MToon ``version`` (``"0.x"`` or ``"1.0"``) for the given property values;
-    ``alpha_test``: the fragment program clips (``_ALPHATEST_ON`` or ``_ALPHABLEND_ON``);
-    ``outline_mode``: :data:`OUTLINE_NONE`, :data:`OUTLINE_WORLD` or :data:`OUTLINE_SCREEN`."""
+                 zwrite: bool, alpha_to_mask: bool, alpha_test: bool, outline_mode: str,
+                 outline_width: float = 0.0, outline_max_distance: float = 1.0) -> tuple[Pass, ...]:
+    """MToon ``version``'s passes (``"0.x"`` or ``"1.0"``) for the given property values: FORWARD_BASE,
+    the outline pass (only with an outline mode), FORWARD_ADD, ShadowCaster. ``alpha_test``: the
+    fragment program clips (``_ALPHATEST_ON`` or ``_ALPHABLEND_ON``); ``outline_mode``:
+    :data:`OUTLINE_NONE`, :data:`OUTLINE_WORLD` or :data:`OUTLINE_SCREEN`; ``outline_width``: 0.x
+    ``_OutlineWidth`` / 1.0 ``outlineWidthFactor``; ``outline_max_distance``: 0.x
+    ``_OutlineScaledMaxDistance`` (1.0 has none: its screen width is capped by the projection)."""
     def blend(dst_color: BlendFactor) -> dict:
         # Blend [_SrcBlend] [dst] + BlendOp Add, Max: the alpha channel keeps the factors, op Max.
         return dict(blend=True, src_blend=src, dst_blend=dst_color, blend_op=BlendOp.Add, separate_alpha=True,
                     src_blend_alpha=src, dst_blend_alpha=dst_color, blend_op_alpha=BlendOp.Max)
 
     common = dict(ztest=CompareFunction.LEqual, alpha_to_mask=alpha_to_mask, alpha_test=alpha_test)
-    outline_drawn = outline_mode != OUTLINE_NONE
     base = Pass(name="FORWARD_BASE", light_mode=LightMode.ForwardBase, cull=cull, zwrite=zwrite,
                 **blend(dst), **common)
-    outline = Pass(name="FORWARD_BASE_ONLY_OUTLINE" if version == "0.x" else "FORWARD_BASE_OUTLINE",
-                   light_mode=LightMode.ForwardBase, cull=outline_cull, zwrite=zwrite,
-                   offset_factor=1.0, offset_units=1.0, **blend(dst),
-                   **{**common, "alpha_test": alpha_test or not outline_drawn},
-                   alpha_test_comp=CompareFunction.GEqual if outline_drawn else CompareFunction.Never)
     add = Pass(name="FORWARD_ADD", light_mode=LightMode.ForwardAdd, cull=cull, zwrite=False,
                **blend(BlendFactor.One), **common)
     shadow = Pass(name="ShadowCaster", light_mode=LightMode.ShadowCaster, cull=cull, zwrite=True,
                   ztest=CompareFunction.LEqual)
+    if outline_mode == OUTLINE_NONE:
+        return base, add, shadow
+    outline = Pass(name="FORWARD_BASE_ONLY_OUTLINE" if version == "0.x" else "FORWARD_BASE_OUTLINE",
+                   light_mode=LightMode.ForwardBase, cull=outline_cull, zwrite=zwrite,
+                   offset_factor=1.0, offset_units=1.0, **blend(dst), **common,
+                   outline_mode=_OUTLINE_PROGRAM[outline_mode], outline_width=float(outline_width),
+                   outline_formula=OutlineFormula.MToon0x if version == "0.x" else OutlineFormula.MToon10,
+                   outline_max_distance=float(outline_max_distance) if version == "0.x" else 1.0)
     return base, outline, add, shadow

@@ -41,6 +41,8 @@ USE_GLTF_SHADER = "VRM_USE_GLTFSHADER"
 MTOON_DEFAULTS = {"_Cutoff": 0.5, "_BlendMode": 0.0, "_OutlineWidthMode": 0.0, "_CullMode": 2.0,
                   "_OutlineCullMode": 1.0, "_SrcBlend": 1.0, "_DstBlend": 0.0, "_ZWrite": 1.0,
                   "_AlphaToMask": 0.0, "_OutlineWidth": 0.5, "_OutlineScaledMaxDistance": 1.0}
+#: MToon 0.x's ``_OutlineColor ("Outline Color", Color) = (0,0,0,1)``.
+OUTLINE_COLOR_DEFAULT = (0.0, 0.0, 0.0, 1.0)
 #: UniUnlit's Properties defaults (UniUnlit.shader).
 UNIUNLIT_DEFAULTS = {"_Cutoff": 0.5, "_CullMode": 2.0, "_SrcBlend": 1.0, "_DstBlend": 0.0, "_ZWrite": 1.0}
 #: Standard's (corpus DefaultResourcesExtra/Standard.shader: ``_Cutoff`` 0.5, ``_SrcBlend`` 1.0,
@@ -108,6 +110,25 @@ def _main_tex(document: GltfDocument, props: _Properties, warnings: list[str], w
     return texture, fields
 
 
+def _outline_mode(props: _Properties, warnings: list[str]) -> str:
+    """The outline pass's mode. The shader reads the keyword (``MTOON_OUTLINE_WIDTH_WORLD`` /
+    ``_SCREEN``, set from ``keywordMap`` only); ``_OutlineWidthMode`` (0 none, 1 world, 2 screen) is
+    what the inspector derives the keyword from, and a file where the two disagree gets a warning."""
+    keywords = props.keywords
+    if "MTOON_OUTLINE_WIDTH_WORLD" in keywords:
+        outline = OUTLINE_WORLD
+    elif "MTOON_OUTLINE_WIDTH_SCREEN" in keywords:
+        outline = OUTLINE_SCREEN
+    else:
+        outline = OUTLINE_NONE
+    stated = {0: OUTLINE_NONE, 1: OUTLINE_WORLD, 2: OUTLINE_SCREEN}.get(int(props.float("_OutlineWidthMode")))
+    if stated != outline:
+        warnings.append(f"{props.where}: _OutlineWidthMode {props.float('_OutlineWidthMode'):g} disagrees with the "
+                        f"keywords (outline {outline}); UniVRM sets the keywords from keywordMap, so the "
+                        f"outline is {outline}")
+    return outline
+
+
 def _mtoon(document: GltfDocument, index: int, name: str, props: _Properties, warnings: list[str]
            ) -> ImportedMaterial:
     where = props.where
@@ -117,12 +138,7 @@ def _mtoon(document: GltfDocument, index: int, name: str, props: _Properties, wa
         warnings.append(f"{where}: keywords _ALPHATEST_ON and _ALPHABLEND_ON are both on (one multi_compile set: "
                         "Unity does not document which variant draws); imported as _ALPHATEST_ON")
         alpha_blend_on = False
-    if "MTOON_OUTLINE_WIDTH_WORLD" in keywords:
-        outline = OUTLINE_WORLD
-    elif "MTOON_OUTLINE_WIDTH_SCREEN" in keywords:
-        outline = OUTLINE_SCREEN
-    else:
-        outline = OUTLINE_NONE
+    outline = _outline_mode(props, warnings)
     queue, queue_values = props.queue(2000)
     texture, fields = _main_tex(document, props, warnings)
     color = rgba_values(props.vector("_Color"), f"{where}: vectorProperties._Color")
@@ -137,7 +153,8 @@ def _mtoon(document: GltfDocument, index: int, name: str, props: _Properties, wa
         src=props.enum("_SrcBlend", _FACTOR_BY_NUMBER, "BlendMode"),
         dst=props.enum("_DstBlend", _FACTOR_BY_NUMBER, "BlendMode"),
         zwrite=props.float("_ZWrite") != 0, alpha_to_mask=props.float("_AlphaToMask") != 0,
-        alpha_test=alpha_test_on or alpha_blend_on, outline_mode=outline)
+        alpha_test=alpha_test_on or alpha_blend_on, outline_mode=outline,
+        outline_width=props.float("_OutlineWidth"), outline_max_distance=props.float("_OutlineScaledMaxDistance"))
     # _BlendMode only records the mode the author chose (UniVRM's loader does not re-derive the state from it).
     mode = RENDER_MODES.get(int(props.float("_BlendMode")), f"_BlendMode {props.float('_BlendMode'):g}")
     extra = {"shader": props.entry.get("shader"), "render_queue": queue, "render_mode": mode,
@@ -146,7 +163,9 @@ def _mtoon(document: GltfDocument, index: int, name: str, props: _Properties, wa
              "keywords": sorted(keywords), "outline": {
                  "mode": outline, "width": props.float("_OutlineWidth"),
                  "width_world_m": props.float("_OutlineWidth") * 0.01 if outline == OUTLINE_WORLD else None,
-                 "scaled_max_distance": props.float("_OutlineScaledMaxDistance"), "formula": "0.x"}}
+                 "scaled_max_distance": props.float("_OutlineScaledMaxDistance"), "formula": "0.x",
+                 "color": list(rgba_values(props.vector("_OutlineColor"), f"{where}: vectorProperties._OutlineColor",
+                                           OUTLINE_COLOR_DEFAULT))}}
     material = Material(name=name, color=color, cutoff=cutoff, lighting=Lighting.Lambert, passes=passes,
                         **queue_values, **fields)
     return ImportedMaterial(index, material, texture, f"VRM 0.x {MTOON}", tuple(warnings), extra)

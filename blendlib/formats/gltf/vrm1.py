@@ -45,6 +45,15 @@ def validated_queue(mode: str, transparent_with_zwrite: bool, offset: int) -> tu
     return 2501 + clamped, clamped, "TransparentWithZWrite"
 
 
+def _outline_color(mtoon: dict[str, Any], where: str) -> tuple[float, float, float]:
+    """``outlineColorFactor`` (linear RGB; the schema's default ``[0, 0, 0]``)."""
+    value = mtoon.get("outlineColorFactor", [0.0, 0.0, 0.0])
+    if not isinstance(value, list) or len(value) != 3:
+        raise MaterialError(f"{where}: {EXTENSION}.outlineColorFactor is not three numbers ({value!r})")
+    r, g, b = (number(v, f"{where}: {EXTENSION}.outlineColorFactor") for v in value)
+    return r, g, b
+
+
 def vrm1_material(document: GltfDocument, index: int) -> ImportedMaterial:
     """Material ``index`` (which has ``VRMC_materials_mtoon``) as UniVRM 1.0 draws it."""
     material = document.list("materials")[index]
@@ -75,7 +84,7 @@ def vrm1_material(document: GltfDocument, index: int) -> ImportedMaterial:
         src=BlendFactor.SrcAlpha if blend else BlendFactor.One,
         dst=BlendFactor.OneMinusSrcAlpha if blend else BlendFactor.Zero,
         zwrite=not blend or zwrite_flag, alpha_to_mask=mode == "MASK", alpha_test=mode != "OPAQUE",
-        outline_mode=outline)
+        outline_mode=outline, outline_width=width)
     texture, fields = base_color_texture(document, material, where, warnings)
     color = gamma_color((material.get("pbrMetallicRoughness") or {}).get("baseColorFactor"),
                         f"{where}.baseColorFactor")
@@ -85,7 +94,8 @@ def vrm1_material(document: GltfDocument, index: int) -> ImportedMaterial:
         "render_queue_offset_number": int(raw_offset), "render_queue_offset_validated": offset,
         "_Color": list(color),
         "outline": {"mode": outline, "width": width,
-                    "width_world_m": width if outline == OUTLINE_WORLD else None, "formula": "1.0"}}
+                    "width_world_m": width if outline == OUTLINE_WORLD else None, "formula": "1.0",
+                    "color": list(_outline_color(mtoon, where))}}
     if mode == "OPAQUE":
         color = color[:3] + (1.0,)  # MToon writes alpha 1 without an alpha keyword
     cutoff = alpha_cutoff(material, where) if mode == "MASK" else BLEND_CLIP_MTOON1 if blend else 0.5

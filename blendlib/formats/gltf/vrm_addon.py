@@ -16,8 +16,10 @@ VRM 0.x (``vrm0_exporter.py``, ``write_mtoon1_downgraded_material``; research-vr
     BLEND + TZW:   _BlendMode 3  _SrcBlend 5 _DstBlend 10 _ZWrite 1  renderQueue mtoon0_render_queue
     keyword_map["_ALPHABLEND_ON"] = material.blend_method not in ("OPAQUE", "CLIP")
     _CullMode 1 if mtoon0_front_cull_mode, elif use_backface_culling 2, else 0;  _OutlineCullMode 1
-    _OutlineWidth = outline_width_factor * 100 (world) / * 200 (screen); _OutlineScaledMaxDistance
+    _OutlineWidthMode 0/1/2 and MTOON_OUTLINE_WIDTH_WORLD / _SCREEN by outline_width_mode
+    _OutlineWidth = outline_width_factor * 100 (world) / * 200 (screen) / 0.0 (none); _OutlineScaledMaxDistance
     vector_properties["_Color"] = convert.linear_to_srgb(base_color_factor)   (x ** (1 / 2.2))
+    vector_properties["_OutlineColor"] = convert.linear_to_srgb(outline_color_factor) + [1]
 
 ``blend_method`` follows the add-on's alpha mode in the Blender versions it was written for
 (OPAQUE, CLIP, BLEND/HASHED); Blender 4.2 and later read every material's ``blend_method`` as
@@ -29,8 +31,8 @@ docs/vrm.md). The offset and scale of ``_MainTex`` are the base colour texture's
 VRM 1.0 (``vrm1_exporter.py``, ``create_mtoon1_material_dict``): ``alphaMode``, ``alphaCutoff`` (MASK
 only), ``doubleSided``, ``baseColorFactor``/``baseColorTexture`` with its ``KHR_texture_transform``,
 ``KHR_materials_unlit`` and ``VRMC_materials_mtoon`` with ``transparentWithZWrite``,
-``renderQueueOffsetNumber`` (unclamped: UniVRM's validator clamps it), ``outlineWidthMode`` and
-``outlineWidthFactor``.
+``renderQueueOffsetNumber`` (unclamped: UniVRM's validator clamps it), ``outlineWidthMode``,
+``outlineWidthFactor`` and ``outlineColorFactor``.
 """
 
 from __future__ import annotations
@@ -73,6 +75,8 @@ class AddonMToon:
     render_queue_offset_number: int = 0
     outline_width_mode: str = "none"
     outline_width_factor: float = 0.0
+    #: ``outline_color_factor`` (linear RGB; the add-on's default black).
+    outline_color_factor: tuple[float, float, float] = (0.0, 0.0, 0.0)
     base_color_factor: tuple[float, float, float, float] = (1.0, 1.0, 1.0, 1.0)
     base_color_texture: AddonTexture | None = None
     mtoon0_render_queue: int = 2000
@@ -137,6 +141,7 @@ def _vrm0_entry(mtoon: AddonMToon) -> dict[str, Any]:
     floats["_OutlineCullMode"] = 1
     mode = OUTLINE_WIDTH_MODES.index(mtoon.outline_width_mode)
     floats["_OutlineWidthMode"] = mode
+    floats["_OutlineWidth"] = 0.0  # the exporter's value without an outline (vrm0_exporter.py)
     if mode == 1:
         keywords["MTOON_OUTLINE_WIDTH_WORLD"] = True
         floats["_OutlineWidth"] = mtoon.outline_width_factor * 100
@@ -145,7 +150,8 @@ def _vrm0_entry(mtoon: AddonMToon) -> dict[str, Any]:
         floats["_OutlineWidth"] = mtoon.outline_width_factor * 200
     floats["_OutlineScaledMaxDistance"] = mtoon.mtoon0_outline_scaled_max_distance
     r, g, b, a = mtoon.base_color_factor
-    vectors: dict[str, list[float]] = {"_Color": [_srgb_gamma(r), _srgb_gamma(g), _srgb_gamma(b), float(a)]}
+    vectors: dict[str, list[float]] = {"_Color": [_srgb_gamma(r), _srgb_gamma(g), _srgb_gamma(b), float(a)],
+                                       "_OutlineColor": [*(_srgb_gamma(c) for c in mtoon.outline_color_factor), 1.0]}
     textures: dict[str, int] = {}
     texture = mtoon.base_color_texture
     if texture is not None:
@@ -169,7 +175,8 @@ def vrm1_material_json(mtoon: AddonMToon) -> dict[str, Any]:
         "extensions": {"KHR_materials_unlit": {}, "VRMC_materials_mtoon": {
             "specVersion": "1.0", "transparentWithZWrite": mtoon.transparent_with_z_write,
             "renderQueueOffsetNumber": mtoon.render_queue_offset_number,
-            "outlineWidthMode": mtoon.outline_width_mode, "outlineWidthFactor": mtoon.outline_width_factor}},
+            "outlineWidthMode": mtoon.outline_width_mode, "outlineWidthFactor": mtoon.outline_width_factor,
+            "outlineColorFactor": list(mtoon.outline_color_factor)}},
     }
     if mtoon.alpha_mode == "MASK":
         material["alphaCutoff"] = mtoon.alpha_cutoff
