@@ -594,7 +594,7 @@ def build_lights():
 
 
 #: foliage.blend: the leaf texture's side in texels and the far patches' distance factor.
-LEAF_TEXELS, FAR = 64, 16
+LEAF_TEXELS, FAR = 64, 8
 #: The leaves of the texture: centre (texels), half length, half width (texels), angle (degrees),
 #: RGB; narrow, so that box-filtered mip levels lose them (alpha under _Cutoff) within a few levels.
 LEAF_SHAPES = (

@@ -37,6 +37,8 @@ CAPTIONS = (
     ("lights", "Lights", "10 Additional lights: ForwardAdd once per per-pixel light"),
     ("vrm_avatar", "Avatar", "11a VRM avatar: the skirt's ZWrite hides the stockings"),
     ("vrm_avatar", "AvatarFace", "11b VRM avatar: eyebrows over bangs, lashes over lenses"),
+    ("foliage", "Foliage", "13a Foliage: mipmaps, Preserve Coverage, AlphaToMask, MSAA off"),
+    ("foliage", "FoliageMSAA", "13b Foliage at MSAA 4x: AlphaToMask turns alpha into coverage"),
 )
 
 TILE = (480, 270)

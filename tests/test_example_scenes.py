@@ -724,11 +724,11 @@ def _blend_layers(draw) -> np.ndarray:
 
 
 #: Scenes whose alpha-tested texels may flip against llvmpipe on more pixels than 0.1 %: foliage.blend's
-#: far leaves are minified 16 texels per pixel, so llvmpipe's float32 texture coordinates and its
+#: far leaves are minified 8 texels per pixel, so llvmpipe's float32 texture coordinates and its
 #: approximate mip LOD (``fast_log2``, within 0.043: decisions.md) can land on another texel or level
 #: on either side of _Cutoff (the shimmer the scene shows). Issue 29 asks mipmapped frames for 99 %
 #: within 3 steps; that and 99 % within one step still hold.
-GL_DISAGREE_SHARE = {"foliage.blend": 0.005}
+GL_DISAGREE_SHARE = {"foliage.blend": 0.003}
 
 
 @pytest.mark.parametrize("file,name", [(f, n) for f, ns in sorted(EXPECTED_FILES.items()) for n in ns])
@@ -747,7 +747,8 @@ def test_agrees_with_opengl_reference(scenes, file, name):
     layers = _blend_layers(draw)
     assert not any(r.material.passes and any(p.stencil for p in r.material.passes) for r in draw.renderers)
     tolerance = np.maximum(1, layers)
-    assert (diff > tolerance).mean() <= GL_DISAGREE_SHARE.get(file, 0.001), f"{(diff > tolerance).sum()} pixels disagree"
+    disagree = diff > tolerance
+    assert disagree.mean() <= GL_DISAGREE_SHARE.get(file, 0.001), f"{disagree.sum()} pixels disagree"
     assert (diff <= 1).mean() >= 0.99
     assert (diff <= 3).mean() >= 0.99
     gd = np.rint(np.asarray(gl_depth, np.float64) * mg.DMAX).astype(np.int64)
