@@ -352,7 +352,8 @@ def analyze(
     renderer_of_call = np.zeros(len(calls) + 1, dtype=np.int64)
     for c in calls:
         renderer_of_call[c.index] = rend_index[(c.renderer.name, c.renderer.slot)]
-    collector = counts = FragmentCollector(calls, width, height, budget)
+    samples = int(scene.msaa)
+    collector = counts = FragmentCollector(calls, width, height, budget, samples=samples)
     frame = render_scene(scene, observer=collector, workers=workers, progress=bar.part(0.0, 0.4),
                          should_cancel=should_cancel, calls=calls)
     inverted = np.zeros(width * height, dtype=np.uint16)
@@ -368,6 +369,8 @@ def analyze(
         while True:
             rows_before = collector.rows_of(collector.first_block)[0]
             for start, per_pixel, ids, tally in blocks.run(collector, buf):
+                if samples > 1:  # per sample index: a pixel's most inverted sample (units hold whole pixels)
+                    start, per_pixel = start // samples, per_pixel.reshape(-1, samples).max(axis=1)
                 inverted[start:start + per_pixel.size] = per_pixel[:inverted.size - start]
                 for pair, count in zip(ids.tolist(), tally.tolist(), strict=True):
                     pair_counts[pair] = pair_counts.get(pair, 0) + count
@@ -376,7 +379,8 @@ def analyze(
                 break
             # The rows above the blocks kept: another pass renders them alone and keeps what fits.
             first = collector.limit
-            collector = FragmentCollector(calls, width, height, budget, first_block=first, overdraw=False)
+            collector = FragmentCollector(calls, width, height, budget, first_block=first, overdraw=False,
+                                          samples=samples)
             render_scene(scene, observer=collector, workers=workers, should_cancel=should_cancel, calls=calls,
                          band=(collector.rows_of(first)[0], height))
         bar(0.95)
@@ -384,7 +388,7 @@ def analyze(
         if any(c.queue > LAST_SORTED_QUEUE for c in calls):
             reference = render_scene(scene, resume=(buf, last_sorted), workers=workers, calls=calls,
                                      should_cancel=should_cancel).color
-        elif scene.hdr:
+        elif scene.hdr or samples > 1:  # MSAA: the samples resolved as the frame's
             reference = buf.output()[0]
         else:
             reference, error = reference_from_codes(frame.color, counts.final, buf)
