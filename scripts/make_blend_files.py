@@ -482,14 +482,36 @@ def build_render_queues():
     save("render_queues")
 
 
+def shared_collection(scene, name: str):
+    """A new collection ``name`` in ``scene`` holding the scene's objects so far (camera and Sun),
+    for a second scene of the file to show too (:func:`second_scene`)."""
+    shared = bpy.data.collections.new(name)
+    scene.collection.children.link(shared)
+    for ob in list(scene.collection.objects):
+        scene.collection.objects.unlink(ob)
+        shared.objects.link(ob)
+    return shared
+
+
+def second_scene(name: str, first, shared, **settings):
+    """Another scene of the file showing collection ``shared`` through ``first``'s camera, world
+    and engine, with ``Scene.unity`` ``settings``."""
+    scene = bpy.data.scenes.new(name)
+    scenekit.set_resolution(scene, *RES)
+    scene.render.engine = first.render.engine
+    scene.view_settings.view_transform = "Standard"
+    scene.render.dither_intensity = 0.0
+    scene.world = first.world
+    scene.camera = first.camera
+    scene.collection.children.link(shared)
+    set_scene(scene, **settings)
+    return scene
+
+
 def build_gamma_linear():
     """9. The same semi-transparent stack in Gamma and in Linear colour space (two scenes)."""
     gamma = new_file("Gamma", distance=10.0)
-    stack = bpy.data.collections.new("Stack")
-    gamma.collection.children.link(stack)
-    for ob in list(gamma.collection.objects):  # camera and Sun go into the shared collection
-        gamma.collection.objects.unlink(ob)
-        stack.objects.link(ob)
+    stack = shared_collection(gamma, "Stack")
     white = material("White", color=(1, 1, 1, 1), lighting="Unlit")
     black = material("Black", color=(0, 0, 0, 1), lighting="Unlit")
     gray = material("Gray 50%", color=(0.5, 0.5, 0.5, 1), lighting="Unlit")
@@ -513,15 +535,7 @@ def build_gamma_linear():
                   passes=[BLEND])
     put("Ramp", quad_mesh("Ramp", 6.8, 0.35), (0, -0.1, -1.6), rm)
     label("Gamma", (0, -0.5, 1.65), size=0.22, name="Label Gamma", scene=gamma)
-    linear = bpy.data.scenes.new("Linear")
-    scenekit.set_resolution(linear, *RES)
-    linear.render.engine = gamma.render.engine
-    linear.view_settings.view_transform = "Standard"
-    linear.render.dither_intensity = 0.0
-    linear.world = gamma.world
-    linear.camera = gamma.camera
-    linear.collection.children.link(stack)
-    set_scene(linear, color_space="Linear", clear_color=CLEAR)
+    linear = second_scene("Linear", gamma, stack, color_space="Linear", clear_color=CLEAR)
     label("Linear", (0, -0.5, 1.65), size=0.22, name="Label Linear", scene=linear)
     save("gamma_linear")
 
@@ -650,11 +664,7 @@ def build_foliage():
     with AlphaToMask, in a scene without MSAA (``Foliage``) and one with MSAA 4x (``FoliageMSAA``)."""
     plain = new_file("Foliage", distance=10.0)
     plain.camera.data.clip_end = 10.0 * FAR + 40.0
-    patch = bpy.data.collections.new("Leaves")
-    plain.collection.children.link(patch)
-    for ob in list(plain.collection.objects):  # camera and Sun go into the shared collection
-        plain.collection.objects.unlink(ob)
-        patch.objects.link(ob)
+    patch = shared_collection(plain, "Leaves")
     tex = leaf_texture()
     near = leaf_patch_mesh("Near Patch", FOLIAGE_SIZE, 1.0)
     # FAR times farther from the camera and FAR times larger, with leaves of the same size in the
@@ -666,15 +676,7 @@ def build_foliage():
         obj(f"Near {text}", near, (x, 0.0, NEAR_Z), material=m, collection=patch)
         obj(f"Far {text}", far, (x * FAR, 10.0 * (FAR - 1), FAR_Z * FAR), material=m, collection=patch)
     foliage_labels(plain, "MSAA off")
-    msaa = bpy.data.scenes.new("FoliageMSAA")
-    scenekit.set_resolution(msaa, *RES)
-    msaa.render.engine = plain.render.engine
-    msaa.view_settings.view_transform = "Standard"
-    msaa.render.dither_intensity = 0.0
-    msaa.world = plain.world
-    msaa.camera = plain.camera
-    msaa.collection.children.link(patch)
-    set_scene(msaa, color_space="Gamma", clear_color=CLEAR, msaa=4)
+    msaa = second_scene("FoliageMSAA", plain, patch, color_space="Gamma", clear_color=CLEAR, msaa=4)
     foliage_labels(msaa, "MSAA 4x")
     save("foliage")
 

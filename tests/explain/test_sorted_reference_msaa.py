@@ -11,36 +11,24 @@ import numpy as np
 import pytest
 
 from blendlib.core.drawlist import draw_calls
-from blendlib.core.vocabulary import BlendFactor, Pass, Queue, SortMode
+from blendlib.core.vocabulary import Queue, SortMode
 from blendlib.explain import advice
 from blendlib.explain.advice import analyze_and_advise
 from blendlib.explain.sorted_reference import analyze
+from tests.explain.test_sorted_reference import BLEND, transparent
+from tests.explain.test_sorted_reference import assert_reference as assert_sorted_reference
 from tests.reference import scenes as sc
-from tests.reference.random_scenes import describe, seeded_scene
-from tests.reference.scalar import FragmentLog, render_reference, render_sorted_reference
-
-BLEND = Pass(blend=True, zwrite=False, src_blend=BlendFactor.SrcAlpha, dst_blend=BlendFactor.OneMinusSrcAlpha)
-
-
-def transparent(scene, every: int = 1):
-    """The same scene with every ``every``-th renderer's material moved to the Transparent queue."""
-    renderers = tuple(replace(r, material=replace(r.material, queue=Queue.Transparent, queue_offset=k % 3 - 1))
-                      if k % every == 0 else r for k, r in enumerate(scene.renderers))
-    return replace(scene, renderers=renderers)
+from tests.reference.random_scenes import seeded_scene
+from tests.reference.scalar import FragmentLog, render_reference
 
 
 def assert_reference(scene):
+    """:func:`assert_sorted_reference`, and the frame equal to the scalar reference's."""
+    result = assert_sorted_reference(scene)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        result = analyze(scene)
-        color, _, _ = render_sorted_reference(scene)
         frame, _, _ = render_reference(scene)
     assert np.array_equal(result.frame.color, frame)
-    if not np.array_equal(result.reference, color):
-        ys, xs = np.nonzero((result.reference != color).any(axis=-1))
-        where = [(int(y), int(x), result.reference[y, x].tolist(), color[y, x].tolist())
-                 for y, x in zip(ys, xs, strict=True)][:4]
-        pytest.fail(f"{ys.size} pixels differ: {where}\n{describe(scene)}")
     return result
 
 
