@@ -9,6 +9,8 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from blendlib.core.drawlist import draw_calls
 from blendlib.core.vocabulary import Queue, SortMode
@@ -18,7 +20,7 @@ from blendlib.explain.sorted_reference import analyze
 from tests.explain.test_sorted_reference import BLEND, transparent
 from tests.explain.test_sorted_reference import assert_reference as assert_sorted_reference
 from tests.reference import scenes as sc
-from tests.reference.random_scenes import seeded_scene
+from tests.reference.random_scenes import scenes, seeded_scene
 from tests.reference.scalar import FragmentLog, render_reference
 
 
@@ -39,6 +41,14 @@ def test_msaa_scenes_equal_the_scalar_sorted_reference_per_sample(seed, samples)
     assert_reference(transparent(seeded_scene(seed, msaa=samples)))
     assert_reference(transparent(seeded_scene(seed + 1, shared=False, msaa=samples), every=2))
 
+
+
+@settings(max_examples=30, deadline=None, database=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+@given(scenes(msaa=0), st.integers(1, 3))
+def test_random_msaa_scenes_equal_the_scalar_sorted_reference(scene, every):
+    """Every state, stencil, depth test, alpha test and AlphaToMask the random scenes draw."""
+    assert_reference(transparent(scene, every=every))
 
 def test_crossing_quads_are_sorted_sample_by_sample():
     """Two 40 % quads crossing in depth: along the crossing the samples of one pixel lie on
