@@ -113,7 +113,7 @@ class FragmentCollector(FrameObserver):
                  first_block: int = 0, overdraw: bool = True, samples: int = 1) -> None:
         self.samples = int(samples)
         self.width, self.height = int(width) * self.samples, int(height)  # width in samples
-        self.rows_per_block = block_rows(width)
+        self.rows_per_block = block_rows(self.width)
         self.block_pixels = self.rows_per_block * self.width
         self.block_count = (self.height + self.rows_per_block - 1) // self.rows_per_block
         self.first_block = int(first_block)
