@@ -224,11 +224,13 @@ def obj(name: str, data, location=(0, 0, 0), rotation=(0, 0, 0), scale=(1, 1, 1)
 
 
 def material(name: str, *, queue="Geometry", offset=0, color=(1, 1, 1, 1), tex=None, lighting="Lambert",
-             alpha_scale=1.0, cutoff=0.5, passes=(dict(),), filter="Point", wrap="Repeat"):
-    """A material with ``material.unity`` enabled; ``passes``: dicts of pass properties (``PASS_FIELDS``)."""
+             alpha_scale=1.0, cutoff=0.5, passes=(dict(),), filter="Point", wrap="Repeat", **more):
+    """A material with ``material.unity`` enabled; ``passes``: dicts of pass properties (``PASS_FIELDS``);
+    ``more``: further ``Material.unity`` fields (mipmaps, Preserve Coverage, ...)."""
     return scenekit.unity_material(
         name, queue=queue, queue_offset=offset, color=color, lighting=lighting, alpha_scale=alpha_scale,
         cutoff=cutoff, main_tex_filter=filter, main_tex_wrap=wrap, passes=[dict(p) for p in passes], main_tex=tex,
+        **more,
     )
 
 
@@ -455,14 +457,36 @@ def build_render_queues():
     save("render_queues")
 
 
+def shared_collection(scene, name: str):
+    """A new collection ``name`` in ``scene`` holding the scene's objects so far (camera and Sun),
+    for a second scene of the file to show too (:func:`second_scene`)."""
+    shared = bpy.data.collections.new(name)
+    scene.collection.children.link(shared)
+    for ob in list(scene.collection.objects):
+        scene.collection.objects.unlink(ob)
+        shared.objects.link(ob)
+    return shared
+
+
+def second_scene(name: str, first, shared, **settings):
+    """Another scene of the file showing collection ``shared`` through ``first``'s camera, world
+    and engine, with ``Scene.unity`` ``settings``."""
+    scene = bpy.data.scenes.new(name)
+    scenekit.set_resolution(scene, *RES)
+    scene.render.engine = first.render.engine
+    scene.view_settings.view_transform = "Standard"
+    scene.render.dither_intensity = 0.0
+    scene.world = first.world
+    scene.camera = first.camera
+    scene.collection.children.link(shared)
+    set_scene(scene, **settings)
+    return scene
+
+
 def build_gamma_linear():
     """9. The same semi-transparent stack in Gamma and in Linear colour space (two scenes)."""
     gamma = new_file("Gamma", distance=10.0)
-    stack = bpy.data.collections.new("Stack")
-    gamma.collection.children.link(stack)
-    for ob in list(gamma.collection.objects):  # camera and Sun go into the shared collection
-        gamma.collection.objects.unlink(ob)
-        stack.objects.link(ob)
+    stack = shared_collection(gamma, "Stack")
     white = material("White", color=(1, 1, 1, 1), lighting="Unlit")
     black = material("Black", color=(0, 0, 0, 1), lighting="Unlit")
     gray = material("Gray 50%", color=(0.5, 0.5, 0.5, 1), lighting="Unlit")
@@ -486,15 +510,7 @@ def build_gamma_linear():
                   passes=[BLEND])
     put("Ramp", quad_mesh("Ramp", 6.8, 0.35), (0, -0.1, -1.6), rm)
     label("Gamma", (0, -0.5, 1.65), size=0.22, name="Label Gamma", scene=gamma)
-    linear = bpy.data.scenes.new("Linear")
-    scenekit.set_resolution(linear, *RES)
-    linear.render.engine = gamma.render.engine
-    linear.view_settings.view_transform = "Standard"
-    linear.render.dither_intensity = 0.0
-    linear.world = gamma.world
-    linear.camera = gamma.camera
-    linear.collection.children.link(stack)
-    set_scene(linear, color_space="Linear", clear_color=CLEAR)
+    linear = second_scene("Linear", gamma, stack, color_space="Linear", clear_color=CLEAR)
     label("Linear", (0, -0.5, 1.65), size=0.22, name="Label Linear", scene=linear)
     save("gamma_linear")
 
@@ -546,6 +562,88 @@ def build_lights():
     save("lights")
 
 
+#: foliage.blend: the leaf texture's side in texels and the far patches' distance factor.
+LEAF_TEXELS, FAR = 64, 8
+#: The leaves of the texture: centre (texels), half length, half width (texels), angle (degrees),
+#: RGB; narrow, so that box-filtered mip levels lose them (alpha under _Cutoff) within a few levels.
+LEAF_SHAPES = (
+    ((18, 20), 16, 3.5, 40, (70, 160, 55)), ((44, 16), 15, 3.0, -30, (95, 175, 60)),
+    ((30, 44), 18, 4.0, 75, (60, 140, 45)), ((52, 46), 13, 3.0, 20, (110, 185, 70)),
+    ((10, 50), 12, 3.0, -55, (80, 165, 50)), ((36, 28), 10, 2.5, 5, (120, 190, 80)),
+    ((56, 4), 9, 2.5, 60, (65, 150, 60)), ((4, 30), 11, 3.0, -80, (90, 170, 55)),
+)
+#: foliage.blend's columns: (label, Material.unity fields, pass fields); every leaf material is Unlit
+#: with _Cutoff 0.5 and the Alpha Test queue.
+FOLIAGE_COLUMNS = (
+    ("no mipmaps", dict(filter="Bilinear"), dict(alpha_test=True)),
+    ("mipmaps (Trilinear)", dict(filter="Trilinear", main_tex_mipmaps=True), dict(alpha_test=True)),
+    ("+ Preserve Coverage", dict(filter="Trilinear", main_tex_mipmaps=True, main_tex_preserve_coverage=True),
+     dict(alpha_test=True)),
+    ("AlphaToMask, no clip", dict(filter="Trilinear", main_tex_mipmaps=True, main_tex_preserve_coverage=True),
+     dict(alpha_to_mask=True)),
+)
+FOLIAGE_X = (-2.4, -0.8, 0.8, 2.4)
+FOLIAGE_SIZE, NEAR_Z, FAR_Z = 1.4, 0.6, -1.0  # the patches' side and screen heights (at distance 10)
+
+
+def leaf_texture():
+    """LEAF_TEXELS² texels of narrow leaves (:data:`LEAF_SHAPES`, wrapping around so the texture
+    tiles): each an ellipse whose alpha is 1 inside and falls linearly to 0 over the outer 35 % of
+    its radius (the soft edge AlphaToMask turns into partial coverage); where leaves overlap the
+    more opaque one shows; texels outside every leaf are dark green at alpha 0."""
+    n = LEAF_TEXELS
+    x, y = np.meshgrid(np.arange(n) + 0.5, np.arange(n) + 0.5)
+    alpha = np.zeros((n, n))
+    rgb = np.broadcast_to(np.array([30.0, 60.0, 25.0]), (n, n, 3)).copy()
+    for (cx, cy), length, width, angle, color in LEAF_SHAPES:
+        a = math.radians(angle)
+        dx, dy = (x - cx + n / 2) % n - n / 2, (y - cy + n / 2) % n - n / 2
+        along, across = dx * math.cos(a) + dy * math.sin(a), -dx * math.sin(a) + dy * math.cos(a)
+        leaf = np.clip((1.0 - np.sqrt((along / length) ** 2 + (across / width) ** 2)) / 0.35, 0.0, 1.0)
+        shade = 0.75 + 0.25 * np.clip(along / length, -1.0, 1.0) ** 2  # lighter towards the tips
+        rgb = np.where((leaf > alpha)[..., None], np.array(color, float) * shade[..., None], rgb)
+        alpha = np.maximum(alpha, leaf)
+    texels = np.concatenate([np.round(rgb), np.round(alpha * 255)[..., None]], axis=-1)
+    return image("Leaves", texels.astype(np.uint8))
+
+
+def leaf_patch_mesh(name: str, size: float, repeats: float):
+    """A size x size quad facing the camera whose UVs run 0..``repeats`` (the texture tiled)."""
+    x = size / 2
+    uv = tuple((u * repeats, v * repeats) for u, v in QUAD_UV)
+    return scenekit.mesh(name, [(-x, 0, -x), (x, 0, -x), (x, 0, x), (-x, 0, x)], [(0, 1, 2, 3)], [uv])
+
+
+def build_foliage():
+    """13. Alpha-tested leaves near and far: without mipmaps, with mipmaps, with Preserve Coverage and
+    with AlphaToMask, in a scene without MSAA (``Foliage``) and one with MSAA 4x (``FoliageMSAA``)."""
+    plain = new_file("Foliage", distance=10.0)
+    plain.camera.data.clip_end = 10.0 * FAR + 40.0
+    patch = shared_collection(plain, "Leaves")
+    tex = leaf_texture()
+    near = leaf_patch_mesh("Near Patch", FOLIAGE_SIZE, 1.0)
+    # FAR times farther from the camera and FAR times larger, with leaves of the same size in the
+    # world: the same screen size, FAR times the texels per pixel.
+    far = leaf_patch_mesh("Far Patch", FOLIAGE_SIZE * FAR, FAR)
+    for (text, fields, pass_fields), x in zip(FOLIAGE_COLUMNS, FOLIAGE_X, strict=True):
+        m = material(f"Leaves {text}", queue="AlphaTest", tex=tex, lighting="Unlit", cutoff=0.5,
+                     passes=[pass_fields], **fields)
+        obj(f"Near {text}", near, (x, 0.0, NEAR_Z), material=m, collection=patch)
+        obj(f"Far {text}", far, (x * FAR, 10.0 * (FAR - 1), FAR_Z * FAR), material=m, collection=patch)
+    foliage_labels(plain, "MSAA off")
+    msaa = second_scene("FoliageMSAA", plain, patch, color_space="Gamma", clear_color=CLEAR, msaa=4)
+    foliage_labels(msaa, "MSAA 4x")
+    save("foliage")
+
+
+def foliage_labels(scene, msaa: str) -> None:
+    """The column captions and the bottom line of one foliage scene (labels are per scene)."""
+    for (text, _, _), x in zip(FOLIAGE_COLUMNS, FOLIAGE_X, strict=True):
+        label(text, (x, -0.5, 1.58), size=0.15, name=f"Label {text} ({msaa})", scene=scene)
+    label(f"{msaa} - top: near, bottom: {FAR}x farther and larger (same leaves)", (0, -0.5, -1.85), size=0.15,
+          name=f"Label {msaa}", scene=scene)
+
+
 SCENES = {
     "alpha_test": build_alpha_test,
     "alpha_blend": build_alpha_blend,
@@ -559,6 +657,7 @@ SCENES = {
     "lights": build_lights,
     "vrm_avatar": lambda: vrm_avatar.build(new_file, save, image),  # 11: scripts/vrm_avatar.py
     "unity_builtins": lambda: unity_builtins.build(new_file, save, image, label),  # 12: scripts/unity_builtins.py
+    "foliage": build_foliage,
 }
 
 

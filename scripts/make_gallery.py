@@ -38,6 +38,8 @@ CAPTIONS = (
     ("vrm_avatar", "Avatar", "11a VRM avatar: the skirt's ZWrite hides the stockings"),
     ("vrm_avatar", "AvatarFace", "11b VRM avatar: eyebrows over bangs, lashes over lenses"),
     ("unity_builtins", "UnityBuiltins", "12 Unity's built-in shaders: particles, sprite, UI, Standard"),
+    ("foliage", "Foliage", "13a Foliage: mipmaps, Preserve Coverage, AlphaToMask, MSAA off"),
+    ("foliage", "FoliageMSAA", "13b Foliage at MSAA 4x: AlphaToMask turns alpha into coverage"),
 )
 
 TILE = (480, 270)

@@ -47,6 +47,7 @@ EXPECTED_FILES = {
     "render_queues.blend": ["RenderQueues"],
     "gamma_linear.blend": ["Gamma", "Linear"],
     "lights.blend": ["Lights"],
+    "foliage.blend": ["Foliage", "FoliageMSAA"],  # phenomena: tests/test_foliage_example.py
     "vrm_avatar.blend": ["Avatar", "AvatarFace"],  # phenomena: tests/test_vrm_avatar_example.py
     "unity_builtins.blend": ["UnityBuiltins"],  # phenomena: tests/test_unity_builtins_example.py
 }
@@ -730,11 +731,20 @@ def _blend_layers(draw) -> np.ndarray:
     return render(with_renderers(draw, rs))["stencil"].astype(np.int64)
 
 
+#: Scenes whose alpha-tested texels may flip against llvmpipe on more pixels than 0.1 %: foliage.blend's
+#: far leaves are minified 8 texels per pixel, so llvmpipe's float32 texture coordinates and its
+#: approximate mip LOD (``fast_log2``, within 0.043: decisions.md) can land on another texel or level
+#: on either side of _Cutoff (the shimmer the scene shows). Issue 29 asks mipmapped frames for 99 %
+#: within 3 steps; that and 99 % within one step still hold.
+GL_DISAGREE_SHARE = {"foliage.blend": 0.003}
+
+
 @pytest.mark.parametrize("file,name", [(f, n) for f, ns in sorted(EXPECTED_FILES.items()) for n in ns])
 def test_agrees_with_opengl_reference(scenes, file, name):
     """llvmpipe blends 8-bit buffers in fixed point, rounding each product: every blended layer may
     add one step. So a pixel agrees when it is within max(1, layers blended there) codes; all but
-    0.1 % of the pixels must agree, and 99 % must be within one step."""
+    0.1 % of the pixels (:data:`GL_DISAGREE_SHARE` for minified alpha-tested textures) must agree,
+    and 99 % must be within one step."""
     from tests.reference.glref import render_gl
 
     draw = scene(scenes, file, name)
@@ -745,8 +755,10 @@ def test_agrees_with_opengl_reference(scenes, file, name):
     layers = _blend_layers(draw)
     assert not any(_stencil_matters(p) for r in draw.renderers for p in r.material.passes)
     tolerance = np.maximum(1, layers)
-    assert (diff > tolerance).mean() <= 0.001, f"{(diff > tolerance).sum()} pixels disagree"
+    disagree = diff > tolerance
+    assert disagree.mean() <= GL_DISAGREE_SHARE.get(file, 0.001), f"{disagree.sum()} pixels disagree"
     assert (diff <= 1).mean() >= 0.99
+    assert (diff <= 3).mean() >= 0.99
     gd = np.rint(np.asarray(gl_depth, np.float64) * mg.DMAX).astype(np.int64)
     dd = np.abs(gd - codes_of(draw)["depth"].astype(np.int64))
     assert (dd > 256).mean() <= 0.001  # depth: float32 interpolation in GL; edges aside, within 2^-16

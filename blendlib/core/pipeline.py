@@ -112,8 +112,8 @@ def render_scene(
             raise SceneError("a band render resumes nothing")
     samples = int(scene.msaa)
     if samples > 1 and observer is not None and not observer.per_sample:
-        raise SceneError(f"analyze: MSAA scenes are analysed per pixel only with msaa 1 (set Scene.unity.msaa to 1; "
-                         f"this scene has {samples})")
+        raise SceneError(f"{type(observer).__name__} reads pixel fragments only (FrameObserver.per_sample), "
+                         f"and the scene has MSAA {samples}: render it with msaa 1")
     cs = scene.color_space
     if resume is not None:
         if resume[0].samples != samples:

@@ -169,13 +169,19 @@ class _PairWatch(FrameObserver):
     fragments applied so far at each pixel (``NONE`` before any); per pair a (H*W,) bool image of
     its inverted pixels. A fragment of B inverts the pair where ``nearest[A]`` is below its depth
     (fragments of one chunk of A itself: those before it in the chunk count too). Screen bands
-    own disjoint pixels, so threads never touch the same entries."""
+    own disjoint pixels, so threads never touch the same entries.
+
+    With MSAA (``samples`` N > 1) the images are per sample index ``p*N + s`` and a written sample
+    is a fragment of its own, as the analysis counts inversions (docs/sorting.md)."""
 
     exact_boundaries = False  # only fragments are read
+    per_sample = True
     NONE = np.int32(1 << 30)
 
-    def __init__(self, pairs: list[tuple[Key, Key]], calls: list[DrawCall], pixels: int) -> None:
+    def __init__(self, pairs: list[tuple[Key, Key]], calls: list[DrawCall], pixels: int, samples: int = 1) -> None:
         self.pairs = pairs
+        self.samples = int(samples)
+        pixels *= self.samples
         fronts = sorted({front for front, _ in pairs})
         self.nearest = {front: np.full(pixels, self.NONE, dtype=np.int32) for front in fronts}
         self.inverted = {pair: np.zeros(pixels, dtype=bool) for pair in pairs}
@@ -195,8 +201,13 @@ class _PairWatch(FrameObserver):
         written = outcome == Outcome.WRITTEN
         if not written.any():
             return
-        pix = frags.pix if written.all() else frags.pix[written]
-        depth = (frags.depth if written.all() else frags.depth[written]).astype(np.int32)
+        if frags.coverage is not None:  # MSAA: each written sample at its sample index
+            which, sample = np.nonzero(written)
+            pix = np.take(frags.pix, which) * self.samples + sample
+            depth = frags.depth[which, sample].astype(np.int32)
+        else:
+            pix = frags.pix if written.all() else frags.pix[written]
+            depth = (frags.depth if written.all() else frags.depth[written]).astype(np.int32)
         if frags.disjoint:
             before = None  # one fragment per pixel in this chunk
         else:  # each fragment's nearest earlier one of the chunk at its pixel, as a pixel order
@@ -233,6 +244,7 @@ class _Snapshot(FrameObserver):
     """Keeps the buffers after the last draw call a render draws (with ``until_draw``)."""
 
     exact_boundaries = False
+    per_sample = True  # reads the buffers only
 
     def __init__(self) -> None:
         self.buffers: FrameBuffers | None = None
@@ -291,7 +303,7 @@ class _Measurer:
         if signature in self.cache:
             return self.cache[signature]
         width, height = int(changed.camera.width), int(changed.camera.height)
-        watch = _PairWatch(self.pairs, calls, width * height)
+        watch = _PairWatch(self.pairs, calls, width * height, int(changed.msaa))
         resume = None
         if self._opaque_prefix(signature, calls) == self.opaque:
             last = max((c.index for c in calls if c.queue <= LAST_OPAQUE_QUEUE), default=0)
@@ -308,7 +320,8 @@ class _Measurer:
 def _cleared(scene: DrawScene) -> FrameBuffers:
     """The cleared buffers of ``scene``'s frame (a step 1 with nothing drawn)."""
     clear = shade.gamma_color_to_shading(scene.clear_color[:3], scene.color_space) + (float(scene.clear_color[3]),)
-    return FrameBuffers(int(scene.camera.width), int(scene.camera.height), scene.hdr, scene.color_space, clear)
+    return FrameBuffers(int(scene.camera.width), int(scene.camera.height), scene.hdr, scene.color_space, clear,
+                        samples=int(scene.msaa))
 
 
 def advise(scene: DrawScene, analysis: Analysis, limit: int = 5, workers: int | None = None, *,

@@ -98,19 +98,29 @@ class FragmentCollector(FrameObserver):
     ``rasterised``, ``unwritten`` (H*W,) uint32 per window pixel: fragments rasterised, and
     those not written (with ``overdraw``); ``step1``:
     a copy of the buffers before the first draw call of a queue above 2500 (None when there is
-    none, or without ``overdraw``)."""
+    none, or without ``overdraw``).
+
+    With MSAA (``samples`` N > 1) each sample is a pixel of its own for the sort (docs/sorting.md):
+    a pixel fragment becomes one kept fragment per sample it reached (covered, past AlphaToMask,
+    the alpha test passed) with that sample's depth code, at the *sample index* ``p*N + s`` —
+    the pixels of a frame N times as wide, so blocks stay whole rows. The overdraw counts stay per
+    window pixel and count pixel fragments (the draw list's ``fragments``): rasterised when a
+    sample is covered, unwritten when no sample was written."""
+
+    per_sample = True
 
     def __init__(self, calls: list[DrawCall], width: int, height: int, budget: int, *,
-                 first_block: int = 0, overdraw: bool = True) -> None:
-        self.width, self.height = int(width), int(height)
-        self.rows_per_block = block_rows(width)
+                 first_block: int = 0, overdraw: bool = True, samples: int = 1) -> None:
+        self.samples = int(samples)
+        self.width, self.height = int(width) * self.samples, int(height)  # width in samples
+        self.rows_per_block = block_rows(self.width)
         self.block_pixels = self.rows_per_block * self.width
         self.block_count = (self.height + self.rows_per_block - 1) // self.rows_per_block
         self.first_block = int(first_block)
         self.limit = self.block_count
         self.budget = int(budget)
         self.overdraw = overdraw
-        n = self.width * self.height
+        n = int(width) * self.height
         self.rasterised = np.zeros(n if overdraw else 0, dtype=np.uint32)
         self.unwritten = np.zeros(n if overdraw else 0, dtype=np.uint32)  # rasterised but not written
         self.sorted_calls = frozenset(c.index for c in calls if is_sorted_queue(c.queue) and c.state.color_mask)
@@ -150,6 +160,9 @@ class FragmentCollector(FrameObserver):
             self.final = buffers  # the frame's own buffers (its codes, for the sort error)
 
     def fragments(self, call: DrawCall, frags: ShadedFragments, outcome: np.ndarray) -> None:
+        if frags.coverage is not None:
+            self._pixel_fragments(call, frags, outcome)
+            return
         wrote = outcome == Outcome.WRITTEN
         all_written = bool(wrote.all())
         if self.overdraw:
@@ -159,6 +172,39 @@ class FragmentCollector(FrameObserver):
                 _count(self.unwritten, frags.pix[~wrote], frags.disjoint)
         if call.index not in self.sorted_calls:
             return
+        self._keep(call, frags, wrote, all_written)
+
+    def _pixel_fragments(self, call: DrawCall, frags: ShadedFragments, outcome: np.ndarray) -> None:
+        """MSAA pixel fragments (``outcome`` (M, N) per sample): the overdraw counts per pixel
+        fragment, and one sample fragment per sample reached kept (class doc)."""
+        covered = outcome != Outcome.NOT_COVERED
+        if self.overdraw:
+            rasterised = covered.any(axis=1)
+            unwritten = rasterised & ~(outcome == Outcome.WRITTEN).any(axis=1)
+            _count(self.rasterised, frags.pix[rasterised], frags.disjoint)
+            if unwritten.any():
+                _count(self.unwritten, frags.pix[unwritten], frags.disjoint)
+        if call.index not in self.sorted_calls:
+            return
+        reached = covered & (outcome != Outcome.ALPHA_TEST) & (outcome != Outcome.ALPHA_TO_MASK)
+        which, sample = np.nonzero(reached)  # fragment by fragment: each sample's own order kept
+        if which.size == 0:
+            return
+        rgba = frags.rgba if frags.rgba is not None or frags.ids is not None else frags.colors()
+        rgba = None if rgba is None else np.take(rgba, which, axis=0)
+        ids = None if frags.ids is None else np.take(frags.ids, which)
+
+        def depth_fn(index: np.ndarray | None) -> np.ndarray:  # read only for the blocks kept
+            depth = frags.depth
+            return depth[which, sample] if index is None else depth[which[index], sample[index]]
+
+        per_sample = ShadedFragments(np.take(frags.pix, which) * self.samples + sample, None, rgba, ids,
+                                     frags.palette, None, None, depth_fn=depth_fn)
+        wrote = outcome[which, sample] == Outcome.WRITTEN
+        self._keep(call, per_sample, wrote, bool(wrote.all()))
+
+    def _keep(self, call: DrawCall, frags: ShadedFragments, wrote: np.ndarray, all_written: bool) -> None:
+        """Store the fragments of a sorted call that passed the alpha test (module doc)."""
         if frags.alive is not None and not frags.alive.all():
             keep = frags.alive
             frags = frags.select(keep)

@@ -103,11 +103,18 @@ class ReferenceBlender:
     palettes laid end to end, so a layer costs one merge per distinct state, not one per draw
     call (a layer's fragments lie on distinct pixels, so the grouping cannot change the result).
     ``palettes``: draw call → its (K, 4) float64 palette; ``fragments``: draw call → fragments
-    kept (which blend table pays)."""
+    kept (which blend table pays).
+
+    With MSAA the fragments' pixels are sample indices ``p*N + s``
+    (:class:`.fragment_store.FragmentCollector`), applied to sample ``s``'s plane of pixel ``p``;
+    the buffers' uniform pixels (:attr:`.merger.FrameBuffers.uniform`) are spread first, so every
+    sample holds its own colour."""
 
     def __init__(self, buf: FrameBuffers, calls: dict[int, DrawCall], sorted_calls,
                  palettes: dict[int, np.ndarray], fragments: dict[int, int]) -> None:
         self.buf = buf
+        if buf.uniform is not None and buf.uniform.any():
+            buf.spread(np.flatnonzero(buf.uniform))
         size = max(calls, default=0) + 1
         self.group_of_call = np.zeros(size, dtype=np.int64)
         self.base_of_call = np.zeros(size, dtype=np.int64)  # offset of the call's palette in its group's
@@ -164,6 +171,9 @@ class ReferenceBlender:
         order = order + offset
         pix = block.local[order].astype(np.int64)
         pix += block.start
+        n = self.buf.samples
+        if n > 1:  # sample index p*N + s → sample s's plane
+            pix = (pix % n) * self.buf.plane + pix // n
         depth = block.depth(order)
         fid = ids[order]
         rgba = None

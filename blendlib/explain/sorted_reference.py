@@ -67,6 +67,12 @@ PIXEL_BYTES_HDR = 128
 #: With advice: a pristine copy of the step-1 buffers, a changed frame, its buffers and error,
 #: and the pairs' images (:class:`blendlib.explain.advice._PairWatch`).
 ADVICE_PIXEL_BYTES = 96
+#: With MSAA, per pixel and sample beyond the first: the three sets of buffers above hold every
+#: sample (colour 4, HDR 16, depth 4 and stencil 1 bytes each; :class:`.merger.FrameBuffers`);
+#: with advice two more sets and the pairs' images per sample.
+SAMPLE_BYTES = 27
+SAMPLE_BYTES_HDR = 63
+ADVICE_SAMPLE_BYTES = 48
 #: The kept fragments' peak over the budget, per thread processing blocks: a block taken out of
 #: the store (:data:`TAKE_FRAGMENTS` at most), sorted and applied by ranges of
 #: :data:`WORK_FRAGMENTS` (bytes; measured up to 100 MB).
@@ -79,14 +85,17 @@ def processing_threads(workers: int | None) -> int:
 
 
 def memory_bound(width: int, height: int, hdr: bool = False, budget: int = FRAGMENT_BUDGET,
-                 advice: bool = False, threads: int = 2) -> int:
+                 advice: bool = False, threads: int = 2, samples: int = 1) -> int:
     """Bytes an analysis of a ``width`` x ``height`` frame may add to the process at most: per
     pixel :data:`PIXEL_BYTES` (HDR :data:`PIXEL_BYTES_HDR`; with ``advice`` also
-    :data:`ADVICE_PIXEL_BYTES`), the fragment ``budget`` and :data:`WORK_BYTES` per processing
-    thread. The budget holds unless a single block of rows
-    (:data:`.fragment_store.BLOCK_PIXELS` pixels) alone holds more than it: thousands of
-    transparent layers on every pixel of it."""
+    :data:`ADVICE_PIXEL_BYTES`) and with MSAA ``samples`` N per further sample
+    :data:`SAMPLE_BYTES` (:data:`SAMPLE_BYTES_HDR`, :data:`ADVICE_SAMPLE_BYTES`), the fragment
+    ``budget`` and :data:`WORK_BYTES` per processing thread. The budget holds unless a single
+    block of rows (:data:`.fragment_store.BLOCK_PIXELS` samples) alone holds more than it:
+    thousands of transparent layers on every pixel of it."""
     per_pixel = (PIXEL_BYTES_HDR if hdr else PIXEL_BYTES) + (ADVICE_PIXEL_BYTES if advice else 0)
+    per_sample = (SAMPLE_BYTES_HDR if hdr else SAMPLE_BYTES) + (ADVICE_SAMPLE_BYTES if advice else 0)
+    per_pixel += (int(samples) - 1) * per_sample
     return int(width) * int(height) * per_pixel + int(budget) + int(threads) * WORK_BYTES
 
 
@@ -103,7 +112,7 @@ def available_memory() -> int | None:
 
 
 def fragment_budget(width: int, height: int, hdr: bool, memory: int | None, memory_limit: int | None,
-                    advice: bool = False, threads: int = 2) -> int:
+                    advice: bool = False, threads: int = 2, samples: int = 1) -> int:
     """The fragment budget of an analysis: ``memory`` when given, else :data:`FRAGMENT_BUDGET`
     or what ``memory_limit`` (default: :func:`available_memory`) leaves beside the rest of
     :func:`memory_bound`, at least :data:`SMALLEST_BUDGET`. Raises :class:`SceneError` (one
@@ -116,9 +125,9 @@ def fragment_budget(width: int, height: int, hdr: bool, memory: int | None, memo
     else:
         budget = FRAGMENT_BUDGET
         if limit is not None:
-            spare = limit - memory_bound(width, height, hdr, 0, advice, threads)
+            spare = limit - memory_bound(width, height, hdr, 0, advice, threads, samples)
             budget = max(SMALLEST_BUDGET, min(FRAGMENT_BUDGET, spare))
-    need = memory_bound(width, height, hdr, budget, advice, threads)
+    need = memory_bound(width, height, hdr, budget, advice, threads, samples)
     if limit is not None and need > limit:
         work = threads * WORK_BYTES
         raise SceneError(
@@ -344,7 +353,8 @@ def analyze(
     cam = scene.camera
     width, height = int(cam.width), int(cam.height)
     threads = processing_threads(workers)
-    budget = fragment_budget(width, height, bool(scene.hdr), memory, memory_limit, keep_step1, threads)
+    budget = fragment_budget(width, height, bool(scene.hdr), memory, memory_limit, keep_step1, threads,
+                             int(scene.msaa))
     bar = Progress(progress)
     renderers = list(dict.fromkeys((c.renderer.name, c.renderer.slot) for c in calls))
     rend_index = {key: k for k, key in enumerate(renderers)}
@@ -352,7 +362,8 @@ def analyze(
     renderer_of_call = np.zeros(len(calls) + 1, dtype=np.int64)
     for c in calls:
         renderer_of_call[c.index] = rend_index[(c.renderer.name, c.renderer.slot)]
-    collector = counts = FragmentCollector(calls, width, height, budget)
+    samples = int(scene.msaa)
+    collector = counts = FragmentCollector(calls, width, height, budget, samples=samples)
     frame = render_scene(scene, observer=collector, workers=workers, progress=bar.part(0.0, 0.4),
                          should_cancel=should_cancel, calls=calls)
     inverted = np.zeros(width * height, dtype=np.uint16)
@@ -368,6 +379,8 @@ def analyze(
         while True:
             rows_before = collector.rows_of(collector.first_block)[0]
             for start, per_pixel, ids, tally in blocks.run(collector, buf):
+                if samples > 1:  # per sample index: a pixel's most inverted sample (units hold whole pixels)
+                    start, per_pixel = start // samples, per_pixel.reshape(-1, samples).max(axis=1)
                 inverted[start:start + per_pixel.size] = per_pixel[:inverted.size - start]
                 for pair, count in zip(ids.tolist(), tally.tolist(), strict=True):
                     pair_counts[pair] = pair_counts.get(pair, 0) + count
@@ -376,7 +389,8 @@ def analyze(
                 break
             # The rows above the blocks kept: another pass renders them alone and keeps what fits.
             first = collector.limit
-            collector = FragmentCollector(calls, width, height, budget, first_block=first, overdraw=False)
+            collector = FragmentCollector(calls, width, height, budget, first_block=first, overdraw=False,
+                                          samples=samples)
             render_scene(scene, observer=collector, workers=workers, should_cancel=should_cancel, calls=calls,
                          band=(collector.rows_of(first)[0], height))
         bar(0.95)
@@ -384,7 +398,7 @@ def analyze(
         if any(c.queue > LAST_SORTED_QUEUE for c in calls):
             reference = render_scene(scene, resume=(buf, last_sorted), workers=workers, calls=calls,
                                      should_cancel=should_cancel).color
-        elif scene.hdr:
+        elif scene.hdr or samples > 1:  # MSAA: the samples resolved as the frame's
             reference = buf.output()[0]
         else:
             reference, error = reference_from_codes(frame.color, counts.final, buf)

@@ -293,12 +293,15 @@ def test_jittered_grid_covers_each_sample_of_its_rectangle_once(samples, seed):
 # ------------------------------------------------------------------ tools that read per pixel
 
 
-def test_analyze_refuses_msaa_scenes_in_one_line():
+def test_an_observer_of_pixel_fragments_is_refused_msaa_scenes_in_one_line():
+    """The explain tools' observers read samples (analyze per sample: tests/explain/
+    test_sorted_reference_msaa.py); one that reads pixel fragments only cannot watch MSAA."""
     scene = seeded_scene(1, msaa=4)
-    with pytest.raises(SceneError, match=r"^analyze: MSAA scenes are analysed per pixel only with msaa 1 "
-                                         r"\(set Scene.unity.msaa to 1; this scene has 4\)$"):
-        sorted_reference.analyze(scene)
-    sorted_reference.analyze(replace(scene, msaa=1))  # the same scene analyses without MSAA
+    with pytest.raises(SceneError, match=r"^FrameObserver reads pixel fragments only \(FrameObserver.per_sample\), "
+                                         r"and the scene has MSAA 4: render it with msaa 1$"):
+        render_scene(scene, observer=FrameObserver())
+    render_scene(replace(scene, msaa=1), observer=FrameObserver())
+    assert sorted_reference.analyze(scene).frame.color.shape == (scene.camera.height, scene.camera.width, 4)
 
 
 @pytest.mark.parametrize("samples", [2, 4, 8])

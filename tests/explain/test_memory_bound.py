@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -23,10 +24,11 @@ from tests.reference.random_scenes import seeded_scene
 REPO = Path(__file__).resolve().parents[2]
 
 #: Run in a fresh process: 60 transparent planes over 640x480 (18.4 million fragments, 221 MB
-#: to keep them all) analysed with a 48 MB budget on one thread; the resident peak during the
-#: analysis over the resident size before it (``VmHWM`` reset through ``/proc/self/clear_refs``).
+#: to keep them all; with MSAA 4x over 320x240: as many sample fragments) analysed with a 48 MB
+#: budget on one thread; the resident peak during the analysis over the resident size before it
+#: (``VmHWM`` reset through ``/proc/self/clear_refs``). Arguments: width, height, samples.
 PEAK_SCRIPT = """
-import json, sys
+import dataclasses, json, sys
 from blendlib.core.vocabulary import BlendFactor, Pass, Queue
 from blendlib.explain import sorted_reference as sr
 from tests.reference import scenes as sc
@@ -37,17 +39,20 @@ def status(key):
         if name == key:
             return int(value.split()[0]) * 1024
 
-width, height, planes, budget = 640, 480, 60, 48 << 20
+width, height, samples = (int(v) for v in sys.argv[1:4])
+planes, budget = 60, 48 << 20
 blend = Pass(blend=True, zwrite=False, src_blend=BlendFactor.SrcAlpha, dst_blend=BlendFactor.OneMinusSrcAlpha)
 scene = sc.scene(sc.screen_camera(width, height), *(
     sc.renderer(sc.quad(0, 0, width, height, z=-1.0 + 2.0 * k / planes),
                 sc.unlit((k / planes, 0.5, 1 - k / planes, 0.3), queue=Queue.Transparent, passes=[blend], name=f"M{k}"),
                 name=f"P{k}") for k in range(planes)))
+scene = dataclasses.replace(scene, msaa=samples)
 with open("/proc/self/clear_refs", "w") as f:
     f.write("5")
 before = status("VmRSS")
 analysis = sr.analyze(scene, memory=budget, workers=1)
-print(json.dumps({"extra": status("VmHWM") - before, "bound": sr.memory_bound(width, height, False, budget, threads=1),
+print(json.dumps({"extra": status("VmHWM") - before,
+                  "bound": sr.memory_bound(width, height, False, budget, threads=1, samples=samples),
                   "fragments": int(analysis.overdraw[..., 0].sum())}))
 """
 
@@ -62,14 +67,19 @@ def _can_measure_peaks() -> bool:
 
 
 @pytest.mark.skipif(not _can_measure_peaks(), reason="needs Linux /proc/self/clear_refs to reset the resident peak")
-def test_the_analysis_stays_within_its_stated_bound():
-    out = subprocess.run([sys.executable, "-c", PEAK_SCRIPT], cwd=REPO, capture_output=True, text=True, timeout=600)
+@pytest.mark.parametrize(("width", "height", "samples"), [(640, 480, 1), (320, 240, 4)])
+def test_the_analysis_stays_within_its_stated_bound(width, height, samples):
+    out = subprocess.run([sys.executable, "-c", PEAK_SCRIPT, str(width), str(height), str(samples)], cwd=REPO,
+                         capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stderr
     result = json.loads(out.stdout.strip().splitlines()[-1])
-    assert result["fragments"] == 60 * 640 * 480
+    # pixel fragments (with MSAA each keeps N samples): with MSAA the pixels on a quad's diagonal
+    # have one of each triangle
+    assert 60 * width * height <= result["fragments"] <= 60 * (width * height + (samples > 1) * (width + height))
     # Below what keeping every fragment (as compactly as the analysis does) would take beside the
     # per-pixel memory: an analysis that kept them all could not stay within the bound.
-    keeping_all = result["fragments"] * fragment_store.FRAGMENT_BYTES + 640 * 480 * sr.PIXEL_BYTES
+    keeping_all = (result["fragments"] * samples * fragment_store.FRAGMENT_BYTES
+                   + width * height * (sr.PIXEL_BYTES + (samples - 1) * sr.SAMPLE_BYTES))
     assert result["bound"] < keeping_all
     assert 0 < result["extra"] <= result["bound"], result
 
@@ -139,3 +149,19 @@ def test_a_seeded_scene_analysed_one_block_a_pass_equals_one_pass():
     assert np.array_equal(whole.reference, banded.reference) and whole.inversions == banded.inversions
     assert np.array_equal(whole.overdraw, banded.overdraw) and np.array_equal(whole.inverted, banded.inverted)
     assert whole.summary() == banded.summary()
+
+
+def test_msaa_blocks_hold_whole_rows_of_samples_within_16_bits(monkeypatch):
+    """With MSAA a block's pixels are its rows' samples: a 640-pixel row at 4x is 2560 of them, so
+    a block has a twelfth of the rows it has without MSAA (its sample index must fit 16 bits);
+    the analysis equals one with a row per block."""
+    scene = replace(_planes(640, 60, 3), msaa=4)
+    collector = fragment_store.FragmentCollector([], 640, 60, 1 << 20, samples=4)
+    assert collector.block_pixels <= fragment_store.BLOCK_PIXELS and collector.block_pixels % (640 * 4) == 0
+    whole = sr.analyze(scene)
+    monkeypatch.setattr(fragment_store, "BLOCK_PIXELS", 1)
+    rows = sr.analyze(scene)
+    for name in ("reference", "error", "overdraw", "inverted"):
+        assert np.array_equal(getattr(whole, name), getattr(rows, name)), name
+    assert whole.inversions == rows.inversions
+    assert (whole.overdraw[..., 1] >= 3).all()  # every plane blended everywhere

@@ -61,11 +61,13 @@ def test_random_scenes_equal_the_scalar_sorted_reference(scene):
     assert_reference(transparent(scene, every=2))
 
 
+@pytest.mark.parametrize("msaa", [1, 4])
 @pytest.mark.parametrize("seed", [42, 7])
-def test_small_blocks_ranges_and_budgets_give_the_same_result(monkeypatch, seed):
+def test_small_blocks_ranges_and_budgets_give_the_same_result(monkeypatch, seed, msaa):
     """One row per block, a few fragments per working range, and a budget so small that every
-    pass keeps one block (the rows above are rendered again, alone): the same analysis."""
-    scene = transparent(seeded_scene(seed))
+    pass keeps one block (the rows above are rendered again, alone): the same analysis (with
+    MSAA too: a block's pixels are its rows' samples)."""
+    scene = transparent(seeded_scene(seed, msaa=msaa))
     whole = analyze(scene)
     monkeypatch.setattr(fragment_store, "BLOCK_PIXELS", 1)
     monkeypatch.setattr(sr, "WORK_FRAGMENTS", 5)

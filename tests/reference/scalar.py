@@ -679,7 +679,7 @@ def fragment(px, py, bw, win, zws, bias, use_offset, attrs, p, shader: Shader, b
         result = "alpha_test"
     elif buf.collect is not None:  # sorted reference, step 2: kept for the per-pixel sort
         if p.color_mask:
-            buf.collect.append((py, px, d, len(buf.collect), rgba, p))
+            buf.collect.append((py, px, 0, d, len(buf.collect), rgba, p))
         return
     else:
         result = merge_fragment(px, py, d, rgba, p, buf)
@@ -733,6 +733,12 @@ def sample_fragment(px, py, bw, win, zws, bias, use_offset, attrs, p, shader: Sh
     results = {}
     if p.alpha_test and not alpha_survives(rgba[3], shader.cutoff, p.alpha_test_comp):
         results = {k: "alpha_test" for k in at_samples}
+    elif buf.collect is not None:  # sorted reference, step 2: each sample reached kept for its own sort
+        keep = coverage & alpha_to_mask(rgba[3], buf.samples) if p.alpha_to_mask else coverage
+        if p.color_mask:
+            buf.collect.extend((py, px, k, codes[k], len(buf.collect) + j, rgba, p)
+                               for j, k in enumerate(k for k in sorted(at_samples) if keep >> k & 1))
+        return
     else:
         keep = coverage & alpha_to_mask(rgba[3], buf.samples) if p.alpha_to_mask else coverage
         for k in sorted(at_samples):
@@ -776,7 +782,8 @@ def render_sorted_reference(scene: DrawScene):
     and the alpha test (passes with ColorMask 0 left out: they write nothing) is kept, then
     the kept fragments are merged pixel by pixel far to near (larger depth code first; ties in
     draw order, then primitive order) with their pass state and no depth writes; Overlay
-    (4000 and up) draws last as usual.
+    (4000 and up) draws last as usual. With MSAA every sample a fragment reaches (covered and
+    past AlphaToMask) is kept with that sample's depth code and sorted with the sample's others.
     """
     from dataclasses import replace
 
@@ -794,9 +801,9 @@ def render_sorted_reference(scene: DrawScene):
     for r in sorted_range:
         draw_renderer(scene, r, V, P, buf, None, budget)
     kept, buf.collect = buf.collect, None
-    kept.sort(key=lambda f: (f[0], f[1], -f[2], f[3]))  # pixel, far first, then arrival order
-    for py, px, d, _, rgba, p in kept:
-        merge_fragment(px, py, d, rgba, replace(p, zwrite=False), buf)
+    kept.sort(key=lambda f: (f[0], f[1], f[2], -f[3], f[4]))  # sample, far first, then arrival order
+    for py, px, sample, d, _, rgba, p in kept:
+        merge_fragment(px, py, d, rgba, replace(p, zwrite=False), buf, sample)
     for r in renderers:
         if r.material.render_queue >= 4000:
             draw_renderer(scene, r, V, P, buf, None, budget)
