@@ -90,6 +90,8 @@ def test_repeated_keys_keep_every_value():
     ("--- !u!1 &1\nGameObject:\n  m_Name: A\n", "no Material document"),
     ("--- !u!21 &1\nMaterial:\n  m_Name: A\n", "no m_Shader"),
     ("--- !u!21 &1\nMaterial:\n  m_Shader: {fileID: 46, guid: x}\n  m_CustomRenderQueue: soon\n", "not a number"),
+    ("--- !u!21 &1\nMaterial:\n  m_Shader: {fileID: 46, guid: x}\n  m_CustomRenderQueue: -1e16\n", "neither -1 nor"),
+    ("--- !u!21 &1\nMaterial:\n  m_Shader: {fileID: 46, guid: x}\n  m_CustomRenderQueue: 5001\n", "within 0..5000"),
 ])
 def test_bad_material_files_are_one_line_errors(text, words):
     with pytest.raises(UnityFileError) as err:

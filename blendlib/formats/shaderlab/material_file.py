@@ -163,7 +163,10 @@ def parse_material_file(text: str, path: str = "<string>") -> UnityMaterialFile:
             str(tex_guid).lower() if tex_guid and tex_file_id != 0 else None, tex_file_id,
             _pair(value.get("m_Scale"), ("x", "y"), (1.0, 1.0), f"m_TexEnvs {name} m_Scale", path),
             _pair(value.get("m_Offset"), ("x", "y"), (0.0, 0.0), f"m_TexEnvs {name} m_Offset", path))
-    queue = int(_number(material.get("m_CustomRenderQueue", -1), "m_CustomRenderQueue", path))
+    queue = _number(material.get("m_CustomRenderQueue", -1), "m_CustomRenderQueue", path)
+    if queue != -1 and not 0 <= queue <= 5000:  # -1: the shader's queue; Unity's queues run 0..5000
+        raise UnityFileError(f"m_CustomRenderQueue {queue:g} is neither -1 nor within 0..5000", 0, 0, path)
+    queue = int(queue)
     tags = material.get("stringTagMap")
     disabled = material.get("disabledShaderPasses")
     return UnityMaterialFile(
