@@ -202,7 +202,7 @@ def _particle_material(name: str, dst_blend: str, sprite):
     return mat
 
 
-def particle_quads_mesh(name: str, count: int, seed: int, eye, size_range=(0.15, 0.6)):
+def particle_quads_mesh(name: str, count: int, seed: int, eye, size_range=(0.05, 0.2)):
     """``count`` quads facing the point ``eye`` (camera-facing billboards, as a particle system's
     renderer builds them), centred at random in a 6 x 4 x 4 box around the origin, with UVs over
     the whole sprite and random vertex colours (a "Col" byte colour attribute, alpha 0.3-1).
