@@ -313,11 +313,6 @@ def test_particle_scene_is_unitys_legacy_particles():
     Particles/Alpha Blended (``Blend SrcAlpha OneMinusSrcAlpha``) and Particles/Additive
     (``Blend SrcAlpha One``), both ``Cull Off ZWrite Off`` in the Transparent queue with
     ``2 * i.color * _TintColor * tex`` (the shaders' text); with ``msaa`` 4 the scene has 4 samples."""
-    import os
-    import tempfile
-
-    for var in ("HOME", "XDG_CONFIG_HOME", "XDG_CACHE_HOME"):
-        os.environ.setdefault(var, tempfile.mkdtemp())
     from blendlib import blender
     from blendlib.core.vocabulary import BlendFactor, Cull, Queue, VertexColor
     from scripts.benchmark import scenes

@@ -17,6 +17,7 @@ from blendlib.core.scene import SceneError
 from blendlib.core.vocabulary import Queue
 from blendlib.explain import fragment_store
 from blendlib.explain import sorted_reference as sr
+from scripts.benchmark.timing import reset_peak
 from tests.explain.test_sorted_reference import BLEND, transparent
 from tests.reference import scenes as sc
 from tests.reference.random_scenes import seeded_scene
@@ -57,16 +58,7 @@ print(json.dumps({"extra": status("VmHWM") - before,
 """
 
 
-def _can_measure_peaks() -> bool:
-    try:
-        with open("/proc/self/clear_refs", "w") as f:
-            f.write("5")
-        return True
-    except OSError:
-        return False
-
-
-@pytest.mark.skipif(not _can_measure_peaks(), reason="needs Linux /proc/self/clear_refs to reset the resident peak")
+@pytest.mark.skipif(not reset_peak(), reason="needs Linux /proc/self/clear_refs to reset the resident peak")
 @pytest.mark.parametrize(("width", "height", "samples"), [(640, 480, 1), (320, 240, 4)])
 def test_the_analysis_stays_within_its_stated_bound(width, height, samples):
     out = subprocess.run([sys.executable, "-c", PEAK_SCRIPT, str(width), str(height), str(samples)], cwd=REPO,
