@@ -12,6 +12,8 @@ centre at y = −0.077, behind the eyelashes at −0.142; the eyebrows (y = −0
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import bpy
 import numpy as np
 import pytest
@@ -19,6 +21,7 @@ import pytest
 import blendlib
 from blendlib import blender
 from blendlib.blender import vrm_addon
+from blendlib.core import colorspace
 from blendlib.core.drawlist import draw_calls
 from blendlib.explain.framedebug import pixel_histories
 from blendlib.explain.sorted_reference import analyze
@@ -191,6 +194,17 @@ def test_world_outline_of_the_head_is_outline_width_factor_metres_wide(scenes):
     # visible: the outermost outline fragment is written (nothing opaque over it, FORWARD_BASE's colour)
     outer = [f for f in histories[last_line].fragments if f.call.renderer.name == "Head"]
     assert [f.result for f in outer] == ["written"] and outer[0].call.state.name == "FORWARD_BASE_OUTLINE"
+    # ... in MToon 1.0's outline colour: outlineColorFactor × lerp(1, lit, outlineLightingMixFactor), the
+    # skin's factor the linear value of the codes (120, 70, 60), the mix the add-on's default 1: the
+    # lit colour of the same fragment (drawn without the outline colour) times that colour.
+    assert outer[0].call.state.outline_color is not None and outer[0].call.state.outline_lighting_mix == 1.0
+    plain = replace(face, renderers=tuple(replace(r, material=replace(r.material, passes=tuple(
+        replace(p, outline_color=None) for p in r.material.passes))) for r in face.renderers))
+    lit = [f for f in pixel_histories(plain, [row[last_line]])[0][0].fragments if f.call.renderer.name == "Head"]
+    colour = np.array([colorspace.decode(c / 255) for c in (120, 70, 60)]) if face.color_space.value == "Linear" \
+        else np.array([120, 70, 60]) / 255
+    assert np.allclose(np.asarray(outer[0].source[:3]), colour * np.asarray(lit[0].source[:3]), rtol=1e-5)
+    assert outer[0].source[3] == lit[0].source[3]  # alpha: the base pass's
 
 
 def test_screen_outline_of_the_top_is_a_constant_share_of_the_screen_height(scenes):

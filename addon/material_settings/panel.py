@@ -215,6 +215,14 @@ def draw_pass(layout, item, rule: tuple[str, str] | None = None) -> None:
     sub.prop(item, "outline_width")
     sub.prop(item, "outline_formula")
     sub.prop(item, "outline_max_distance")
+    row = sub.row(align=True)
+    row.prop(item, "outline_colored", text="")
+    colour = row.row(align=True)
+    colour.active = item.outline_colored
+    colour.prop(item, "outline_color")
+    mix = sub.row()
+    mix.active = item.outline_colored
+    mix.prop(item, "outline_lighting_mix")
     col.separator()
     col.prop(item, "stencil")
     sub = col.column(align=True)

@@ -144,6 +144,17 @@ PASS_FIELDS: tuple[Field, ...] = (
     Field("outline_max_distance", "float", 1.0, "Outline Max Distance",
           "MToon 0.x's _OutlineScaledMaxDistance: in Screen mode the outline stops growing with distance "
           "beyond this clip w", min=0.0, soft_min=1.0, soft_max=10.0),
+    # Schema version 4 (issue 28): MToon's outline colour, appended; absent, the pass draws the
+    # material's lit colour as before. ``outline_colored`` off is the core's ``outline_color`` None.
+    Field("outline_colored", "bool", False, "Outline Color",
+          "Draw this pass in MToon's outline colour (0.x _OutlineColor, 1.0 outlineColorFactor) instead of the "
+          "material's lit colour"),
+    Field("outline_color", "color", (0.0, 0.0, 0.0), "Outline Color",
+          "MToon's outline colour (sRGB-encoded, like a Unity colour property)", size=3, subtype="COLOR_GAMMA",
+          min=0.0, soft_max=1.0),
+    Field("outline_lighting_mix", "float", 0.0, "Outline Lighting Mix",
+          "MToon's _OutlineLightingMix / outlineLightingMixFactor: colour × lerp(1, lit colour, mix); "
+          "0 the outline colour alone", min=0.0, max=1.0),
 )
 
 
@@ -368,8 +379,12 @@ def material_from_values(name: str, values: Mapping[str, Any], main_tex: Any = N
 
 
 def pass_from_values(values: dict[str, Any]) -> Pass:
-    """A :class:`Pass` from a dict of :data:`PASS_FIELDS` values (identifiers, set colour mask)."""
-    return pass_from_dict({k: (sorted(v) if k == "color_mask" else v) for k, v in values.items()})
+    """A :class:`Pass` from a dict of :data:`PASS_FIELDS` values (identifiers, set colour mask;
+    ``outline_colored`` off: no outline colour) or of :func:`~blendlib.core.vocabulary.pass_to_dict`."""
+    values = {k: (sorted(v) if k == "color_mask" else v) for k, v in values.items()}
+    if not values.pop("outline_colored", values.get("outline_color") is not None):
+        values["outline_color"] = None
+    return pass_from_dict(values)
 
 
 def read_pass(item: Any) -> Pass:
@@ -420,10 +435,20 @@ def _encode(f: Field, value: Any, rna: bool) -> Any:
     raise ValueError(f"cannot write a {f.kind} field")
 
 
+def _pass_field(p: Pass, name: str) -> Any:
+    """The value of :data:`PASS_FIELDS` field ``name`` for ``p`` (the outline colour's switch and
+    its colour, black when off, stand for the core's ``outline_color`` or None)."""
+    if name == "outline_colored":
+        return p.outline_color is not None
+    if name == "outline_color" and p.outline_color is None:
+        return _BY_NAME["pass"][name].default
+    return getattr(p, name)
+
+
 def _encode_pass(p: Pass | Mapping[str, Any], rna: bool) -> dict[str, Any]:
     if not isinstance(p, Pass):
         p = pass_from_values(dict(p))
-    return {f.name: _encode(f, getattr(p, f.name), rna) for f in PASS_FIELDS}
+    return {f.name: _encode(f, _pass_field(p, f.name), rna) for f in PASS_FIELDS}
 
 
 def _encode_values(kind: str, values: Mapping[str, Any], rna: bool) -> dict[str, Any]:

@@ -14,11 +14,13 @@ the material (``mtoon1.addon_version``), as its own migration reads them
   ``Alpha Cutoff``;
 * double sided: ``not material.use_backface_culling`` (every version);
 * ``transparent_with_z_write``, ``render_queue_offset_number``, ``outline_width_mode`` (0 none,
-  1 world, 2 screen), ``outline_width_factor``, ``outline_color_factor``, the base colour and its
+  1 world, 2 screen), ``outline_width_factor``, ``outline_color_factor``,
+  ``outline_lighting_mix_factor``, the base colour and its
   texture: before 2.20.62 the ID properties (``extensions.vrmc_materials_mtoon``,
   ``pbr_metallic_roughness``; absent = the add-on's defaults: sampler filters NEAREST, wraps
   REPEAT); from 2.20.62 the sockets ``Transparent With Z-Write``, ``Render Queue Offset Number``,
-  ``Outline Width Mode``, ``Outline Width``, ``Outline Color``, ``Lit Color``, ``Lit Color Alpha``
+  ``Outline Width Mode``, ``Outline Width``, ``Outline Color``, ``Outline LightingMix``, ``Lit Color``,
+  ``Lit Color Alpha``
   and the texture's nodes ``Mtoon1BaseColorTexture.Image`` / ``.Uv``;
 * VRM 0.x only: ``mtoon0_render_queue`` (2000), ``mtoon0_front_cull_mode`` (False),
   ``mtoon0_outline_scaled_max_distance`` (1).
@@ -148,6 +150,7 @@ def addon_mtoon(mat: Any) -> AddonMToon | None:
         outline = int(_get(mtoon_ids, "outline_width_mode", default=0))
         width = float(_get(mtoon_ids, "outline_width_factor", default=0.0))
         outline_color = tuple(float(v) for v in _get(mtoon_ids, "outline_color_factor", default=(0.0, 0.0, 0.0)))
+        outline_mix = float(_get(mtoon_ids, "outline_lighting_mix_factor", default=1.0))
         factor = tuple(float(v) for v in _get(base_ids, "base_color_factor", default=(1.0, 1.0, 1.0, 1.0)))
         texture = _texture_from_ids(base_info)
         sources["mtoon"] = "ID properties (add-on before 2.20.62)"
@@ -157,6 +160,7 @@ def addon_mtoon(mat: Any) -> AddonMToon | None:
         outline = int(round(float(_socket(node, "Outline Width Mode", 0))))
         width = float(_socket(node, "Outline Width", 0.0))
         outline_color = tuple(float(v) for v in _socket(node, "Outline Color", (0.0, 0.0, 0.0))[:3])
+        outline_mix = float(_socket(node, "Outline LightingMix", 1.0))
         lit = _socket(node, "Lit Color", (1.0, 1.0, 1.0, 1.0))
         factor = (float(lit[0]), float(lit[1]), float(lit[2]), float(_socket(node, "Lit Color Alpha", 1.0)))
         texture = _texture_from_nodes(mat, base_info)
@@ -166,7 +170,8 @@ def addon_mtoon(mat: Any) -> AddonMToon | None:
         double_sided=not mat.use_backface_culling, transparent_with_z_write=zwrite,
         render_queue_offset_number=offset,
         outline_width_mode=OUTLINE_WIDTH_MODES[outline] if 0 <= outline < 3 else "none",
-        outline_width_factor=width, outline_color_factor=outline_color, base_color_factor=factor,
+        outline_width_factor=width, outline_color_factor=outline_color, outline_lighting_mix_factor=outline_mix,
+        base_color_factor=factor,
         base_color_texture=texture,
         mtoon0_render_queue=int(_get(mtoon1, "mtoon0_render_queue", default=2000)),
         mtoon0_front_cull_mode=bool(_get(mtoon1, "mtoon0_front_cull_mode", default=0)),
@@ -313,7 +318,7 @@ def apply_settings(mat: Any, fields: dict[str, Any]) -> AddonMToon:
 #: The add-on version the writer stores: the corpus files' (alpha mode in sockets, the rest in ID properties).
 WRITTEN_VERSION = (2, 20, 61)
 _FLOAT_SOCKETS = ("Double Sided", "Transparent With Z-Write", "Render Queue Offset Number", "Lit Color Alpha",
-                  "Outline Width Mode", "Outline Width", "Alpha Mode", "Alpha Cutoff")
+                  "Outline Width Mode", "Outline Width", "Outline LightingMix", "Alpha Mode", "Alpha Cutoff")
 _COLOR_SOCKETS = ("Lit Color", "Outline Color")
 
 
@@ -355,7 +360,8 @@ def write_addon_mtoon(mat: Any, mtoon: AddonMToon) -> None:
             "transparent_with_z_write": int(mtoon.transparent_with_z_write),
             "render_queue_offset_number": int(mtoon.render_queue_offset_number),
             "outline_width_mode": mode, "outline_width_factor": float(mtoon.outline_width_factor),
-            "outline_color_factor": [float(c) for c in mtoon.outline_color_factor]}},
+            "outline_color_factor": [float(c) for c in mtoon.outline_color_factor],
+            "outline_lighting_mix_factor": float(mtoon.outline_lighting_mix_factor)}},
         "mtoon0_render_queue": int(mtoon.mtoon0_render_queue),
         "mtoon0_front_cull_mode": int(mtoon.mtoon0_front_cull_mode),
         "mtoon0_outline_scaled_max_distance": float(mtoon.mtoon0_outline_scaled_max_distance),
@@ -383,6 +389,7 @@ def write_addon_mtoon(mat: Any, mtoon: AddonMToon) -> None:
                "Render Queue Offset Number": float(mtoon.render_queue_offset_number),
                "Lit Color Alpha": float(mtoon.base_color_factor[3]), "Outline Width Mode": float(mode),
                "Outline Width": float(mtoon.outline_width_factor),
+               "Outline LightingMix": float(mtoon.outline_lighting_mix_factor),
                "Alpha Mode": float(ALPHA_MODES.index(mtoon.alpha_mode)), "Alpha Cutoff": float(mtoon.alpha_cutoff)}
     for name, value in sockets.items():
         node.inputs[name].default_value = value

@@ -335,6 +335,12 @@ def _validate_renderer(r: Renderer) -> list[str]:
     for k, p in enumerate(r.material.draw_passes):
         if not (math.isfinite(p.outline_width) and math.isfinite(p.outline_max_distance)):
             raise SceneError(f"{label}: pass {k} ({p.name!r}): the outline width and max distance must be finite")
+        if p.outline_color is not None and not all(math.isfinite(c) and c >= 0.0 for c in p.outline_color):
+            raise SceneError(f"{label}: pass {k} ({p.name!r}): the outline colour must be finite and not "
+                             f"negative, got {p.outline_color}")
+        if not (0.0 <= p.outline_lighting_mix <= 1.0):
+            raise SceneError(f"{label}: pass {k} ({p.name!r}): the outline lighting mix must be in 0..1, "
+                             f"got {p.outline_lighting_mix}")
     for name in ("polygons", "loop_triangles"):
         ids = getattr(mesh, name)
         if ids is not None and np.asarray(ids).shape != (t,):

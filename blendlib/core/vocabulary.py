@@ -328,6 +328,14 @@ class Pass:
     #: MToon 0.x's ``_OutlineScaledMaxDistance`` (Screen mode: the clip w beyond which the outline
     #: stops growing with distance).
     outline_max_distance: float = 1.0
+    #: MToon's outline colour (0.x ``_OutlineColor``, 1.0 ``outlineColorFactor`` as UniVRM sets
+    #: ``_OutlineColor``: COLOR_GAMMA rgb), which replaces the lit colour of the pass's fragments:
+    #: ``rgb = outline_color * lerp(1, lit, outline_lighting_mix)`` (docs/pipeline.md §7). None: the
+    #: pass draws the material's lit colour (every pass that is not an MToon outline).
+    outline_color: tuple[float, float, float] | None = None
+    #: MToon's ``_OutlineLightingMix`` / ``outlineLightingMixFactor``: 0 the outline colour alone
+    #: (0.x's ``MTOON_OUTLINE_COLOR_FIXED``), 1 the outline colour times the lit colour.
+    outline_lighting_mix: float = 0.0
 
     def __post_init__(self) -> None:
         if self.ztest is CompareFunction.Never:
@@ -337,6 +345,10 @@ class Pass:
             if not (isinstance(value, int) and 0 <= value <= 255):
                 raise ValueError(f"{name} must be an integer 0..255, got {value!r}")
         object.__setattr__(self, "color_mask", frozenset(self.color_mask))
+        if self.outline_color is not None:
+            object.__setattr__(self, "outline_color", tuple(float(c) for c in self.outline_color))
+            if len(self.outline_color) != 3:
+                raise ValueError(f"outline_color must be three numbers (rgb), got {self.outline_color!r}")
         if not self.color_mask <= ALL_CHANNELS:
             raise ValueError(f"color_mask must be a subset of RGBA, got {sorted(self.color_mask)}")
 

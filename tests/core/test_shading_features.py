@@ -22,6 +22,7 @@ from blendlib import render_scene
 from blendlib.core import colorspace, drawlist, lights, mips, outline, shade
 from blendlib.core.scene import Camera, DrawScene, ForwardLight
 from blendlib.core.vocabulary import (
+    BlendFactor,
     ColorSpace,
     Cull,
     Lighting,
@@ -411,6 +412,52 @@ def test_outline_off_is_the_plain_vertex_stage_and_a_pass_like_any():
 
     stats = framedebug.draw_list(two)
     assert stats[1].fragments > stats[0].fragments  # the pushed-out quad covers more pixels
+
+
+def _outline_codes(color, outline_color, mix, blend=False, clear=(0, 0, 0, 0), color_space=ColorSpace.Gamma):
+    """The 8-bit codes at the centre of a quad drawn by one MToon outline pass (Unlit ``color``)."""
+    p = Pass(name="Outline", cull=Cull.Off, outline_mode=OutlineMode.World, outline_formula=OutlineFormula.MToon10,
+             outline_width=0.0, outline_color=outline_color, outline_lighting_mix=mix)
+    if blend:
+        p = replace(p, blend=True, src_blend=BlendFactor.SrcAlpha, dst_blend=BlendFactor.OneMinusSrcAlpha, zwrite=False)
+    scene = _outline_scene(p)
+    scene = replace(scene, clear_color=clear, color_space=color_space, renderers=(replace(
+        scene.renderers[0], material=replace(scene.renderers[0].material, color=color)),))
+    frame = _core(scene)
+    assert np.array_equal(frame.color, render_reference(scene)[0])
+    return np.round(frame.color[24, 32] * 255).astype(int).tolist()
+
+
+def test_outline_colour_is_mtoons_outline_colour_mixed_with_the_lit_colour():
+    """MToon 0.x (MToonCore.cginc): ``MTOON_OUTLINE_COLOR_FIXED``: ``col = _OutlineColor``;
+    ``MTOON_OUTLINE_COLOR_MIXED``: ``col = _OutlineColor * lerp(1, col, _OutlineLightingMix)``; MToon 1.0
+    (vrmc_materials_mtoon_lighting_mtoon.hlsl): ``outlineCol = _OutlineColor.rgb * lerp(1, baseCol,
+    _OutlineLightingMix)``, alpha ``input.alpha`` (the base pass's). Codes by hand from those formulas."""
+    lit = (0.8, 0.6, 1.0, 1.0)
+    # Fixed (mix 0): exactly the outline colour, whatever the lit colour.
+    assert _outline_codes(lit, (1.0, 0.0, 0.0), 0.0) == [255, 0, 0, 255]
+    # Mix 1: the product (0.5 * 0.8, 1.0 * 0.6, 0.2 * 1.0) = (0.4, 0.6, 0.2) → 102, 153, 51.
+    assert _outline_codes(lit, (0.5, 1.0, 0.2), 1.0) == [102, 153, 51, 255]
+    # Mix 0.5: outline * (1 + 0.5 * (lit - 1)) = (0.5 * 0.9, 1.0 * 0.8, 0.2 * 1.0) = (0.45, 0.8, 0.2).
+    assert _outline_codes(lit, (0.5, 1.0, 0.2), 0.5) == [115, 204, 51, 255]
+    # Alpha is the base pass's: _Color.a 0.4 blends the red outline over a blue background.
+    assert _outline_codes((0.8, 0.4, 1.0, 0.4), (1.0, 0.0, 0.0), 0.0, blend=True, clear=(0, 0, 1, 1)) == [
+        round(0.4 * 255), 0, round(0.6 * 255), round((0.4 * 0.4 + 0.6 * 1.0) * 255)]  # alpha blends too
+    # Linear colour space: _OutlineColor is a gamma colour (decoded, then encoded when stored).
+    assert _outline_codes(lit, (0.5, 1.0, 0.2), 0.0, color_space=ColorSpace.Linear) == [128, 255, 51, 255]
+    # No outline colour: the lit colour, as every other pass.
+    assert _outline_codes(lit, None, 0.0) == [204, 153, 255, 255]
+
+
+def test_outline_colour_out_of_range_is_a_one_line_error():
+    from blendlib.core.scene import SceneError, validate_scene
+
+    for bad, words in ((dict(outline_color=(math.nan, 0.0, 0.0)), "outline colour"),
+                       (dict(outline_color=(-0.5, 0.0, 0.0)), "outline colour"),
+                       (dict(outline_color=(1.0, 0.0, 0.0), outline_lighting_mix=1.5), "outline lighting mix")):
+        with pytest.raises(SceneError, match=words) as info:
+            validate_scene(_outline_scene(Pass(**bad)))
+        assert "\n" not in str(info.value)
 
 
 def test_forward_add_passes_count_per_light_in_the_scalar_reference_too():

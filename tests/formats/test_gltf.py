@@ -325,3 +325,41 @@ def test_json_record_is_the_shaderlab_record_per_material():
     assert (shadow["drawn"], shadow["reason"]) == (False, "ShadowCaster: renders shadow maps and the depth "
                                                           "texture, not the frame")
     assert data["warnings"][0].startswith("MToon and PBR shading are approximated")
+
+
+def test_vrm0_outline_colour_keywords_decide_the_outline_colour():
+    """MToonCore.cginc: ``MTOON_OUTLINE_COLOR_FIXED`` → ``col = _OutlineColor`` (mix 0, whatever
+    ``_OutlineLightingMix`` says); ``_MIXED`` → ``_OutlineColor * lerp(1, col, _OutlineLightingMix)``;
+    neither → the lit colour; MToon.shader's defaults ``_OutlineLightingMix`` 1, ``_OutlineColor`` (0,0,0,1)."""
+    def line(keywords, floats=None, vectors=None):
+        imported = _vrm0({"shader": "VRM/MToon", "floatProperties": {"_OutlineWidthMode": 1, **(floats or {})},
+                          "keywordMap": {"MTOON_OUTLINE_WIDTH_WORLD": True, **keywords},
+                          "vectorProperties": vectors or {}})
+        p = imported.material.passes[1]
+        return p.outline_color, p.outline_lighting_mix, imported.warnings
+
+    red = {"_OutlineColor": [1.0, 0.0, 0.0, 1.0]}
+    assert line({"MTOON_OUTLINE_COLOR_FIXED": True}, {"_OutlineLightingMix": 0.7}, red) == ((1.0, 0.0, 0.0), 0.0, ())
+    assert line({"MTOON_OUTLINE_COLOR_MIXED": True}, {"_OutlineColorMode": 1, "_OutlineLightingMix": 0.75},
+                red) == ((1.0, 0.0, 0.0), 0.75, ())
+    assert line({"MTOON_OUTLINE_COLOR_MIXED": True}, {"_OutlineColorMode": 1})[:2] == ((0.0, 0.0, 0.0), 1.0)
+    assert line({}, {}, red) == (None, 0.0, ())
+    colour, mix, warnings = line({"MTOON_OUTLINE_COLOR_MIXED": True}, {"_OutlineLightingMix": 2.0})
+    assert mix == 1.0 and len(warnings) == 2  # _OutlineColorMode 0 disagrees; the mix is drawn clamped
+    assert "_OutlineColorMode 0 disagrees" in warnings[0] and "outside 0..1" in warnings[1]
+
+
+def test_vrm1_outline_colour_is_converted_to_gamma_with_the_mix():
+    """UniVRM sets ``_OutlineColor`` from the linear ``outlineColorFactor`` as ``_Color`` from
+    ``baseColorFactor`` (gamma), ``_OutlineLightingMix`` from ``outlineLightingMixFactor`` (default 1)."""
+    def line(**mtoon):
+        doc = triangles_document([{"name": "M", "extensions": {"VRMC_materials_mtoon": {
+            "specVersion": "1.0", "outlineWidthMode": "worldCoordinates", "outlineWidthFactor": 0.01, **mtoon}}}])
+        doc["extensions"] = {"VRMC_vrm": {"specVersion": "1.0"}}
+        p = _import(doc).materials[0].material.passes[1]
+        return p.outline_color, p.outline_lighting_mix
+
+    assert line() == ((0.0, 0.0, 0.0), 1.0)
+    colour, mix = line(outlineColorFactor=[1.0, 0.0031308, 0.5], outlineLightingMixFactor=0.25)
+    assert colour == pytest.approx((1.0, 0.0031308 * 12.92, 1.055 * 0.5 ** (1 / 2.4) - 0.055), rel=1e-6)
+    assert mix == 0.25

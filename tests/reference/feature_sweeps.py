@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -172,9 +173,16 @@ def mip_sweep(filt: TextureFilter = TextureFilter.Trilinear, color_space: ColorS
     return DrawScene(camera=cam, renderers=renderers, light=None, color_space=color_space, clear_color=(0, 0, 0, 1))
 
 
-def outline_sweep(seed: int = 24) -> DrawScene:
+#: (outline colour, lighting mix) of :func:`outline_sweep`'s eight spheres with ``colored``: MToon 0.x's
+#: fixed colour (mix 0), mixes between, the lit colour times the outline colour (1), and none.
+OUTLINE_COLORS = (((1.0, 0.0, 0.0), 0.0), ((0.2, 0.6, 1.0), 1.0), ((0.9, 0.8, 0.1), 0.5), (None, 0.0),
+                  ((0.0, 0.0, 0.0), 0.25), ((1.0, 1.0, 1.0), 1.0), ((0.35, 0.1, 0.7), 0.75), ((0.5, 0.5, 0.5), 0.0))
+
+
+def outline_sweep(seed: int = 24, colored: bool = False, color_space: ColorSpace = ColorSpace.Gamma) -> DrawScene:
     """Spheres with a base pass and an outline pass (Cull Front, Offset 1, 1, ZWrite On) in every
-    OutlineMode x OutlineFormula, under uniform, non-uniform (World 0.x) and mirroring matrices."""
+    OutlineMode x OutlineFormula, under uniform, non-uniform (World 0.x) and mirroring matrices;
+    ``colored``: the outline passes with MToon's outline colours (:data:`OUTLINE_COLORS`)."""
     rng = np.random.default_rng(seed)
     sphere = uv_sphere(0.45, 18, 12)
     widths = {(OutlineMode.World, OutlineFormula.MToon0x): 6.0, (OutlineMode.World, OutlineFormula.MToon10): 0.05,
@@ -187,6 +195,8 @@ def outline_sweep(seed: int = 24) -> DrawScene:
         outline = Pass(name="Outline", cull=Cull.Front, offset_factor=1.0, offset_units=1.0, outline_mode=mode,
                        outline_formula=formula, outline_width=widths[(mode, formula)],
                        outline_max_distance=3.0)
+        if colored:
+            outline = replace(outline, outline_color=OUTLINE_COLORS[k][0], outline_lighting_mix=OUTLINE_COLORS[k][1])
         mat = Material(name=f"Toon{k}", color=tuple(rng.uniform(0.3, 1.0, 3).tolist()) + (1.0,),
                        lighting=Lighting.Unlit if k % 2 else Lighting.Lambert, passes=(Pass(name="Base"), outline))
         matrix = translate(x, y, 0.0)
@@ -198,7 +208,7 @@ def outline_sweep(seed: int = 24) -> DrawScene:
     renderers.append(renderer(quad(-3, -2, 3, 2, z=-1.0), backdrop, name="Back"))
     cam = camera(128, 72, eye=(0.2, -0.4, 4.5), target=(0.0, 0.0, 0.0), fov=45.0)
     return DrawScene(camera=cam, renderers=tuple(renderers), light=Light(direction=(0.3, 0.5, 0.8)),
-                     ambient=(0.25, 0.25, 0.3))
+                     ambient=(0.25, 0.25, 0.3), color_space=color_space)
 
 
 FEATURE_SWEEPS = {
@@ -212,4 +222,6 @@ FEATURE_SWEEPS = {
     "mips_trilinear": lambda: mip_sweep(TextureFilter.Trilinear),
     "mips_trilinear_linear": lambda: mip_sweep(TextureFilter.Trilinear, ColorSpace.Linear),
     "outline": outline_sweep,
+    "outline_color": lambda: outline_sweep(colored=True),
+    "outline_color_linear": lambda: outline_sweep(colored=True, color_space=ColorSpace.Linear),
 }

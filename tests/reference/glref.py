@@ -243,6 +243,9 @@ uniform vec3 ambient;
 uniform vec3 light;
 uniform vec3 ldir;
 uniform sampler2D tex;
+uniform bool has_outline;  // an MToon outline pass: rgb = outline_color * mix(1, lit, outline_mix)
+uniform vec3 outline_color;
+uniform float outline_mix;
 out vec4 frag;
 void main() {
     vec2 uv = v_uv * tiling + uv_offset;
@@ -294,6 +297,7 @@ void main() {
             rgb = ((add_color * albedo) * max(0.0, dot(n, l))) * atten;
         }
     }
+    if (has_outline) rgb = outline_color * (1.0 + outline_mix * (rgb - 1.0));
     frag = vec4(rgb, alpha);
 }
 """
@@ -448,6 +452,14 @@ def _light_uniforms(scene: DrawScene, light) -> dict:
             "add_tan_half": math.tan(math.radians(float(light.spot_angle)) / 2.0)}
 
 
+def _outline_uniforms(sh: _Shading, p) -> dict:
+    """The ``outline_*`` uniforms of pass ``p`` (MToon's outline colour in shading space)."""
+    if p.outline_color is None:
+        return {"has_outline": False, "outline_color": (0.0, 0.0, 0.0), "outline_mix": 0.0}
+    return {"has_outline": True, "outline_color": tuple(float(c) for c in sh.from_gamma(p.outline_color)),
+            "outline_mix": float(p.outline_lighting_mix)}
+
+
 class _Shading:
     """Material constants in shading space (docs/pipeline.md §7)."""
 
@@ -460,6 +472,7 @@ class _Shading:
         def from_linear(c):
             return np.asarray(c, np.float64) if linear else encode(c)
 
+        self.from_gamma = lambda c: from_gamma(np.asarray(c, np.float64))
         col = np.asarray(material.color, np.float64)
         self.color = tuple(np.concatenate([from_gamma(col[:3]), col[3:]]).tolist())
         amb = np.asarray(scene.ambient, np.float64)
@@ -565,7 +578,8 @@ class GLRenderer:
                 if key not in buffers:
                     buffers[key] = self._vertex_buffer(vertex_data(scene, r, p)[0])
                 vbo, vao, count = buffers[key]
-                self.calls.append((vao, count, mirrored, tex, {**uniforms, **_light_uniforms(scene, light)}, p))
+                self.calls.append((vao, count, mirrored, tex,
+                                   {**uniforms, **_light_uniforms(scene, light), **_outline_uniforms(sh, p)}, p))
                 self.call_numbers.append(number - len(calls) + k + 1)
                 self.call_queues.append(mat.render_queue)
                 self._call_buffers.append(vbo)

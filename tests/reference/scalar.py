@@ -495,7 +495,7 @@ def draw_renderer(scene, r, V, P, buf: Buffers, warnings, budget, log: FragmentL
                                                                p.outline_width, p.outline_max_distance)
         if key not in stages:
             stages[key] = vertex_stage(p)[0]
-        shader.for_light(light, linear)
+        shader.for_light(light, linear).for_pass(p)
         drawn = 0
         for t, tris, clipped, attrs in stages[key]:
             if where is not None:

@@ -328,6 +328,7 @@ class Shader:
             self.light = [from_linear(float(c)) * energy for c in scene.light.color]
             self.ldir = normalise([float(v) for v in scene.light.direction])
         self.add = None  # a ForwardAdd draw's light (scalar_shading.AddLight)
+        self.outline = None  # the pass's outline colour (shading space) and lighting mix
         tex = material.main_tex
         self.tex = None
         self.mips = None
@@ -348,6 +349,13 @@ class Shader:
     def for_light(self, light, linear: bool) -> Shader:
         """This program with the light of a ForwardAdd draw (None: the frame's main light)."""
         self.add = None if light is None else AddLight(light, linear)
+        return self
+
+    def for_pass(self, p) -> Shader:
+        """This program with pass ``p``'s outline colour (MToon's outline: None, the lit colour)."""
+        self.outline = None
+        if p.outline_color is not None:
+            self.outline = ([self.from_gamma(float(c)) for c in p.outline_color], float(p.outline_lighting_mix))
         return self
 
     def wrap(self, i: int, n: int) -> int:
@@ -388,7 +396,17 @@ class Shader:
     def shade(self, uv: list, nw: list, vc: list | None = None, pos: list | None = None,
               lod: float | None = None) -> list:
         """rgba of the fragment in shading space (before clamping); ``vc`` the vertex colour in
-        shading space (None: white), ``pos`` the world position, ``lod`` the quad's LOD (mipmaps)."""
+        shading space (None: white), ``pos`` the world position, ``lod`` the quad's LOD (mipmaps).
+        An outline pass's colour replaces the lit rgb: ``outline * lerp(1, lit, mix)``, HLSL's
+        ``lerp(a, b, t) = a + t * (b - a)``."""
+        rgba = self.lit(uv, nw, vc, pos, lod)
+        if self.outline is None:
+            return rgba
+        color, mix = self.outline
+        return [color[c] * (1.0 + mix * (rgba[c] - 1.0)) for c in range(3)] + [rgba[3]]
+
+    def lit(self, uv: list, nw: list, vc: list | None, pos: list | None, lod: float | None) -> list:
+        """:meth:`shade` before the outline colour."""
         u, v = self.texture_uv(uv)
         if self.mips is not None and lod is not None:
             tex = mip_sample(self.mips, self.sample_level, u, v, lod, self.filter)

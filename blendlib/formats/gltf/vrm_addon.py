@@ -20,6 +20,8 @@ VRM 0.x (``vrm0_exporter.py``, ``write_mtoon1_downgraded_material``; research-vr
     _OutlineWidth = outline_width_factor * 100 (world) / * 200 (screen) / 0.0 (none); _OutlineScaledMaxDistance
     vector_properties["_Color"] = convert.linear_to_srgb(base_color_factor)   (x ** (1 / 2.2))
     vector_properties["_OutlineColor"] = convert.linear_to_srgb(outline_color_factor) + [1]
+    _OutlineLightingMix = outline_lighting_mix_factor; _OutlineColorMode = 1 if that mix > 0 else 0
+    and with an outline MTOON_OUTLINE_COLOR_MIXED / _FIXED by it (none: mix 0, mode 0, no keyword)
 
 ``blend_method`` follows the add-on's alpha mode in the Blender versions it was written for
 (OPAQUE, CLIP, BLEND/HASHED); Blender 4.2 and later read every material's ``blend_method`` as
@@ -32,7 +34,7 @@ VRM 1.0 (``vrm1_exporter.py``, ``create_mtoon1_material_dict``): ``alphaMode``, 
 only), ``doubleSided``, ``baseColorFactor``/``baseColorTexture`` with its ``KHR_texture_transform``,
 ``KHR_materials_unlit`` and ``VRMC_materials_mtoon`` with ``transparentWithZWrite``,
 ``renderQueueOffsetNumber`` (unclamped: UniVRM's validator clamps it), ``outlineWidthMode``,
-``outlineWidthFactor`` and ``outlineColorFactor``.
+``outlineWidthFactor``, ``outlineColorFactor`` and ``outlineLightingMixFactor``.
 """
 
 from __future__ import annotations
@@ -77,6 +79,8 @@ class AddonMToon:
     outline_width_factor: float = 0.0
     #: ``outline_color_factor`` (linear RGB; the add-on's default black).
     outline_color_factor: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    #: ``outline_lighting_mix_factor`` (the add-on's default 1, VRMC_materials_mtoon's).
+    outline_lighting_mix_factor: float = 1.0
     base_color_factor: tuple[float, float, float, float] = (1.0, 1.0, 1.0, 1.0)
     base_color_texture: AddonTexture | None = None
     mtoon0_render_queue: int = 2000
@@ -149,6 +153,11 @@ def _vrm0_entry(mtoon: AddonMToon) -> dict[str, Any]:
         keywords["MTOON_OUTLINE_WIDTH_SCREEN"] = True
         floats["_OutlineWidth"] = mtoon.outline_width_factor * 200
     floats["_OutlineScaledMaxDistance"] = mtoon.mtoon0_outline_scaled_max_distance
+    mixed = mtoon.outline_lighting_mix_factor > 0
+    floats["_OutlineLightingMix"] = mtoon.outline_lighting_mix_factor if mode else 0.0
+    floats["_OutlineColorMode"] = 1 if mixed and mode else 0
+    if mode:
+        keywords["MTOON_OUTLINE_COLOR_MIXED" if mixed else "MTOON_OUTLINE_COLOR_FIXED"] = True
     r, g, b, a = mtoon.base_color_factor
     vectors: dict[str, list[float]] = {"_Color": [_srgb_gamma(r), _srgb_gamma(g), _srgb_gamma(b), float(a)],
                                        "_OutlineColor": [*(_srgb_gamma(c) for c in mtoon.outline_color_factor), 1.0]}
@@ -176,7 +185,8 @@ def vrm1_material_json(mtoon: AddonMToon) -> dict[str, Any]:
             "specVersion": "1.0", "transparentWithZWrite": mtoon.transparent_with_z_write,
             "renderQueueOffsetNumber": mtoon.render_queue_offset_number,
             "outlineWidthMode": mtoon.outline_width_mode, "outlineWidthFactor": mtoon.outline_width_factor,
-            "outlineColorFactor": list(mtoon.outline_color_factor)}},
+            "outlineColorFactor": list(mtoon.outline_color_factor),
+            "outlineLightingMixFactor": mtoon.outline_lighting_mix_factor}},
     }
     if mtoon.alpha_mode == "MASK":
         material["alphaCutoff"] = mtoon.alpha_cutoff
