@@ -24,7 +24,7 @@ from . import colorspace, fragment, lights, mips, msaa, raster, shade, vertex
 from .drawlist import DrawCall
 from .fragment import ChunkShader
 from .merger import BlendTables, FrameBuffers
-from .outline import outline_key
+from .outline import outline_key, width_factors
 from .records import DrawState
 from .scene import Camera, SceneMemo
 from .vertex import TriangleSetup
@@ -201,14 +201,17 @@ def _shading_of(frame: FrameContext, p: Pass) -> ChunkShader:
     return chunk_shading(p)
 
 
-def setup_input(renderer, colors: np.ndarray | None = None, program: Pass | None = None) -> vertex.SetupInput:
+def setup_input(renderer, colors: np.ndarray | None = None, program: Pass | None = None,
+                color_space: ColorSpace = ColorSpace.Gamma) -> vertex.SetupInput:
     """What the vertex setup of ``renderer`` needs: normals only for lit shading, UVs only with a
     texture, its vertex colours in shading space when shading reads them
-    (:meth:`FrameContext.vertex_colors_of`), and the pass whose outline program moves its
-    vertices (None: none)."""
+    (:meth:`FrameContext.vertex_colors_of`), the pass whose outline program moves its
+    vertices (None: none) and, with one, the material's outline-width factors in ``color_space``."""
     material = renderer.material
+    factors = None if program is None else width_factors(renderer.mesh, material, color_space)
     return vertex.SetupInput(renderer.mesh, renderer.matrix_world, need_normals=material.lighting is not Lighting.Unlit,
-                             need_uvs=material.main_tex is not None, colors=colors, program=program)
+                             need_uvs=material.main_tex is not None, colors=colors, program=program,
+                             width_factors=factors)
 
 
 def _programs(run: list[DrawCall]) -> dict:
@@ -276,7 +279,8 @@ def _setups(frame: FrameContext, items: list[tuple], pool=None, parts: int = 1) 
     out = [None if k is None else k.get(key) for k, key in zip(kept, keys, strict=True)]
     todo = [i for i, g in enumerate(out) if g is None]
     if todo:
-        made = vertex.setup_renderers([setup_input(*items[i]) for i in todo], frame.camera, pool=pool, parts=parts)
+        made = vertex.setup_renderers([setup_input(*items[i], color_space=frame.color_space) for i in todo],
+                                      frame.camera, pool=pool, parts=parts)
         held = None  # triangles whose setups the memo holds (counted once something is to be kept)
         for i, setup in zip(todo, made, strict=True):
             out[i] = _Geometry(setup)

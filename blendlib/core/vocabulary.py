@@ -468,6 +468,12 @@ class Material:
     vertex_color: VertexColor = VertexColor.Off
     #: ``_TintColor`` (COLOR_GAMMA) of the particle shaders (``vertex_color`` Particle).
     tint_color: tuple[float, float, float, float] = (0.5, 0.5, 0.5, 0.5)
+    #: MToon's outline-width texture (0.x ``_OutlineWidthTexture``, 1.0 ``outlineWidthMultiplyTexture``):
+    #: an outline pass's width is multiplied per vertex by its red channel, sampled at level 0 at the
+    #: vertex's ``_MainTex`` coordinates (:mod:`.outline`). None: ×1 (MToon's default, white).
+    outline_width_tex: Texture | None = None
+    outline_width_tex_filter: TextureFilter = TextureFilter.Bilinear
+    outline_width_tex_wrap: TextureWrap = TextureWrap.Repeat
 
     @property
     def render_queue(self) -> int:

@@ -449,6 +449,47 @@ def test_outline_colour_is_mtoons_outline_colour_mixed_with_the_lit_colour():
     assert _outline_codes(lit, None, 0.0) == [204, 153, 255, 255]
 
 
+def test_outline_width_texture_multiplies_the_width_per_vertex():
+    """MToon: ``width × tex2Dlod(_OutlineWidthTexture, TRANSFORM_TEX(uv, _MainTex)).r``. A sphere whose
+    left half (u < 0.5) samples red 0 and right half red 1 (Point): no outline ring on the left, a
+    ring of ``outlineWidthFactor`` metres on the right (MToon 1.0 World); 0.x's texture is sRGB:
+    in Linear red 0.5 (code 128) decodes to 0.2158, in Gamma stays 0.502."""
+    from tests.reference.feature_sweeps import planar_uvs
+
+    sphere = planar_uvs(sc.uv_sphere(0.5, 48, 24), 0.5)
+    pixels = np.ones((1, 2, 4), np.float32)
+    pixels[0, 0, 0] = 0.0
+
+    def ring(texture_pixels, encoding="Data", formula=OutlineFormula.MToon10, width=0.1, color_space=ColorSpace.Gamma):
+        line = Pass(name="Outline", cull=Cull.Front, outline_mode=OutlineMode.World, outline_formula=formula,
+                    outline_width=width, outline_color=(0.0, 1.0, 0.0))
+        mat = Material(lighting=Lighting.Unlit, color=(1, 0, 0, 1), passes=(Pass(name="Base"), line),
+                       outline_width_tex=Texture(texture_pixels, encoding=encoding),
+                       outline_width_tex_filter=TextureFilter.Point, outline_width_tex_wrap=TextureWrap.Clamp)
+        scene = DrawScene(camera=sc.camera(200, 100, eye=(0, 0, 5), fov=30.0), clear_color=(0, 0, 0, 1),
+                          renderers=(sc.renderer(sphere, mat),), color_space=color_space)
+        frame = _core(scene)
+        assert np.array_equal(frame.color, render_reference(scene)[0])
+        green = (frame.color[50, :, 1] > 0.5) & (frame.color[50, :, 0] < 0.5)
+        columns = np.flatnonzero(green)
+        return columns, frame
+
+    columns, frame = ring(pixels)
+    red = np.flatnonzero(frame.color[50, :, 0] > 0.5)
+    assert columns.size and columns.min() > red.max()  # only right of the sphere
+    # The ring: the sphere's silhouette grown from 0.5 to 0.6 m at 5 m, fov 30°: tan(asin(r / 5)) × 50 /
+    # tan(15°) pixels from the centre, each side.
+    def edge(r):
+        return 100 + math.tan(math.asin(r / 5)) / math.tan(math.radians(15)) * 50
+    assert abs(columns.max() + 1 - edge(0.6)) < 1.0 and abs(columns.min() - edge(0.5)) < 1.5
+    # 0.x, sRGB texture, red code 128 on the right: ×0.5020 in Gamma, ×0.2158 in Linear (decoded).
+    half = pixels.copy()
+    half[0, 1, 0] = 128 / 255
+    for color_space, factor in ((ColorSpace.Gamma, 128 / 255), (ColorSpace.Linear, colorspace.decode(128 / 255))):
+        columns, _ = ring(half, "sRGB", OutlineFormula.MToon0x, width=10.0, color_space=color_space)
+        assert abs(columns.max() + 1 - edge(0.5 + 0.1 * factor)) < 1.0, color_space
+
+
 def test_outline_colour_out_of_range_is_a_one_line_error():
     from blendlib.core.scene import SceneError, validate_scene
 

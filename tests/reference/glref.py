@@ -66,7 +66,7 @@ from blendlib.core.vocabulary import (
 )
 
 from .scalar import renderer_calls
-from .scalar_shading import build_mips, outline_clip
+from .scalar_shading import build_mips, outline_clip, width_factor
 
 DMAX = 2**24 - 1
 
@@ -417,7 +417,10 @@ def vertex_data(scene: DrawScene, r, program=None) -> tuple[np.ndarray, bool, in
         clip = np.stack([((mvp[i, 0] * x + mvp[i, 1] * y) + mvp[i, 2] * z) + mvp[i, 3] for i in range(4)], axis=-1)
     else:
         lists = [M.tolist(), V.tolist(), P.tolist()]
-        clip = np.array([[outline_clip(program, pos[t, k].tolist(), n[t, k].tolist(), *lists) for k in range(3)]
+        uvs = np.zeros((tri.shape[0], 3, 2)) if mesh.uvs is None else np.asarray(mesh.uvs, np.float64).reshape(-1, 3, 2)
+        linear = scene.color_space is ColorSpace.Linear
+        clip = np.array([[outline_clip(program, pos[t, k].tolist(), n[t, k].tolist(), *lists,
+                                       width_factor(r.material, uvs[t, k].tolist(), linear)) for k in range(3)]
                          for t in range(tri.shape[0])], dtype=np.float64).reshape(-1, 3, 4)
     nw = np.stack([(N[i, 0] * n[..., 0] + N[i, 1] * n[..., 1]) + N[i, 2] * n[..., 2] for i in range(3)], axis=-1)
     t = tri.shape[0]

@@ -463,7 +463,10 @@ def draw_renderer(scene, r, V, P, buf: Buffers, warnings, budget, log: FragmentL
             if p.outline_mode is OutlineMode.Off:
                 clips = [clip_of(positions[k]) for k in tri]
             else:  # the outline vertex program, per corner
-                clips = [sh.outline_clip(p, positions[k], normals[t][c], M, V, P) for c, k in enumerate(tri)]
+                clips = [sh.outline_clip(p, positions[k], normals[t][c], M, V, P,
+                                         sh.width_factor(r.material, uvs[t][c] if uvs is not None else [0.0, 0.0],
+                                                         scene.color_space is ColorSpace.Linear))
+                         for c, k in enumerate(tri)]
             if not all(math.isfinite(c) for v in clips for c in v):
                 skipped += 1
                 continue
