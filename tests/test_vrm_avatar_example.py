@@ -129,7 +129,7 @@ def test_the_vrm_export_draws_as_the_blend():
     assert sorted(names) == sorted(exported)
     modes = set()
     for name in names:
-        imported, image, mtoon = vrm_addon.derived_material(bpy.data.materials[name])
+        imported, image, _width, mtoon = vrm_addon.derived_material(bpy.data.materials[name])
         assert imported.material == exported[name].material, name
         assert (image is None) == (exported[name].main_tex is None)
         modes.add(mtoon.render_mode)

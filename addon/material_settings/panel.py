@@ -139,6 +139,11 @@ class UNITY_PT_material(_MaterialPanel, bpy.types.Panel):
         sub = body.column()
         sub.active = unity.vertex_color == "Particle"
         sub.prop(unity, "tint_color")
+        body.template_ID(unity, "outline_width_tex", new="image.new", open="image.open")
+        row = body.row(align=True)
+        row.active = unity.outline_width_tex is not None
+        row.prop(unity, "outline_width_tex_filter")
+        row.prop(unity, "outline_width_tex_wrap")
 
 
 class UNITY_PT_material_passes(_MaterialPanel, bpy.types.Panel):

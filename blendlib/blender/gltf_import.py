@@ -93,8 +93,9 @@ def _renamed_copy(document: GltfDocument) -> Iterator[str]:
         yield path
 
 
-def _run_blender_importer(path: str, where: str, scene: Any) -> None:
-    """Blender's glTF importer into ``scene`` (it links what it makes into the context's collection)."""
+def _run_blender_importer(path: str, where: str, scene: Any, unused_images: bool = False) -> None:
+    """Blender's glTF importer into ``scene`` (it links what it makes into the context's collection);
+    ``unused_images``: also the images (and materials) no mesh uses."""
     import bpy  # noqa: I001 - bpy before addon_utils
 
     import addon_utils
@@ -103,7 +104,7 @@ def _run_blender_importer(path: str, where: str, scene: Any) -> None:
     override = {} if scene == bpy.context.scene else {"scene": scene, "view_layer": scene.view_layers[0]}
     try:
         with bpy.context.temp_override(**override):
-            result = bpy.ops.import_scene.gltf(filepath=path)
+            result = bpy.ops.import_scene.gltf(filepath=path, import_unused_materials=unused_images)
     except (RuntimeError, TypeError, ValueError, KeyError, IndexError, AttributeError) as exc:
         # Blender's message is a traceback then "Location: ops.py:N": the reason is the last line of neither.
         lines = [line.strip() for line in str(exc).splitlines()
@@ -151,9 +152,12 @@ def import_gltf(path: str | Path, scene: Any = None, *, add_camera: bool = True,
     result = import_materials(document)
     scene = scene or bpy.context.scene
     before = {key: {b.as_pointer() for b in getattr(bpy.data, key)} for key in _CREATED}
+    # MToon's outline-width textures are used by no glTF material: Blender's importer makes their
+    # images only when told to import unused ones.
+    unused = any(m.outline_width_tex is not None for m in result.materials)
     try:
         with _renamed_copy(document) as copy_path:
-            _run_blender_importer(copy_path, document.path, scene)
+            _run_blender_importer(copy_path, document.path, scene, unused_images=unused)
     except GltfError:
         _remove_new(before)  # what Blender's importer made before it stopped
         raise
@@ -172,10 +176,14 @@ def import_gltf(path: str | Path, scene: Any = None, *, add_camera: bool = True,
         index = int(token[len(TOKEN) + 1:])
         imported = result.materials[index]
         mat.name = imported.material.name
-        image = None
+        image = width = None
         if imported.main_tex is not None:
             image = images.get(document.texture_image(imported.main_tex))
-        write_material(mat, imported.material, enabled=True, main_tex=image)
+        if imported.outline_width_tex is not None:
+            width = images.get(document.texture_image(imported.outline_width_tex))
+            if width is not None and imported.outline_width_encoding == "Data" and width is not image:
+                width.colorspace_settings.name = "Non-Color"  # UniVRM reads VRM 1.0's as linear data
+        write_material(mat, imported.material, enabled=True, main_tex=image, outline_width_tex=width)
         if materials[index] is None:
             materials[index] = mat
     objects = _new(bpy.data.objects, before["objects"])

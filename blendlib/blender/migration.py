@@ -19,8 +19,10 @@ Versions:
    take defaults that draw as before (ForwardBase passes, GEqual alpha test, no mipmaps, no
    vertex colour, one sample), so the step only stamps the version.
 4. MToon's outline colour appended per pass: ``outline_colored``, ``outline_color``,
-   ``outline_lighting_mix``. Absent from a version-3 group, the switch is off: the pass draws the
-   material's lit colour, as before; the step only stamps the version.
+   ``outline_lighting_mix``; per material the outline-width texture ``outline_width_tex``,
+   ``outline_width_tex_filter``, ``outline_width_tex_wrap``. Absent from a version-3 group, the
+   switch is off and there is no texture: the pass draws the material's lit colour and the
+   outline its full width, as before; the step only stamps the version.
 
 This module does not import bpy.
 """

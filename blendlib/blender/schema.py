@@ -192,6 +192,15 @@ MATERIAL_FIELDS: tuple[Field, ...] = (
     Field("tint_color", "color", (0.5, 0.5, 0.5, 0.5), "_TintColor",
           "_TintColor of the particle shaders (sRGB-encoded, like a Unity colour property)", size=4,
           subtype="COLOR_GAMMA", min=0.0, soft_max=1.0),
+    # Schema version 4 (issue 28): MToon's outline-width texture, appended; absent: none (×1).
+    Field("outline_width_tex", "image", None, "Outline Width Texture",
+          "MToon's outline-width texture (_OutlineWidthTexture / outlineWidthMultiplyTexture): an outline pass's "
+          "width times its red channel at the vertex's _MainTex coordinates (none = x1; a Non-Color image is "
+          "read as data)"),
+    Field("outline_width_tex_filter", "enum", "Bilinear", "Width Filter",
+          "Sampler filter mode of the outline-width texture (sampled at mip level 0)", enum=TextureFilter),
+    Field("outline_width_tex_wrap", "enum", "Repeat", "Width Wrap", "Sampler wrap mode of the outline-width texture",
+          enum=TextureWrap),
 )
 
 
@@ -360,12 +369,14 @@ def light_settings(light: Any) -> dict[str, Any]:
     return read_group(_current_source(light, migrate_light), LIGHT_FIELDS)
 
 
-def material_from_values(name: str, values: Mapping[str, Any], main_tex: Any = None) -> Material:
+def material_from_values(name: str, values: Mapping[str, Any], main_tex: Any = None,
+                         outline_width_tex: Any = None) -> Material:
     """The :class:`Material` of :func:`material_values` output (an enabled material): every schema
-    field the dataclass holds, enums parsed; ``main_tex`` the converted texture (or None)."""
-    kwargs: dict[str, Any] = {"name": name, "main_tex": main_tex}
+    field the dataclass holds, enums parsed; ``main_tex`` and ``outline_width_tex`` the converted
+    textures (or None)."""
+    kwargs: dict[str, Any] = {"name": name, "main_tex": main_tex, "outline_width_tex": outline_width_tex}
     for f in MATERIAL_FIELDS:
-        if f.name in ("enabled", "main_tex"):
+        if f.name in ("enabled", "main_tex", "outline_width_tex"):
             continue
         value = values[f.name]
         if f.kind == "passes":
@@ -503,10 +514,10 @@ def _assign(id_block: Any, kind: str, values: Mapping[str, Any]) -> None:
 
 def material_fields(material: Material) -> dict[str, Any]:
     """The ``Material.unity`` values of a :class:`Material`: every schema field it holds except
-    ``main_tex`` (a :class:`~blendlib.core.vocabulary.Texture` is pixels, not a Blender image)."""
+    the textures (a :class:`~blendlib.core.vocabulary.Texture` is pixels, not a Blender image)."""
     names = {f.name for f in MATERIAL_FIELDS}
     return {f.name: getattr(material, f.name) for f in fields(Material)
-            if f.name in names and f.name != "main_tex"}
+            if f.name in names and f.name not in ("main_tex", "outline_width_tex")}
 
 
 def write_material(mat: Any, material: Material | None = None, **values: Any) -> None:

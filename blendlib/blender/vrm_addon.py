@@ -35,7 +35,14 @@ from dataclasses import replace
 from typing import Any
 
 from ..formats.gltf.records import ImportedMaterial
-from ..formats.gltf.vrm_addon import ALPHA_MODES, OUTLINE_WIDTH_MODES, AddonMToon, AddonTexture, addon_material
+from ..formats.gltf.vrm_addon import (
+    ALPHA_MODES,
+    OUTLINE_WIDTH_MODES,
+    AddonMToon,
+    AddonTexture,
+    addon_material,
+    texture_images,
+)
 from ..formats.gltf.vrm_advice import VrmSettings
 
 EXTENSION_KEY = "vrm_addon_extension"
@@ -171,6 +178,7 @@ def addon_mtoon(mat: Any) -> AddonMToon | None:
         render_queue_offset_number=offset,
         outline_width_mode=OUTLINE_WIDTH_MODES[outline] if 0 <= outline < 3 else "none",
         outline_width_factor=width, outline_color_factor=outline_color, outline_lighting_mix_factor=outline_mix,
+        outline_width_multiply_texture=_texture_from_ids(_get(mtoon_ids, "outline_width_multiply_texture")),
         base_color_factor=factor,
         base_color_texture=texture,
         mtoon0_render_queue=int(_get(mtoon1, "mtoon0_render_queue", default=2000)),
@@ -210,15 +218,15 @@ def spec_version(mat: Any) -> str:
     return "1.0" if int(_get(_extension(armatures[0]), "spec_version", default=0)) == 1 else "0.x"
 
 
-def derived_material(mat: Any) -> tuple[ImportedMaterial, Any, AddonMToon] | None:
-    """(the Unity state UniVRM draws, the ``_MainTex`` Blender image or None, the add-on's settings) of a
-    material of the VRM Add-on; None for any other material."""
+def derived_material(mat: Any) -> tuple[ImportedMaterial, Any, Any, AddonMToon] | None:
+    """(the Unity state UniVRM draws, the ``_MainTex`` and the outline-width Blender images or None, the
+    add-on's settings) of a material of the VRM Add-on; None for any other material."""
     mtoon = addon_mtoon(mat)
     if mtoon is None:
         return None
     imported = addon_material(mtoon, spec_version(mat))
-    image = mtoon.base_color_texture.image if imported.main_tex is not None else None
-    return imported, image, mtoon
+    image, width_image = texture_images(mtoon, imported)
+    return imported, image, width_image, mtoon
 
 
 def summary(mat: Any) -> str | None:
@@ -228,7 +236,7 @@ def summary(mat: Any) -> str | None:
     derived = derived_material(mat)
     if derived is None:
         return None
-    imported, _image, mtoon = derived
+    imported, _image, _width_image, mtoon = derived
     material = imported.material
     base = material.passes[0]
     words = [f"queue {material.render_queue}", f"Cull {base.cull}", f"ZWrite {'On' if base.zwrite else 'Off'}",

@@ -59,6 +59,15 @@ def test_every_material_gets_the_unity_settings_unitys_importer_sets(file):
         else:  # the glTF image the texture names, with its name and pixels
             index = document.texture_image(imported.main_tex)
             assert image.name == document.image_name(index) and image.size[0] > 0 and image.has_data
+        width = values["outline_width_tex"]  # MToon's outline-width texture: an image no glTF material uses
+        if imported.outline_width_tex is None:
+            assert width is None
+        else:
+            assert width.name == document.image_name(document.texture_image(imported.outline_width_tex))
+            assert width.size[0] > 0 and width.has_data
+            assert width.colorspace_settings.is_data == (imported.outline_width_encoding == "Data")
+            assert blender.material_from_blender(mat, with_texture=True).outline_width_tex.encoding == \
+                imported.outline_width_encoding
 
 
 @needs_corpus

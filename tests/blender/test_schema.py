@@ -55,6 +55,8 @@ ENUM_NUMBERS = {
         "queue": {"Background": 0, "Geometry": 1, "AlphaTest": 2, "Transparent": 3, "Overlay": 4},
         "main_tex_filter": {"Bilinear": 0, "Point": 1, "Trilinear": 2},  # Trilinear appended in version 3
         "main_tex_wrap": {"Repeat": 0, "Clamp": 1},
+        "outline_width_tex_filter": {"Bilinear": 0, "Point": 1, "Trilinear": 2},  # version 4
+        "outline_width_tex_wrap": {"Repeat": 0, "Clamp": 1},
         "lighting": {"Lambert": 0, "Unlit": 1},
         "vertex_color": {"Off": 0, "Multiply": 1, "Particle": 2},
     },

@@ -182,6 +182,17 @@ def test_corpus_outlines_draw_in_mtoons_outline_colour():
     assert not any("outline" in w for m in (*v0.values(), *v1.values()) for w in m.warnings)
 
 
+def test_corpus_outline_width_textures_are_read_for_outlined_materials():
+    """0.x ``textureProperties._OutlineWidthTexture`` (imported sRGB by UniVRM's legacy loader, the
+    default case of ``VRMMToonTextureImporter``); 1.0 ``outlineWidthMultiplyTexture`` (imported linear,
+    ``Vrm10MToonTextureImporter.TryGetLinearTexture``). The files' Transparent materials have one."""
+    _, v0 = _materials("mtoon1_2_20_61_vrm0.vrm")
+    _, v1 = _materials("mtoon1_2_20_61_vrm1.vrm")
+    assert (v0["Transparent"].outline_width_tex, v0["Transparent"].outline_width_encoding) == (12, "sRGB")
+    assert (v1["Transparent"].outline_width_tex, v1["Transparent"].outline_width_encoding) == (13, "Data")
+    assert all(m.outline_width_tex is None for name, m in (*v0.items(), *v1.items()) if name != "Transparent")
+
+
 def test_vrm1_base_color_is_linear_converted_and_texture_transform_flipped():
     _, mats = _materials("mtoon1_2_20_61_vrm1.vrm")
     opaque = mats["Opaque"].material

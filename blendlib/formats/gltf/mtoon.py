@@ -63,7 +63,11 @@ Lambert colour that approximates it (docs/vrm.md).
 
 from __future__ import annotations
 
+from typing import Any
+
 from ...core.vocabulary import BlendFactor, BlendOp, CompareFunction, Cull, LightMode, OutlineFormula, OutlineMode, Pass
+from .container import GltfDocument
+from .textures import sampler_settings
 
 #: MToon 0.x's BLEND clip: ``const half EPSILON_FP16 = 0.0009765625;`` (MToonCore.cginc).
 BLEND_CLIP_MTOON0 = 0.0009765625
@@ -110,6 +114,13 @@ def mtoon_passes(*, version: str, cull: Cull, outline_cull: Cull, src: BlendFact
                    outline_max_distance=float(outline_max_distance) if version == "0.x" else 1.0,
                    outline_color=outline_color, outline_lighting_mix=float(outline_lighting_mix))
     return base, outline, add, shadow
+
+
+def outline_width_sampler(document: GltfDocument, texture: int, where: str, warnings: list[str]) -> dict[str, Any]:
+    """The Material fields of the outline-width texture's sampler: its filter and wrap (as
+    ``_MainTex``'s, :func:`~.textures.sampler_settings`; sampled at level 0, so no mipmaps)."""
+    fields = sampler_settings(document.texture_sampler(texture), f"{where}: texture {texture}", warnings)
+    return {"outline_width_tex_filter": fields["main_tex_filter"], "outline_width_tex_wrap": fields["main_tex_wrap"]}
 
 
 def outline_colour(rgb, mix: float, where: str, warnings: list[str]) -> tuple[tuple[float, float, float], float]:

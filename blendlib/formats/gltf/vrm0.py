@@ -28,7 +28,15 @@ from typing import Any
 from ...core.vocabulary import BlendFactor, Cull, Lighting, LightMode, Material, Pass, VertexColor
 from ..shaderlab.state import _CULL_BY_NUMBER, _FACTOR_BY_NUMBER
 from .container import GltfDocument
-from .mtoon import BLEND_CLIP_MTOON0, OUTLINE_NONE, OUTLINE_SCREEN, OUTLINE_WORLD, mtoon_passes, outline_colour
+from .mtoon import (
+    BLEND_CLIP_MTOON0,
+    OUTLINE_NONE,
+    OUTLINE_SCREEN,
+    OUTLINE_WORLD,
+    mtoon_passes,
+    outline_colour,
+    outline_width_sampler,
+)
 from .records import ImportedMaterial, MaterialError, number, queue_fields, rgba_values
 from .textures import sampler_settings
 from .unigltf import standard_passes, uniunlit_pass
@@ -193,9 +201,12 @@ def _mtoon(document: GltfDocument, index: int, name: str, props: _Properties, wa
                  "scaled_max_distance": props.float("_OutlineScaledMaxDistance"), "formula": "0.x",
                  "color": list(rgba_values(props.vector("_OutlineColor"), f"{where}: vectorProperties._OutlineColor",
                                            OUTLINE_COLOR_DEFAULT))}}
+    width_tex = props.texture("_OutlineWidthTexture") if outline != OUTLINE_NONE else None
+    if width_tex is not None:  # sampled at _MainTex's coordinates (the property is [NoScaleOffset])
+        fields |= outline_width_sampler(document, width_tex, where, warnings)
     material = Material(name=name, color=color, cutoff=cutoff, lighting=Lighting.Lambert, passes=passes,
                         **queue_values, **fields)
-    return ImportedMaterial(index, material, texture, f"VRM 0.x {MTOON}", tuple(warnings), extra)
+    return ImportedMaterial(index, material, texture, f"VRM 0.x {MTOON}", tuple(warnings), extra, width_tex, "sRGB")
 
 
 def _unlit_transparent_zwrite(document: GltfDocument, index: int, name: str, props: _Properties,

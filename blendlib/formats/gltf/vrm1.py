@@ -24,7 +24,15 @@ from typing import Any
 
 from ...core.vocabulary import BlendFactor, Cull, Lighting, Material
 from .container import GltfDocument
-from .mtoon import BLEND_CLIP_MTOON1, OUTLINE_NONE, OUTLINE_SCREEN, OUTLINE_WORLD, mtoon_passes, outline_colour
+from .mtoon import (
+    BLEND_CLIP_MTOON1,
+    OUTLINE_NONE,
+    OUTLINE_SCREEN,
+    OUTLINE_WORLD,
+    mtoon_passes,
+    outline_colour,
+    outline_width_sampler,
+)
 from .records import ImportedMaterial, MaterialError, gamma_color, number, queue_fields
 from .unigltf import alpha_cutoff, alpha_mode, base_color_texture
 
@@ -109,6 +117,13 @@ def vrm1_material(document: GltfDocument, index: int) -> ImportedMaterial:
     if mode == "OPAQUE":
         color = color[:3] + (1.0,)  # MToon writes alpha 1 without an alpha keyword
     cutoff = alpha_cutoff(material, where) if mode == "MASK" else BLEND_CLIP_MTOON1 if blend else 0.5
+    width_tex = None
+    width_info = mtoon.get("outlineWidthMultiplyTexture")
+    if outline != OUTLINE_NONE and isinstance(width_info, dict) and width_info.get("index") is not None:
+        # UniVRM imports it linear and samples it at _MainTex's coordinates (its own transform unused).
+        width_tex = int(width_info["index"])
+        fields |= outline_width_sampler(document, width_tex, where, warnings)
     out = Material(name=name, color=color, cutoff=cutoff, lighting=Lighting.Lambert, passes=passes,
                    **queue_fields(queue, f"{where}: render queue"), **fields)
-    return ImportedMaterial(index, out, texture, "VRM 1.0 VRMC_materials_mtoon", tuple(warnings), extra)
+    return ImportedMaterial(index, out, texture, "VRM 1.0 VRMC_materials_mtoon", tuple(warnings), extra,
+                            width_tex, "Data")
