@@ -257,3 +257,37 @@ def test_advice_speaks_vrm_and_apply_fixes_the_eyebrows_as_measured():
     # the VRM export of the fixed material: renderQueueOffsetNumber -1, which UniVRM draws at 2999
     exported = vrm_addon.derived_material(bpy.data.materials["Eyebrows"])[0]
     assert exported.extra["render_queue_offset_number"] == -1 and exported.material.render_queue == 2999
+
+
+def test_the_imported_vrm_goes_the_vrm_addons_way_advised_and_fixed_in_vrm_terms():
+    """Importing the avatar's .vrm: every MToon material gets the VRM Add-on's MToon settings with its
+    Unity settings off (the lead's decision), and the state read back from them equals the direct
+    import (queue, passes with cull, ZWrite, blend, alpha test, the outline and its colour). The sort
+    advice on the imported scene is in VRM terms: a Render Queue Offset Number within MToon's clamp for
+    Transparent (-9..0, MToonValidator), and Apply writes the add-on's setting (its ID properties: what
+    its exporter writes), after which the pair is gone and the frame differs as measured."""
+    from blendlib.blender import gltf_import, schema
+    from tests.support.blender_fixtures import empty_scene
+
+    exported = {m.material.name: m for m in import_file(FIXTURE).materials}
+    scene = empty_scene(320, 180)
+    done = gltf_import.import_gltf(FIXTURE, scene)
+    assert sorted(done.addon_materials) == sorted(exported) and not done.warnings
+    for name, imported in exported.items():
+        mat = bpy.data.materials[name]
+        assert not schema.material_values(mat)["enabled"] and vrm_addon.spec_version(mat) == "1.0"
+        assert vrm_addon.derived_material(mat)[0].material == imported.material, name
+    analysis = blendlib.analyze(scene)
+    offsets = [a for a in analysis.advice if "render_queue_offset_number" in a["change"].get("vrm", {})]
+    assert offsets and all(a["change"]["vrm_spec"] == "1.0" for a in offsets)
+    assert all(-9 <= a["change"]["vrm"]["render_queue_offset_number"] <= 0 for a in offsets)  # Transparent's clamp
+    brows = next(a for a in offsets if a["change"]["material"] == "Eyebrows")
+    assert brows["change"]["vrm"] == {"render_queue_offset_number": -1} and brows["inversions_after"] == 0
+    mat = bpy.data.materials["Eyebrows"]
+    vrm_addon.apply_settings(mat, brows["change"]["vrm"])
+    stored = mat.bl_system_properties_get()["vrm_addon_extension"]["mtoon1"]["extensions"]["vrmc_materials_mtoon"]
+    assert stored["render_queue_offset_number"] == -1 and not schema.material_values(mat)["enabled"]
+    assert vrm_addon.derived_material(mat)[0].material.render_queue == 2999
+    after = blendlib.analyze(scene)
+    assert after.pair_pixels((brows["front"], 0), ("Eyebrows", 0)) == 0
+    assert after.differing == brows["differing_after"]

@@ -187,7 +187,7 @@ def addon_mtoon(mat: Any) -> AddonMToon | None:
         addon_version=version, sources=sources)
 
 
-def _armature_of(obj: Any) -> Any:
+def armature_of(obj: Any) -> Any:
     """The armature object deforming or parenting ``obj`` (None when there is none)."""
     for modifier in getattr(obj, "modifiers", ()):
         if modifier.type == "ARMATURE" and modifier.object is not None:
@@ -208,7 +208,7 @@ def spec_version(mat: Any) -> str:
     armatures = []
     for obj in bpy.data.objects:
         if obj.type == "MESH" and any(slot.material == mat for slot in obj.material_slots):
-            armature = _armature_of(obj)
+            armature = armature_of(obj)
             if armature is not None and _extension(armature.data) is not None:
                 armatures.append(armature.data)
     if not armatures:
@@ -346,6 +346,14 @@ def _output_group() -> Any:
     return group
 
 
+def _texture_ids(texture: AddonTexture) -> dict[str, Any]:
+    """A texture info as the add-on's ID properties hold it (what :func:`_texture_from_ids` reads)."""
+    return {"index": {"source": texture.image, "sampler": {
+                "mag_filter": texture.mag_filter, "min_filter": texture.min_filter,
+                "wrap_s": texture.wrap_s, "wrap_t": texture.wrap_t}},
+            "extensions": {"khr_texture_transform": {"offset": list(texture.offset), "scale": list(texture.scale)}}}
+
+
 def write_addon_mtoon(mat: Any, mtoon: AddonMToon) -> None:
     """Store ``mtoon`` on a ``bpy.types.Material`` as the VRM Add-on 2.20.61 stores it: the ID properties
     ``vrm_addon_extension.mtoon1`` (system properties), the output node group's sockets, and
@@ -355,11 +363,7 @@ def write_addon_mtoon(mat: Any, mtoon: AddonMToon) -> None:
     texture = mtoon.base_color_texture
     base: dict[str, Any] = {"base_color_factor": list(mtoon.base_color_factor)}
     if texture is not None:
-        base["base_color_texture"] = {
-            "index": {"source": texture.image, "sampler": {
-                "mag_filter": texture.mag_filter, "min_filter": texture.min_filter,
-                "wrap_s": texture.wrap_s, "wrap_t": texture.wrap_t}},
-            "extensions": {"khr_texture_transform": {"offset": list(texture.offset), "scale": list(texture.scale)}}}
+        base["base_color_texture"] = _texture_ids(texture)
     mode = OUTLINE_WIDTH_MODES.index(mtoon.outline_width_mode)
     mtoon1 = {
         "enabled": 1, "addon_version": list(WRITTEN_VERSION), "is_outline_material": 0,
@@ -369,7 +373,9 @@ def write_addon_mtoon(mat: Any, mtoon: AddonMToon) -> None:
             "render_queue_offset_number": int(mtoon.render_queue_offset_number),
             "outline_width_mode": mode, "outline_width_factor": float(mtoon.outline_width_factor),
             "outline_color_factor": [float(c) for c in mtoon.outline_color_factor],
-            "outline_lighting_mix_factor": float(mtoon.outline_lighting_mix_factor)}},
+            "outline_lighting_mix_factor": float(mtoon.outline_lighting_mix_factor),
+            **({} if mtoon.outline_width_multiply_texture is None else
+               {"outline_width_multiply_texture": _texture_ids(mtoon.outline_width_multiply_texture)})}},
         "mtoon0_render_queue": int(mtoon.mtoon0_render_queue),
         "mtoon0_front_cull_mode": int(mtoon.mtoon0_front_cull_mode),
         "mtoon0_outline_scaled_max_distance": float(mtoon.mtoon0_outline_scaled_max_distance),

@@ -363,3 +363,35 @@ def test_vrm1_outline_colour_is_converted_to_gamma_with_the_mix():
     colour, mix = line(outlineColorFactor=[1.0, 0.0031308, 0.5], outlineLightingMixFactor=0.25)
     assert colour == pytest.approx((1.0, 0.0031308 * 12.92, 1.055 * 0.5 ** (1 / 2.4) - 0.055), rel=1e-6)
     assert mix == 0.25
+
+
+def test_vrm_addon_settings_of_an_mtoon_material_export_to_the_same_state():
+    """An MToon material of a .vrm as the VRM Add-on's settings (formats/gltf/addon_settings.py): its
+    export (the add-on's exporter's values) imports as the file did; what the add-on's 0.x exporter
+    never writes (``_OutlineCullMode`` 0: it always writes 1) cannot be held: None and why."""
+    from blendlib.formats.gltf.addon_settings import addon_mtoon_of
+    from blendlib.formats.gltf.vrm_addon import addon_material
+
+    entry = {"shader": "VRM/MToon", "renderQueue": 2990,
+             "floatProperties": {"_BlendMode": 2, "_SrcBlend": 5, "_DstBlend": 10, "_ZWrite": 0, "_CullMode": 0,
+                                 "_OutlineWidthMode": 1, "_OutlineWidth": 0.5, "_OutlineColorMode": 1,
+                                 "_OutlineLightingMix": 0.5},
+             "keywordMap": {"_ALPHABLEND_ON": True, "MTOON_OUTLINE_WIDTH_WORLD": True,
+                            "MTOON_OUTLINE_COLOR_MIXED": True},
+             "vectorProperties": {"_Color": [0.5, 0.25, 1.0, 0.5], "_OutlineColor": [1.0, 0.5, 0.0, 1.0]}}
+    doc = triangles_document([{"name": "M"}])
+    doc["extensions"] = {"VRM": {"materialProperties": [entry]}}
+    document = document_from_json(doc, "t.vrm")
+    imported = import_materials(document).materials[0]
+    mtoon, why = addon_mtoon_of(document, imported, "0.x")
+    assert why is None and mtoon.mtoon0_render_queue == 2990 and mtoon.double_sided
+    assert (mtoon.alpha_mode, mtoon.outline_width_mode, mtoon.outline_lighting_mix_factor) == (
+        "BLEND", "worldCoordinates", 0.5)
+    assert addon_material(mtoon, "0.x").material == imported.material
+    entry["floatProperties"]["_OutlineCullMode"] = 0
+    document = document_from_json(doc, "t.vrm")
+    imported = import_materials(document).materials[0]
+    mtoon, why = addon_mtoon_of(document, imported, "0.x")
+    assert mtoon is None and "passes would differ" in why and "keeps Unity settings" in why
+    # not MToon: no settings, no reason
+    assert addon_mtoon_of(document, _import(triangles_document([{"name": "G"}])).materials[0], None) == (None, None)
