@@ -105,15 +105,18 @@ def _normalised(*v: np.ndarray) -> list[np.ndarray]:
     return out
 
 
-def width_factors(mesh: Mesh, material: Material, color_space: ColorSpace) -> np.ndarray | None:
+def width_factors(mesh: Mesh, material: Material, color_space: ColorSpace,
+                  texels: shade.Texels | None = None) -> np.ndarray | None:
     """(3T,) float64: the outline-width texture's red channel at every corner of ``mesh`` (corner k
     of triangle t at 3t + k; module docstring), sampled Point or Bilinear at level 0 (Trilinear's
     level 0 is Bilinear) with the texture's wrap; a mesh without UVs samples at (0, 0) after the
-    offset. None when ``material`` has no outline-width texture (×1)."""
+    offset. ``texels``: the texture already in ``color_space`` (None: converted here). None when
+    ``material`` has no outline-width texture (×1)."""
     texture = material.outline_width_tex
     if texture is None:
         return None
-    texels = shade.texture_texels(texture, color_space)
+    if texels is None:
+        texels = shade.texture_texels(texture, color_space)
     t = mesh.triangle_count
     uv = np.zeros((3 * t, 2), dtype=np.float64) if mesh.uvs is None else \
         np.asarray(mesh.uvs, dtype=np.float64).reshape(-1, 2)
