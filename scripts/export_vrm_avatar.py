@@ -47,7 +47,7 @@ def export(blend: Path = BLEND, out: Path = OUT) -> Path:
     for material in doc.get("materials", []):
         mtoon = vrm_addon.addon_mtoon(bpy.data.materials[material["name"]])
         info = (material.get("pbrMetallicRoughness") or {}).get("baseColorTexture")
-        rewritten = vrm1_material_json(mtoon)
+        rewritten = vrm1_material_json(mtoon, {"base": 0} if mtoon.base_color_texture is not None else {})
         if info is not None and mtoon.base_color_texture is not None:
             texture = mtoon.base_color_texture
             rewritten["pbrMetallicRoughness"]["baseColorTexture"]["index"] = info["index"]

@@ -12,6 +12,8 @@ centre at y = −0.077, behind the eyelashes at −0.142; the eyebrows (y = −0
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import bpy
 import numpy as np
 import pytest
@@ -19,6 +21,7 @@ import pytest
 import blendlib
 from blendlib import blender
 from blendlib.blender import vrm_addon
+from blendlib.core import colorspace
 from blendlib.core.drawlist import draw_calls
 from blendlib.explain.framedebug import pixel_histories
 from blendlib.explain.sorted_reference import analyze
@@ -126,7 +129,7 @@ def test_the_vrm_export_draws_as_the_blend():
     assert sorted(names) == sorted(exported)
     modes = set()
     for name in names:
-        imported, image, mtoon = vrm_addon.derived_material(bpy.data.materials[name])
+        imported, image, _width, mtoon = vrm_addon.derived_material(bpy.data.materials[name])
         assert imported.material == exported[name].material, name
         assert (image is None) == (exported[name].main_tex is None)
         modes.add(mtoon.render_mode)
@@ -191,6 +194,17 @@ def test_world_outline_of_the_head_is_outline_width_factor_metres_wide(scenes):
     # visible: the outermost outline fragment is written (nothing opaque over it, FORWARD_BASE's colour)
     outer = [f for f in histories[last_line].fragments if f.call.renderer.name == "Head"]
     assert [f.result for f in outer] == ["written"] and outer[0].call.state.name == "FORWARD_BASE_OUTLINE"
+    # ... in MToon 1.0's outline colour: outlineColorFactor × lerp(1, lit, outlineLightingMixFactor), the
+    # skin's factor the linear value of the codes (120, 70, 60), the mix the add-on's default 1: the
+    # lit colour of the same fragment (drawn without the outline colour) times that colour.
+    assert outer[0].call.state.outline_color is not None and outer[0].call.state.outline_lighting_mix == 1.0
+    plain = replace(face, renderers=tuple(replace(r, material=replace(r.material, passes=tuple(
+        replace(p, outline_color=None) for p in r.material.passes))) for r in face.renderers))
+    lit = [f for f in pixel_histories(plain, [row[last_line]])[0][0].fragments if f.call.renderer.name == "Head"]
+    colour = np.array([colorspace.decode(c / 255) for c in (120, 70, 60)]) if face.color_space.value == "Linear" \
+        else np.array([120, 70, 60]) / 255
+    assert np.allclose(np.asarray(outer[0].source[:3]), colour * np.asarray(lit[0].source[:3]), rtol=1e-5)
+    assert outer[0].source[3] == lit[0].source[3]  # alpha: the base pass's
 
 
 def test_screen_outline_of_the_top_is_a_constant_share_of_the_screen_height(scenes):
@@ -243,3 +257,37 @@ def test_advice_speaks_vrm_and_apply_fixes_the_eyebrows_as_measured():
     # the VRM export of the fixed material: renderQueueOffsetNumber -1, which UniVRM draws at 2999
     exported = vrm_addon.derived_material(bpy.data.materials["Eyebrows"])[0]
     assert exported.extra["render_queue_offset_number"] == -1 and exported.material.render_queue == 2999
+
+
+def test_the_imported_vrm_goes_the_vrm_addons_way_advised_and_fixed_in_vrm_terms():
+    """Importing the avatar's .vrm: every MToon material gets the VRM Add-on's MToon settings with its
+    Unity settings off (the lead's decision), and the state read back from them equals the direct
+    import (queue, passes with cull, ZWrite, blend, alpha test, the outline and its colour). The sort
+    advice on the imported scene is in VRM terms: a Render Queue Offset Number within MToon's clamp for
+    Transparent (-9..0, MToonValidator), and Apply writes the add-on's setting (its ID properties: what
+    its exporter writes), after which the pair is gone and the frame differs as measured."""
+    from blendlib.blender import gltf_import, schema
+    from tests.support.blender_fixtures import empty_scene
+
+    exported = {m.material.name: m for m in import_file(FIXTURE).materials}
+    scene = empty_scene(320, 180)
+    done = gltf_import.import_gltf(FIXTURE, scene)
+    assert sorted(done.addon_materials) == sorted(exported) and not done.warnings
+    for name, imported in exported.items():
+        mat = bpy.data.materials[name]
+        assert not schema.material_values(mat)["enabled"] and vrm_addon.spec_version(mat) == "1.0"
+        assert vrm_addon.derived_material(mat)[0].material == imported.material, name
+    analysis = blendlib.analyze(scene)
+    offsets = [a for a in analysis.advice if "render_queue_offset_number" in a["change"].get("vrm", {})]
+    assert offsets and all(a["change"]["vrm_spec"] == "1.0" for a in offsets)
+    assert all(-9 <= a["change"]["vrm"]["render_queue_offset_number"] <= 0 for a in offsets)  # Transparent's clamp
+    brows = next(a for a in offsets if a["change"]["material"] == "Eyebrows")
+    assert brows["change"]["vrm"] == {"render_queue_offset_number": -1} and brows["inversions_after"] == 0
+    mat = bpy.data.materials["Eyebrows"]
+    vrm_addon.apply_settings(mat, brows["change"]["vrm"])
+    stored = mat.bl_system_properties_get()["vrm_addon_extension"]["mtoon1"]["extensions"]["vrmc_materials_mtoon"]
+    assert stored["render_queue_offset_number"] == -1 and not schema.material_values(mat)["enabled"]
+    assert vrm_addon.derived_material(mat)[0].material.render_queue == 2999
+    after = blendlib.analyze(scene)
+    assert after.pair_pixels((brows["front"], 0), ("Eyebrows", 0)) == 0
+    assert after.differing == brows["differing_after"]

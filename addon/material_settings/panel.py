@@ -139,6 +139,11 @@ class UNITY_PT_material(_MaterialPanel, bpy.types.Panel):
         sub = body.column()
         sub.active = unity.vertex_color == "Particle"
         sub.prop(unity, "tint_color")
+        body.template_ID(unity, "outline_width_tex", new="image.new", open="image.open")
+        row = body.row(align=True)
+        row.active = unity.outline_width_tex is not None
+        row.prop(unity, "outline_width_tex_filter")
+        row.prop(unity, "outline_width_tex_wrap")
 
 
 class UNITY_PT_material_passes(_MaterialPanel, bpy.types.Panel):
@@ -215,6 +220,14 @@ def draw_pass(layout, item, rule: tuple[str, str] | None = None) -> None:
     sub.prop(item, "outline_width")
     sub.prop(item, "outline_formula")
     sub.prop(item, "outline_max_distance")
+    row = sub.row(align=True)
+    row.prop(item, "outline_colored", text="")
+    colour = row.row(align=True)
+    colour.active = item.outline_colored
+    colour.prop(item, "outline_color")
+    mix = sub.row()
+    mix.active = item.outline_colored
+    mix.prop(item, "outline_lighting_mix")
     col.separator()
     col.prop(item, "stencil")
     sub = col.column(align=True)

@@ -44,11 +44,13 @@ class UNITY_OT_import_vrm(Operator, ImportHelper):
         except GltfError as exc:
             self.report({"ERROR"}, " ".join(str(exc).split()))
             return {"CANCELLED"}
-        for warning in done.result.warnings:
+        for warning in (*done.result.warnings, *done.warnings):
             self.report({"WARNING"}, warning)
-        count = sum(m is not None for m in done.materials)
+        count = sum(m is not None for m in done.materials) - len(done.addon_materials)
         kind = f"VRM {done.result.vrm}" if done.result.vrm else "glTF"
-        self.report({"INFO"}, f"Imported {kind}: {len(done.objects)} objects, {count} materials with Unity settings")
+        vrm = f", {len(done.addon_materials)} with VRM Add-on MToon settings" if done.addon_materials else ""
+        self.report({"INFO"}, f"Imported {kind}: {len(done.objects)} objects, {count} materials with Unity settings"
+                              f"{vrm}")
         return {"FINISHED"}
 
 

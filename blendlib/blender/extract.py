@@ -58,6 +58,17 @@ class _Extractor:
             self.textures[key] = self._load_texture(image)
         return self.textures[key]
 
+    def texture_as(self, image: Any, encoding: str) -> Texture | None:
+        """:meth:`texture` of ``image`` read with ``encoding`` whatever its colour space (UniVRM imports
+        a VRM 1.0 outline-width texture as linear data), kept per image and encoding."""
+        texture = self.texture(image)
+        if texture is None or texture.encoding == encoding or texture.missing:
+            return texture
+        key = (texture.name, id(texture), encoding)
+        if key not in self.textures:
+            self.textures[key] = replace(texture, encoding=encoding)
+        return self.textures[key]
+
     def _load_texture(self, image: Any) -> Texture:
         name = image.name
         try:
@@ -100,13 +111,15 @@ class _Extractor:
         if not values["enabled"]:
             derived = vrm_addon.derived_material(mat)  # the VRM Add-on's MToon: as UniVRM draws its export
             if derived is not None:
-                imported, image, _ = derived
+                imported, image, width_image, _ = derived
                 if SHADING_APPROXIMATION not in self.warnings:
                     self.warnings.append(SHADING_APPROXIMATION)
-                return replace(imported.material, name=mat.name, main_tex=texture(image))
+                width = self.texture_as(width_image, imported.outline_width_encoding) if with_texture else None
+                return replace(imported.material, name=mat.name, main_tex=texture(image), outline_width_tex=width)
             color, image = principled_inputs(mat)
             return Material(name=mat.name, color=color, main_tex=texture(image))
-        return material_from_values(mat.name, values, texture(values["main_tex"]))
+        return material_from_values(mat.name, values, texture(values["main_tex"]),
+                                    outline_width_tex=texture(values["outline_width_tex"]))
 
     # -- meshes ----------------------------------------------------------------
     def slot_warnings(self) -> list[str]:

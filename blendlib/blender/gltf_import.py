@@ -2,8 +2,12 @@
 
 The geometry, images and node materials come from Blender's own glTF importer (``io_scene_gltf2``,
 shipped inside bpy; it reads ``.vrm`` files as the glb files they are). Every material then gets the
-Unity settings UniVRM / UniGLTF set (:mod:`blendlib.formats.gltf`) through the schema's writer, with
-its ``_MainTex`` image.
+state UniVRM / UniGLTF set (:mod:`blendlib.formats.gltf`): an MToon material of a ``.vrm`` as the
+VRM Add-on for Blender's MToon settings (:mod:`blendlib.formats.gltf.addon_settings`; its Unity
+settings off, the file's spec version on the armature), so that it renders, is advised and is
+changed as the add-on's own materials are; every other material (and an MToon material the add-on
+cannot state exactly, with a warning) as Unity settings through the schema's writer, with its
+``_MainTex`` and outline-width images. Either way the state read back equals the direct import's.
 
 Blender names what it imports after the file and dedupes names (``Skin`` becomes ``Skin.001`` when
 the file already has a ``Skin``), so a material's name does not say which glTF material it is. The
@@ -28,23 +32,29 @@ from pathlib import Path
 from typing import Any
 
 from ..formats.gltf import GltfDocument, GltfError, GltfImport, import_materials, read_document
+from ..formats.gltf.addon_settings import addon_mtoon_of, differences, with_images
 from ..formats.gltf.container import glb_bytes, read_binary_chunk
 from .schema import write_material, write_scene_settings
+from .vrm_addon import EXTENSION_KEY, armature_of, derived_material, write_addon_mtoon, write_armature_spec_version
 
 TOKEN = "UnityPassesImport"
 
 
 @dataclass(frozen=True)
 class ImportResult:
-    """What :func:`import_gltf` did: the Unity settings per material (``result``), the Blender
+    """What :func:`import_gltf` did: the Unity state per material (``result``), the Blender
     materials in glTF index order (None where a glTF material is not used by any mesh), the new
-    objects, and the camera and Sun it added (None when it added none)."""
+    objects, and the camera and Sun it added (None when it added none); ``addon_materials``: the
+    names of the materials that got the VRM Add-on's MToon settings (the others got Unity
+    settings), ``warnings``: why an MToon material kept Unity settings."""
 
     result: GltfImport
     materials: tuple[Any, ...]
     objects: tuple[Any, ...]
     camera: Any = None
     sun: Any = None
+    addon_materials: tuple[str, ...] = ()
+    warnings: tuple[str, ...] = ()
 
 
 def _token_material(index: int) -> str:
@@ -93,8 +103,9 @@ def _renamed_copy(document: GltfDocument) -> Iterator[str]:
         yield path
 
 
-def _run_blender_importer(path: str, where: str, scene: Any) -> None:
-    """Blender's glTF importer into ``scene`` (it links what it makes into the context's collection)."""
+def _run_blender_importer(path: str, where: str, scene: Any, unused_images: bool = False) -> None:
+    """Blender's glTF importer into ``scene`` (it links what it makes into the context's collection);
+    ``unused_images``: also the images (and materials) no mesh uses."""
     import bpy  # noqa: I001 - bpy before addon_utils
 
     import addon_utils
@@ -103,7 +114,7 @@ def _run_blender_importer(path: str, where: str, scene: Any) -> None:
     override = {} if scene == bpy.context.scene else {"scene": scene, "view_layer": scene.view_layers[0]}
     try:
         with bpy.context.temp_override(**override):
-            result = bpy.ops.import_scene.gltf(filepath=path)
+            result = bpy.ops.import_scene.gltf(filepath=path, import_unused_materials=unused_images)
     except (RuntimeError, TypeError, ValueError, KeyError, IndexError, AttributeError) as exc:
         # Blender's message is a traceback then "Location: ops.py:N": the reason is the last line of neither.
         lines = [line.strip() for line in str(exc).splitlines()
@@ -151,9 +162,12 @@ def import_gltf(path: str | Path, scene: Any = None, *, add_camera: bool = True,
     result = import_materials(document)
     scene = scene or bpy.context.scene
     before = {key: {b.as_pointer() for b in getattr(bpy.data, key)} for key in _CREATED}
+    # MToon's outline-width textures are used by no glTF material: Blender's importer makes their
+    # images only when told to import unused ones.
+    unused = any(m.outline_width_tex is not None for m in result.materials)
     try:
         with _renamed_copy(document) as copy_path:
-            _run_blender_importer(copy_path, document.path, scene)
+            _run_blender_importer(copy_path, document.path, scene, unused_images=unused)
     except GltfError:
         _remove_new(before)  # what Blender's importer made before it stopped
         raise
@@ -165,6 +179,8 @@ def import_gltf(path: str | Path, scene: Any = None, *, add_camera: bool = True,
             images[index] = image
             image.name = document.image_name(index)
     materials: list[Any] = [None] * len(result.materials)
+    mtoon: list[tuple[Any, Any, Any]] = []  # (Blender material, imported, the add-on's settings)
+    warnings: list[str] = []
     for mat in _new(bpy.data.materials, before["materials"]):
         token = _strip_suffix(mat.name)
         if not (token.startswith(f"{TOKEN}M") and token[len(TOKEN) + 1:].isdigit()):
@@ -172,13 +188,29 @@ def import_gltf(path: str | Path, scene: Any = None, *, add_camera: bool = True,
         index = int(token[len(TOKEN) + 1:])
         imported = result.materials[index]
         mat.name = imported.material.name
-        image = None
-        if imported.main_tex is not None:
-            image = images.get(document.texture_image(imported.main_tex))
-        write_material(mat, imported.material, enabled=True, main_tex=image)
+        settings, why = addon_mtoon_of(document, imported, result.vrm)
+        if why is not None:
+            warnings.append(why)
+        if settings is not None:
+            mtoon.append((mat, imported, with_images(settings, lambda i: images.get(document.texture_image(i)))))
+        else:
+            _write_unity_settings(mat, imported, document, images)
         if materials[index] is None:
             materials[index] = mat
     objects = _new(bpy.data.objects, before["objects"])
+    addon_materials: list[str] = []
+    if mtoon:
+        objects += _vrm_armature(objects, result.vrm)
+        for mat, imported, settings in mtoon:
+            write_addon_mtoon(mat, settings)
+            why = _derived_differs(mat, imported)
+            if why is None:
+                addon_materials.append(mat.name)
+                continue
+            warnings.append(f"material {mat.name!r}: read back from the VRM Add-on's settings, {why} would differ; "
+                            "it keeps Unity settings")
+            del mat.bl_system_properties_get()[EXTENSION_KEY]
+            _write_unity_settings(mat, imported, document, images)
     camera = sun = None
     if add_camera and not document.list("cameras"):
         camera = frame_model(scene, objects, facing_positive_y=result.vrm == "0.x")
@@ -186,7 +218,62 @@ def import_gltf(path: str | Path, scene: Any = None, *, add_camera: bool = True,
         scene.camera = next((o for o in objects if o.type == "CAMERA"), None)
     if add_sun and not any(o.type == "LIGHT" and o.data.type == "SUN" for o in scene.objects):
         sun = add_front_sun(scene, facing_positive_y=result.vrm == "0.x")
-    return ImportResult(result, tuple(materials), tuple(objects), camera, sun)
+    return ImportResult(result, tuple(materials), tuple(objects), camera, sun, tuple(addon_materials),
+                        tuple(warnings))
+
+
+def _write_unity_settings(mat: Any, imported: Any, document: GltfDocument, images: dict[int, Any]) -> None:
+    """``imported``'s Unity settings on ``mat`` (on), with its ``_MainTex`` and outline-width images."""
+    image = width = None
+    if imported.main_tex is not None:
+        image = images.get(document.texture_image(imported.main_tex))
+    if imported.outline_width_tex is not None:
+        width = images.get(document.texture_image(imported.outline_width_tex))
+        if width is not None and imported.outline_width_encoding == "Data" and width is not image:
+            width.colorspace_settings.name = "Non-Color"  # UniVRM reads VRM 1.0's as linear data
+    write_material(mat, imported.material, enabled=True, main_tex=image, outline_width_tex=width)
+
+
+def _derived_differs(mat: Any, imported: Any) -> str | None:
+    """What of the state read back from ``mat``'s VRM Add-on settings differs from ``imported`` (None:
+    nothing): the armature's spec version and the images included."""
+    derived = derived_material(mat)
+    if derived is None:
+        return "the whole material"
+    differ = differences(derived[0], imported)
+    if derived[2] is not None and derived[0].outline_width_encoding == "Data":
+        derived[2].colorspace_settings.name = "Non-Color"  # as the Unity settings path sets it
+    return ", ".join(differ) if differ else None
+
+
+def _vrm_armature(objects: list[Any], vrm: str) -> list[Any]:
+    """Where the VRM Add-on keeps the spec version that picks a material's export: the armature of
+    the objects using it (:func:`.vrm_addon.spec_version`). Every armature the import made gets
+    ``vrm``; when it made none, one is added (returned); meshes outside every armature are parented
+    (their top object, world transform kept) to the first, so that each finds its version."""
+    import bpy
+
+    armatures = [o for o in objects if o.type == "ARMATURE"]
+    added = []
+    if not armatures:
+        collection = objects[0].users_collection[0] if objects and objects[0].users_collection else \
+            bpy.context.scene.collection
+        armature = bpy.data.objects.new("VRM Armature", bpy.data.armatures.new("VRM Armature"))
+        collection.objects.link(armature)
+        armatures = added = [armature]
+    for armature in armatures:
+        write_armature_spec_version(armature.data, vrm)
+    root = armatures[0]
+    for obj in objects:
+        if obj.type != "MESH" or armature_of(obj) is not None:
+            continue
+        top = obj
+        while top.parent is not None:
+            top = top.parent
+        world = top.matrix_world.copy()
+        top.parent = root
+        top.matrix_world = world
+    return added
 
 
 def _bounds(objects: list[Any]) -> tuple[Any, Any] | None:

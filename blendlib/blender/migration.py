@@ -18,6 +18,11 @@ Versions:
    ``Light.unity`` group. Nothing stored changes meaning: values absent from a version-2 group
    take defaults that draw as before (ForwardBase passes, GEqual alpha test, no mipmaps, no
    vertex colour, one sample), so the step only stamps the version.
+4. MToon's outline colour appended per pass: ``outline_colored``, ``outline_color``,
+   ``outline_lighting_mix``; per material the outline-width texture ``outline_width_tex``,
+   ``outline_width_tex_filter``, ``outline_width_tex_wrap``. Absent from a version-3 group, the
+   switch is off and there is no texture: the pass draws the material's lit colour and the
+   outline its full width, as before; the step only stamps the version.
 
 This module does not import bpy.
 """
@@ -30,7 +35,7 @@ from typing import Any
 from ..core.vocabulary import color_mask_bits
 
 #: The version the writers store and the readers expect.
-SCHEMA_VERSION = 3
+SCHEMA_VERSION = 4
 
 #: Name of the stored version in ``Material.unity`` and ``Scene.unity``.
 VERSION_KEY = "schema_version"
@@ -62,10 +67,11 @@ def _unchanged(values: dict[str, Any]) -> dict[str, Any]:
 
 
 #: ``version -> function`` that turns stored values of that version into the next version's.
-MATERIAL_STEPS: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {1: _material_1_to_2, 2: _unchanged}
-SCENE_STEPS: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {1: _unchanged, 2: _unchanged}
+MATERIAL_STEPS: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {1: _material_1_to_2, 2: _unchanged,
+                                                                         3: _unchanged}
+SCENE_STEPS: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {1: _unchanged, 2: _unchanged, 3: _unchanged}
 #: ``Light.unity`` is new in version 3: a group stored without a version holds version-3 values.
-LIGHT_STEPS: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {1: _unchanged, 2: _unchanged}
+LIGHT_STEPS: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {1: _unchanged, 2: _unchanged, 3: _unchanged}
 
 
 def _copy(value: Any) -> Any:

@@ -12,7 +12,9 @@ absent values take the defaults of the data model. Each group stores its schema
 version (:mod:`.migration`): readers migrate values of older versions as they read,
 writers migrate the stored group in place before they write and stamp the version.
 
-This module does not import bpy at module level.
+This module does not import bpy at module level. It is longer than the project's ~600 lines
+because the field tables (the stored file format, one row per property with its description) and
+the one reader/writer of them belong together.
 """
 
 from __future__ import annotations
@@ -144,6 +146,17 @@ PASS_FIELDS: tuple[Field, ...] = (
     Field("outline_max_distance", "float", 1.0, "Outline Max Distance",
           "MToon 0.x's _OutlineScaledMaxDistance: in Screen mode the outline stops growing with distance "
           "beyond this clip w", min=0.0, soft_min=1.0, soft_max=10.0),
+    # Schema version 4 (issue 28): MToon's outline colour, appended; absent, the pass draws the
+    # material's lit colour as before. ``outline_colored`` off is the core's ``outline_color`` None.
+    Field("outline_colored", "bool", False, "Outline Color",
+          "Draw this pass in MToon's outline colour (0.x _OutlineColor, 1.0 outlineColorFactor) instead of the "
+          "material's lit colour"),
+    Field("outline_color", "color", (0.0, 0.0, 0.0), "Outline Color",
+          "MToon's outline colour (sRGB-encoded, like a Unity colour property)", size=3, subtype="COLOR_GAMMA",
+          min=0.0, soft_max=1.0),
+    Field("outline_lighting_mix", "float", 0.0, "Outline Lighting Mix",
+          "MToon's _OutlineLightingMix / outlineLightingMixFactor: colour × lerp(1, lit colour, mix); "
+          "0 the outline colour alone", min=0.0, max=1.0),
 )
 
 
@@ -181,6 +194,15 @@ MATERIAL_FIELDS: tuple[Field, ...] = (
     Field("tint_color", "color", (0.5, 0.5, 0.5, 0.5), "_TintColor",
           "_TintColor of the particle shaders (sRGB-encoded, like a Unity colour property)", size=4,
           subtype="COLOR_GAMMA", min=0.0, soft_max=1.0),
+    # Schema version 4 (issue 28): MToon's outline-width texture, appended; absent: none (×1).
+    Field("outline_width_tex", "image", None, "Outline Width Texture",
+          "MToon's outline-width texture (_OutlineWidthTexture / outlineWidthMultiplyTexture): an outline pass's "
+          "width times its red channel at the vertex's _MainTex coordinates (none = x1; a Non-Color image is "
+          "read as data)"),
+    Field("outline_width_tex_filter", "enum", "Bilinear", "Width Filter",
+          "Sampler filter mode of the outline-width texture (sampled at mip level 0)", enum=TextureFilter),
+    Field("outline_width_tex_wrap", "enum", "Repeat", "Width Wrap", "Sampler wrap mode of the outline-width texture",
+          enum=TextureWrap),
 )
 
 
@@ -349,12 +371,14 @@ def light_settings(light: Any) -> dict[str, Any]:
     return read_group(_current_source(light, migrate_light), LIGHT_FIELDS)
 
 
-def material_from_values(name: str, values: Mapping[str, Any], main_tex: Any = None) -> Material:
+def material_from_values(name: str, values: Mapping[str, Any], main_tex: Any = None,
+                         outline_width_tex: Any = None) -> Material:
     """The :class:`Material` of :func:`material_values` output (an enabled material): every schema
-    field the dataclass holds, enums parsed; ``main_tex`` the converted texture (or None)."""
-    kwargs: dict[str, Any] = {"name": name, "main_tex": main_tex}
+    field the dataclass holds, enums parsed; ``main_tex`` and ``outline_width_tex`` the converted
+    textures (or None)."""
+    kwargs: dict[str, Any] = {"name": name, "main_tex": main_tex, "outline_width_tex": outline_width_tex}
     for f in MATERIAL_FIELDS:
-        if f.name in ("enabled", "main_tex"):
+        if f.name in ("enabled", "main_tex", "outline_width_tex"):
             continue
         value = values[f.name]
         if f.kind == "passes":
@@ -368,8 +392,12 @@ def material_from_values(name: str, values: Mapping[str, Any], main_tex: Any = N
 
 
 def pass_from_values(values: dict[str, Any]) -> Pass:
-    """A :class:`Pass` from a dict of :data:`PASS_FIELDS` values (identifiers, set colour mask)."""
-    return pass_from_dict({k: (sorted(v) if k == "color_mask" else v) for k, v in values.items()})
+    """A :class:`Pass` from a dict of :data:`PASS_FIELDS` values (identifiers, set colour mask;
+    ``outline_colored`` off: no outline colour) or of :func:`~blendlib.core.vocabulary.pass_to_dict`."""
+    values = {k: (sorted(v) if k == "color_mask" else v) for k, v in values.items()}
+    if not values.pop("outline_colored", values.get("outline_color") is not None):
+        values["outline_color"] = None
+    return pass_from_dict(values)
 
 
 def read_pass(item: Any) -> Pass:
@@ -420,10 +448,20 @@ def _encode(f: Field, value: Any, rna: bool) -> Any:
     raise ValueError(f"cannot write a {f.kind} field")
 
 
+def _pass_field(p: Pass, name: str) -> Any:
+    """The value of :data:`PASS_FIELDS` field ``name`` for ``p`` (the outline colour's switch and
+    its colour, black when off, stand for the core's ``outline_color`` or None)."""
+    if name == "outline_colored":
+        return p.outline_color is not None
+    if name == "outline_color" and p.outline_color is None:
+        return _BY_NAME["pass"][name].default
+    return getattr(p, name)
+
+
 def _encode_pass(p: Pass | Mapping[str, Any], rna: bool) -> dict[str, Any]:
     if not isinstance(p, Pass):
         p = pass_from_values(dict(p))
-    return {f.name: _encode(f, getattr(p, f.name), rna) for f in PASS_FIELDS}
+    return {f.name: _encode(f, _pass_field(p, f.name), rna) for f in PASS_FIELDS}
 
 
 def _encode_values(kind: str, values: Mapping[str, Any], rna: bool) -> dict[str, Any]:
@@ -478,10 +516,10 @@ def _assign(id_block: Any, kind: str, values: Mapping[str, Any]) -> None:
 
 def material_fields(material: Material) -> dict[str, Any]:
     """The ``Material.unity`` values of a :class:`Material`: every schema field it holds except
-    ``main_tex`` (a :class:`~blendlib.core.vocabulary.Texture` is pixels, not a Blender image)."""
+    the textures (a :class:`~blendlib.core.vocabulary.Texture` is pixels, not a Blender image)."""
     names = {f.name for f in MATERIAL_FIELDS}
     return {f.name: getattr(material, f.name) for f in fields(Material)
-            if f.name in names and f.name != "main_tex"}
+            if f.name in names and f.name not in ("main_tex", "outline_width_tex")}
 
 
 def write_material(mat: Any, material: Material | None = None, **values: Any) -> None:

@@ -14,11 +14,13 @@ the material (``mtoon1.addon_version``), as its own migration reads them
   ``Alpha Cutoff``;
 * double sided: ``not material.use_backface_culling`` (every version);
 * ``transparent_with_z_write``, ``render_queue_offset_number``, ``outline_width_mode`` (0 none,
-  1 world, 2 screen), ``outline_width_factor``, ``outline_color_factor``, the base colour and its
+  1 world, 2 screen), ``outline_width_factor``, ``outline_color_factor``,
+  ``outline_lighting_mix_factor``, the base colour and its
   texture: before 2.20.62 the ID properties (``extensions.vrmc_materials_mtoon``,
   ``pbr_metallic_roughness``; absent = the add-on's defaults: sampler filters NEAREST, wraps
   REPEAT); from 2.20.62 the sockets ``Transparent With Z-Write``, ``Render Queue Offset Number``,
-  ``Outline Width Mode``, ``Outline Width``, ``Outline Color``, ``Lit Color``, ``Lit Color Alpha``
+  ``Outline Width Mode``, ``Outline Width``, ``Outline Color``, ``Outline LightingMix``, ``Lit Color``,
+  ``Lit Color Alpha``
   and the texture's nodes ``Mtoon1BaseColorTexture.Image`` / ``.Uv``;
 * VRM 0.x only: ``mtoon0_render_queue`` (2000), ``mtoon0_front_cull_mode`` (False),
   ``mtoon0_outline_scaled_max_distance`` (1).
@@ -33,7 +35,14 @@ from dataclasses import replace
 from typing import Any
 
 from ..formats.gltf.records import ImportedMaterial
-from ..formats.gltf.vrm_addon import ALPHA_MODES, OUTLINE_WIDTH_MODES, AddonMToon, AddonTexture, addon_material
+from ..formats.gltf.vrm_addon import (
+    ALPHA_MODES,
+    OUTLINE_WIDTH_MODES,
+    AddonMToon,
+    AddonTexture,
+    addon_material,
+    texture_images,
+)
 from ..formats.gltf.vrm_advice import VrmSettings
 
 EXTENSION_KEY = "vrm_addon_extension"
@@ -148,6 +157,7 @@ def addon_mtoon(mat: Any) -> AddonMToon | None:
         outline = int(_get(mtoon_ids, "outline_width_mode", default=0))
         width = float(_get(mtoon_ids, "outline_width_factor", default=0.0))
         outline_color = tuple(float(v) for v in _get(mtoon_ids, "outline_color_factor", default=(0.0, 0.0, 0.0)))
+        outline_mix = float(_get(mtoon_ids, "outline_lighting_mix_factor", default=1.0))
         factor = tuple(float(v) for v in _get(base_ids, "base_color_factor", default=(1.0, 1.0, 1.0, 1.0)))
         texture = _texture_from_ids(base_info)
         sources["mtoon"] = "ID properties (add-on before 2.20.62)"
@@ -157,6 +167,7 @@ def addon_mtoon(mat: Any) -> AddonMToon | None:
         outline = int(round(float(_socket(node, "Outline Width Mode", 0))))
         width = float(_socket(node, "Outline Width", 0.0))
         outline_color = tuple(float(v) for v in _socket(node, "Outline Color", (0.0, 0.0, 0.0))[:3])
+        outline_mix = float(_socket(node, "Outline LightingMix", 1.0))
         lit = _socket(node, "Lit Color", (1.0, 1.0, 1.0, 1.0))
         factor = (float(lit[0]), float(lit[1]), float(lit[2]), float(_socket(node, "Lit Color Alpha", 1.0)))
         texture = _texture_from_nodes(mat, base_info)
@@ -166,7 +177,9 @@ def addon_mtoon(mat: Any) -> AddonMToon | None:
         double_sided=not mat.use_backface_culling, transparent_with_z_write=zwrite,
         render_queue_offset_number=offset,
         outline_width_mode=OUTLINE_WIDTH_MODES[outline] if 0 <= outline < 3 else "none",
-        outline_width_factor=width, outline_color_factor=outline_color, base_color_factor=factor,
+        outline_width_factor=width, outline_color_factor=outline_color, outline_lighting_mix_factor=outline_mix,
+        outline_width_multiply_texture=_texture_from_ids(_get(mtoon_ids, "outline_width_multiply_texture")),
+        base_color_factor=factor,
         base_color_texture=texture,
         mtoon0_render_queue=int(_get(mtoon1, "mtoon0_render_queue", default=2000)),
         mtoon0_front_cull_mode=bool(_get(mtoon1, "mtoon0_front_cull_mode", default=0)),
@@ -174,7 +187,7 @@ def addon_mtoon(mat: Any) -> AddonMToon | None:
         addon_version=version, sources=sources)
 
 
-def _armature_of(obj: Any) -> Any:
+def armature_of(obj: Any) -> Any:
     """The armature object deforming or parenting ``obj`` (None when there is none)."""
     for modifier in getattr(obj, "modifiers", ()):
         if modifier.type == "ARMATURE" and modifier.object is not None:
@@ -195,7 +208,7 @@ def spec_version(mat: Any) -> str:
     armatures = []
     for obj in bpy.data.objects:
         if obj.type == "MESH" and any(slot.material == mat for slot in obj.material_slots):
-            armature = _armature_of(obj)
+            armature = armature_of(obj)
             if armature is not None and _extension(armature.data) is not None:
                 armatures.append(armature.data)
     if not armatures:
@@ -205,15 +218,15 @@ def spec_version(mat: Any) -> str:
     return "1.0" if int(_get(_extension(armatures[0]), "spec_version", default=0)) == 1 else "0.x"
 
 
-def derived_material(mat: Any) -> tuple[ImportedMaterial, Any, AddonMToon] | None:
-    """(the Unity state UniVRM draws, the ``_MainTex`` Blender image or None, the add-on's settings) of a
-    material of the VRM Add-on; None for any other material."""
+def derived_material(mat: Any) -> tuple[ImportedMaterial, Any, Any, AddonMToon] | None:
+    """(the Unity state UniVRM draws, the ``_MainTex`` and the outline-width Blender images or None, the
+    add-on's settings) of a material of the VRM Add-on; None for any other material."""
     mtoon = addon_mtoon(mat)
     if mtoon is None:
         return None
     imported = addon_material(mtoon, spec_version(mat))
-    image = mtoon.base_color_texture.image if imported.main_tex is not None else None
-    return imported, image, mtoon
+    image, width_image = texture_images(mtoon, imported)
+    return imported, image, width_image, mtoon
 
 
 def summary(mat: Any) -> str | None:
@@ -223,7 +236,7 @@ def summary(mat: Any) -> str | None:
     derived = derived_material(mat)
     if derived is None:
         return None
-    imported, _image, mtoon = derived
+    imported, _image, _width_image, mtoon = derived
     material = imported.material
     base = material.passes[0]
     words = [f"queue {material.render_queue}", f"Cull {base.cull}", f"ZWrite {'On' if base.zwrite else 'Off'}",
@@ -313,7 +326,7 @@ def apply_settings(mat: Any, fields: dict[str, Any]) -> AddonMToon:
 #: The add-on version the writer stores: the corpus files' (alpha mode in sockets, the rest in ID properties).
 WRITTEN_VERSION = (2, 20, 61)
 _FLOAT_SOCKETS = ("Double Sided", "Transparent With Z-Write", "Render Queue Offset Number", "Lit Color Alpha",
-                  "Outline Width Mode", "Outline Width", "Alpha Mode", "Alpha Cutoff")
+                  "Outline Width Mode", "Outline Width", "Outline LightingMix", "Alpha Mode", "Alpha Cutoff")
 _COLOR_SOCKETS = ("Lit Color", "Outline Color")
 
 
@@ -333,6 +346,14 @@ def _output_group() -> Any:
     return group
 
 
+def _texture_ids(texture: AddonTexture) -> dict[str, Any]:
+    """A texture info as the add-on's ID properties hold it (what :func:`_texture_from_ids` reads)."""
+    return {"index": {"source": texture.image, "sampler": {
+                "mag_filter": texture.mag_filter, "min_filter": texture.min_filter,
+                "wrap_s": texture.wrap_s, "wrap_t": texture.wrap_t}},
+            "extensions": {"khr_texture_transform": {"offset": list(texture.offset), "scale": list(texture.scale)}}}
+
+
 def write_addon_mtoon(mat: Any, mtoon: AddonMToon) -> None:
     """Store ``mtoon`` on a ``bpy.types.Material`` as the VRM Add-on 2.20.61 stores it: the ID properties
     ``vrm_addon_extension.mtoon1`` (system properties), the output node group's sockets, and
@@ -342,11 +363,7 @@ def write_addon_mtoon(mat: Any, mtoon: AddonMToon) -> None:
     texture = mtoon.base_color_texture
     base: dict[str, Any] = {"base_color_factor": list(mtoon.base_color_factor)}
     if texture is not None:
-        base["base_color_texture"] = {
-            "index": {"source": texture.image, "sampler": {
-                "mag_filter": texture.mag_filter, "min_filter": texture.min_filter,
-                "wrap_s": texture.wrap_s, "wrap_t": texture.wrap_t}},
-            "extensions": {"khr_texture_transform": {"offset": list(texture.offset), "scale": list(texture.scale)}}}
+        base["base_color_texture"] = _texture_ids(texture)
     mode = OUTLINE_WIDTH_MODES.index(mtoon.outline_width_mode)
     mtoon1 = {
         "enabled": 1, "addon_version": list(WRITTEN_VERSION), "is_outline_material": 0,
@@ -355,7 +372,10 @@ def write_addon_mtoon(mat: Any, mtoon: AddonMToon) -> None:
             "transparent_with_z_write": int(mtoon.transparent_with_z_write),
             "render_queue_offset_number": int(mtoon.render_queue_offset_number),
             "outline_width_mode": mode, "outline_width_factor": float(mtoon.outline_width_factor),
-            "outline_color_factor": [float(c) for c in mtoon.outline_color_factor]}},
+            "outline_color_factor": [float(c) for c in mtoon.outline_color_factor],
+            "outline_lighting_mix_factor": float(mtoon.outline_lighting_mix_factor),
+            **({} if mtoon.outline_width_multiply_texture is None else
+               {"outline_width_multiply_texture": _texture_ids(mtoon.outline_width_multiply_texture)})}},
         "mtoon0_render_queue": int(mtoon.mtoon0_render_queue),
         "mtoon0_front_cull_mode": int(mtoon.mtoon0_front_cull_mode),
         "mtoon0_outline_scaled_max_distance": float(mtoon.mtoon0_outline_scaled_max_distance),
@@ -383,6 +403,7 @@ def write_addon_mtoon(mat: Any, mtoon: AddonMToon) -> None:
                "Render Queue Offset Number": float(mtoon.render_queue_offset_number),
                "Lit Color Alpha": float(mtoon.base_color_factor[3]), "Outline Width Mode": float(mode),
                "Outline Width": float(mtoon.outline_width_factor),
+               "Outline LightingMix": float(mtoon.outline_lighting_mix_factor),
                "Alpha Mode": float(ALPHA_MODES.index(mtoon.alpha_mode)), "Alpha Cutoff": float(mtoon.alpha_cutoff)}
     for name, value in sockets.items():
         node.inputs[name].default_value = value

@@ -18,8 +18,10 @@ examples:
 
 The geometry comes from Blender's glTF importer; every material gets the Unity settings UniVRM
 (VRM 0.x materialProperties as stored, VRM 1.0 VRMC_materials_mtoon through MToon's validator) or
-UniGLTF (plain glTF) set for Unity's built-in pipeline. A camera framing the model and a Sun are
-added when the file has none. --json prints one record per material, the one `shaderlab` prints
+UniGLTF (plain glTF) set for Unity's built-in pipeline; the MToon materials of a .vrm get them as the
+VRM Add-on for Blender's MToon settings (Unity settings off, the spec version on the armature), so
+that they render, are advised and are changed as the add-on's own materials. A camera framing the
+model and a Sun are added when the file has none. --json prints one record per material, the one `shaderlab` prints
 (name, material, passes with light_mode/drawn/reason, warnings, extra), plus its glTF index and the
 importer that took it. A bad file is one error line and writes nothing.
 """
@@ -93,7 +95,7 @@ def run(args: argparse.Namespace) -> int:
     except GltfError as exc:
         raise CliError(str(exc)) from None
     _save(output)
-    for warning in result.warnings:
+    for warning in (*result.warnings, *done.warnings):
         warn(warning)
     if args.json:
         sys.stdout.write(json.dumps(done.result.to_dict() | {"output": str(output)}, indent=2) + "\n")

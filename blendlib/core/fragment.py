@@ -122,7 +122,7 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
     (normal, texel); the others are shaded once per fragment. Work per source triangle
     (runs, flatness, table ids) is done per row and expanded.
     """
-    p, material, texels = state.pass_state, state.material, state.texels
+    p, material, texels, outline = state.pass_state, state.material, state.texels, state.outline
     length = rows.length[start:stop]
     n = int(length.sum())
     if n == 0:
@@ -174,10 +174,11 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
         uv = np.zeros((count, 2), dtype=np.float64) if uv is None else uv
         normal = np.zeros((count, 3), dtype=np.float64) if normal is None else normal
         if lod is None:
-            return shade.shade(material, texels, state.lights, state.color_space, uv, normal, color, position)
+            return shade.shade(material, texels, state.lights, state.color_space, uv, normal, color, position,
+                               outline)
         tex = mips.sample_mipmapped(state.mips, shade.texture_uv(material, uv), lod, material.main_tex_filter,
                                     material.main_tex_wrap)
-        return shade.shade_texels(material, tex, state.lights, state.color_space, normal, color, position)
+        return shade.shade_texels(material, tex, state.lights, state.color_space, normal, color, position, outline)
 
     def first_corner(corners: np.ndarray | None, index: np.ndarray) -> np.ndarray | None:
         return None if corners is None else corners[index, 0]
@@ -223,7 +224,7 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
                     ids = np.full(n, -1, dtype=np.int32)
                 ids[places[by_texel]] = texel
             palettes.append(shade.texel_palette(material, texels, state.lights, state.color_space, palette_normals,
-                                                palette_colors))
+                                                palette_colors, outline))
             keep = ~flat & ~tabled
             shaded = ~by_texel
             at = places[shaded]

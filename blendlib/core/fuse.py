@@ -47,11 +47,14 @@ def _constant_color(prepared: PreparedCall, memo: SceneMemo | None = None) -> np
             or prepared.setup.object_colors is not None):
         return None
 
+    outline = state.outline
+
     def compute() -> np.ndarray:  # what shade_chunk's flat path computes for each of the call's triangles
         return shade.shade(material, None, state.lights, state.color_space, np.zeros((1, 2), dtype=np.float64),
-                           np.zeros((1, 3), dtype=np.float64))[0]
+                           np.zeros((1, 3), dtype=np.float64), outline=outline)[0]
 
-    return compute() if memo is None else memo.lookup(("constant colour", state.color_space), material, compute)
+    return compute() if memo is None else memo.lookup(("constant colour", state.color_space, outline), material,
+                                                      compute)
 
 
 def fuse_constant_calls(prepared: list[PreparedCall], memo: SceneMemo | None = None) -> list[PreparedCall]:
@@ -141,7 +144,8 @@ def _shading_key(prepared: PreparedCall, memo: SceneMemo | None = None) -> tuple
     key = shade.shading_key(material) if memo is None else memo.lookup("shading key", material,
                                                                          lambda: shade.shading_key(material))
     return (id(state.texels), id(state.mips), id(state.lights), key, float(p.offset_factor), float(p.offset_units),
-            outline_key(p), setup.object_normals is None, setup.object_uvs is None, setup.object_colors is None)
+            outline_key(p), state.outline, setup.object_normals is None, setup.object_uvs is None,
+            setup.object_colors is None)
 
 
 def fuse_shared_shading(prepared: list[PreparedCall], memo: SceneMemo | None = None) -> list[PreparedCall]:

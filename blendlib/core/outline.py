@@ -7,8 +7,19 @@ pushes each vertex out along its normal before projection (SPEC §11.6; UniVRM's
 with an :class:`~.vocabulary.OutlineMode`; the vertex stage (:func:`.vertex.setup_renderers`) then
 clips, snaps and rasterises them like any vertex. The program runs per corner, since a vertex's
 corners may carry different normals (hard edges split the outline, as a GPU's split vertices do).
-MToon's outline-width texture is not read (its default, white: ×1). Every value is float64, each
-sum and product in the order written below, so the scalar reference gives the same bits.
+Every value is float64, each sum and product in the order written below, so the scalar reference
+gives the same bits.
+
+MToon's outline-width texture (:func:`width_factors`) multiplies the width per corner: MToon 0.x
+``tex2Dlod(_OutlineWidthTexture, float4(TRANSFORM_TEX(v.texcoord, _MainTex), 0, 0)).r``
+(``MToonCore.cginc`` ``CalculateOutlineVertexClipPosition``), MToon 1.0
+``_OutlineWidth * UNITY_SAMPLE_TEX2D_LOD(_OutlineWidthTex, uv, 0).x`` with ``uv =
+TRANSFORM_TEX(v.texcoord0, _MainTex)`` (``vrmc_materials_mtoon_geometry_vertex.hlsl``
+``MToon_GetOutlineVertex_OutlineWidth``): the red channel at level 0, at the corner's ``_MainTex``
+coordinates (both ignore the texture's own offset and scale), in shading space (a 0.x texture is
+imported sRGB, decoded in Linear; 1.0's is linear data). With a factor ``f`` per corner, ``width``
+below reads ``width * f`` where it is first multiplied: 0.x World ``(0.01 * width) * f``, 1.0 World
+``width * f``, 0.x Screen ``k = (0.01 * width) * f``, 1.0 Screen ``(2 * width) * f``.
 
 With ``n`` the corner's object normal normalised (``n / sqrt((x*x + y*y) + z*z)``, 0 for a zero
 normal), ``N``/``det`` the sign-corrected cofactors of the object matrix (§1: ``N·n`` is ``|det|``
@@ -31,8 +42,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import shade
 from .scene import Camera, Mesh, cofactors3_many
-from .vocabulary import OutlineFormula, OutlineMode, Pass
+from .vocabulary import ColorSpace, Material, OutlineFormula, OutlineMode, Pass, TextureFilter
 
 
 def outline_key(p: Pass) -> tuple | None:
@@ -93,9 +105,37 @@ def _normalised(*v: np.ndarray) -> list[np.ndarray]:
     return out
 
 
-def outline_clip(mesh: Mesh, matrix_world: np.ndarray, camera: Camera, p: Pass) -> np.ndarray:
+def width_factors(mesh: Mesh, material: Material, color_space: ColorSpace,
+                  texels: shade.Texels | None = None) -> np.ndarray | None:
+    """(3T,) float64: the outline-width texture's red channel at every corner of ``mesh`` (corner k
+    of triangle t at 3t + k; module docstring), sampled Point or Bilinear at level 0 (Trilinear's
+    level 0 is Bilinear) with the texture's wrap; a mesh without UVs samples at (0, 0) after the
+    offset. ``texels``: the texture already in ``color_space`` (None: converted here). None when
+    ``material`` has no outline-width texture (×1)."""
+    texture = material.outline_width_tex
+    if texture is None:
+        return None
+    if texels is None:
+        texels = shade.texture_texels(texture, color_space)
+    t = mesh.triangle_count
+    uv = np.zeros((3 * t, 2), dtype=np.float64) if mesh.uvs is None else \
+        np.asarray(mesh.uvs, dtype=np.float64).reshape(-1, 2)
+    point = material.outline_width_tex_filter is TextureFilter.Point
+    sampled = shade.sample(texels, shade.texture_uv(material, uv),
+                           TextureFilter.Point if point else TextureFilter.Bilinear, material.outline_width_tex_wrap)
+    return np.ascontiguousarray(sampled[:, 0])
+
+
+def _times(width: float, factors: np.ndarray | None) -> float | np.ndarray:
+    """``width`` (a float), or ``width * factors`` per corner."""
+    return width if factors is None else np.multiply(width, factors)
+
+
+def outline_clip(mesh: Mesh, matrix_world: np.ndarray, camera: Camera, p: Pass,
+                 factors: np.ndarray | None = None) -> np.ndarray:
     """Clip coordinates (4, 3T) float64 of every corner of ``mesh``'s T triangles (corner k of
-    triangle t at column 3t + k) under pass ``p``'s outline program (module docstring)."""
+    triangle t at column 3t + k) under pass ``p``'s outline program (module docstring); ``factors``
+    (3T,) float64 the outline-width texture's per corner (:func:`width_factors`; None: ×1)."""
     m = np.asarray(matrix_world, dtype=np.float64)
     view = np.asarray(camera.view_matrix, dtype=np.float64)
     proj = np.asarray(camera.projection, dtype=np.float64)
@@ -114,12 +154,12 @@ def outline_clip(mesh: Mesh, matrix_world: np.ndarray, camera: Camera, p: Pass) 
         if old:
             scale = _length(wx, wy, wz)
             scale /= abs(det)
-            scale *= 0.01 * width
+            scale *= _times(0.01 * width, factors)
             px, py, pz = (np.add(a, np.multiply(scale, b)) for a, b in ((px, nx), (py, ny), (pz, nz)))
             return np.array(_rows(mvp, px, py, pz, affine=True))
         ux, uy, uz = _normalised(wx, wy, wz)
         world = _rows(m[:3], px, py, pz, affine=True)
-        moved = [np.add(a, np.multiply(b, width)) for a, b in zip(world, (ux, uy, uz), strict=True)]
+        moved = [np.add(a, np.multiply(b, _times(width, factors))) for a, b in zip(world, (ux, uy, uz), strict=True)]
         return np.array(_rows(_matmul4(proj, view), *moved, affine=True))
     clip = np.array(_rows(mvp, px, py, pz, affine=True))
     vmat, _ = _signed_cofactors(mv)
@@ -137,11 +177,11 @@ def outline_clip(mesh: Mesh, matrix_world: np.ndarray, camera: Camera, p: Pass) 
         dy *= reach
         dx *= aspect
         facing = np.subtract(1.0, np.abs(view_z))
-        k = 0.01 * width
+        k = _times(0.01 * width, factors)
         dx, dy = np.multiply(k, dx), np.multiply(k, dy)
     else:
         reach = np.minimum(w, float(proj[1, 1]))
-        reach *= 2.0 * width
+        reach *= _times(2.0 * width, factors)
         dx *= reach
         dy *= reach
         dx *= aspect

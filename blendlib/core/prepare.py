@@ -24,7 +24,7 @@ from . import colorspace, fragment, lights, mips, msaa, raster, shade, vertex
 from .drawlist import DrawCall
 from .fragment import ChunkShader
 from .merger import BlendTables, FrameBuffers
-from .outline import outline_key
+from .outline import outline_key, width_factors
 from .records import DrawState
 from .scene import Camera, SceneMemo
 from .vertex import TriangleSetup
@@ -93,9 +93,13 @@ class FrameContext:
 
     def texels_of(self, material: Material):
         """The material's texture in shading space, converted once per memo (main thread only)."""
-        texture, color_space = material.main_tex, self.color_space
+        return self.texture_texels(material.main_tex)
+
+    def texture_texels(self, texture):
+        """A texture in shading space, converted once per memo (main thread only); None for None."""
         if texture is None:
             return None
+        color_space = self.color_space
         return self.memo.lookup(("texels", color_space), texture, lambda: shade.texture_texels(texture, color_space))
 
     def inputs_of(self, call: DrawCall) -> CallInputs:
@@ -201,14 +205,21 @@ def _shading_of(frame: FrameContext, p: Pass) -> ChunkShader:
     return chunk_shading(p)
 
 
-def setup_input(renderer, colors: np.ndarray | None = None, program: Pass | None = None) -> vertex.SetupInput:
+def setup_input(renderer, colors: np.ndarray | None = None, program: Pass | None = None,
+                color_space: ColorSpace = ColorSpace.Gamma, texels_of=None) -> vertex.SetupInput:
     """What the vertex setup of ``renderer`` needs: normals only for lit shading, UVs only with a
     texture, its vertex colours in shading space when shading reads them
-    (:meth:`FrameContext.vertex_colors_of`), and the pass whose outline program moves its
-    vertices (None: none)."""
+    (:meth:`FrameContext.vertex_colors_of`), the pass whose outline program moves its
+    vertices (None: none) and, with one, the material's outline-width factors in ``color_space``
+    (its texels from ``texels_of(texture)``, :meth:`FrameContext.texture_texels`, when given)."""
     material = renderer.material
+    factors = None
+    if program is not None and material.outline_width_tex is not None:
+        texels = None if texels_of is None else texels_of(material.outline_width_tex)
+        factors = width_factors(renderer.mesh, material, color_space, texels)
     return vertex.SetupInput(renderer.mesh, renderer.matrix_world, need_normals=material.lighting is not Lighting.Unlit,
-                             need_uvs=material.main_tex is not None, colors=colors, program=program)
+                             need_uvs=material.main_tex is not None, colors=colors, program=program,
+                             width_factors=factors)
 
 
 def _programs(run: list[DrawCall]) -> dict:
@@ -276,7 +287,9 @@ def _setups(frame: FrameContext, items: list[tuple], pool=None, parts: int = 1) 
     out = [None if k is None else k.get(key) for k, key in zip(kept, keys, strict=True)]
     todo = [i for i, g in enumerate(out) if g is None]
     if todo:
-        made = vertex.setup_renderers([setup_input(*items[i]) for i in todo], frame.camera, pool=pool, parts=parts)
+        made = vertex.setup_renderers([setup_input(*items[i], color_space=frame.color_space,
+                                                   texels_of=frame.texture_texels) for i in todo],
+                                      frame.camera, pool=pool, parts=parts)
         held = None  # triangles whose setups the memo holds (counted once something is to be kept)
         for i, setup in zip(todo, made, strict=True):
             out[i] = _Geometry(setup)

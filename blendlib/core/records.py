@@ -18,7 +18,7 @@ import numpy as np
 
 from .drawlist import DrawCall
 from .merger import FrameBuffers
-from .shade import Lights, Texels
+from .shade import Lights, OutlineColor, Texels, outline_color
 from .vocabulary import ColorSpace, CompareFunction, Material, Pass
 
 
@@ -78,6 +78,11 @@ class DrawState:
     @property
     def pass_state(self) -> Pass:
         return self.call.state
+
+    @property
+    def outline(self) -> OutlineColor | None:
+        """The pass's outline colour in shading space (None: the material's lit colour)."""
+        return outline_color(self.call.state, self.color_space)
 
     def depth_needed(self, rows, start: int, stop: int) -> bool:
         """Whether the fragments of rows ``[start, stop)`` need their depth codes at the pixel

@@ -335,6 +335,12 @@ def _validate_renderer(r: Renderer) -> list[str]:
     for k, p in enumerate(r.material.draw_passes):
         if not (math.isfinite(p.outline_width) and math.isfinite(p.outline_max_distance)):
             raise SceneError(f"{label}: pass {k} ({p.name!r}): the outline width and max distance must be finite")
+        if p.outline_color is not None and not all(math.isfinite(c) and c >= 0.0 for c in p.outline_color):
+            raise SceneError(f"{label}: pass {k} ({p.name!r}): the outline colour must be finite and not "
+                             f"negative, got {p.outline_color}")
+        if not (0.0 <= p.outline_lighting_mix <= 1.0):
+            raise SceneError(f"{label}: pass {k} ({p.name!r}): the outline lighting mix must be in 0..1, "
+                             f"got {p.outline_lighting_mix}")
     for name in ("polygons", "loop_triangles"):
         ids = getattr(mesh, name)
         if ids is not None and np.asarray(ids).shape != (t,):
@@ -354,7 +360,7 @@ def scene_parts(scene: DrawScene) -> list[object]:
     what holds them: per renderer its texture (if any), material, mesh, then the renderer."""
     parts: dict[int, object] = {}
     for r in scene.renderers:
-        for part in (r.material.main_tex, r.material, r.mesh, r):
+        for part in (r.material.main_tex, r.material.outline_width_tex, r.material, r.mesh, r):
             if part is not None:
                 parts.setdefault(id(part), part)
     return list(parts.values())
@@ -396,11 +402,15 @@ def _same_value(x, y) -> bool:
     return x == y
 
 
+#: The :class:`Material` fields that hold a :class:`Texture`.
+_TEXTURE_FIELDS = ("main_tex", "outline_width_tex")
+
+
 def _same_material(a: Material, b: Material) -> bool:
     """Equal fields of equal types (textures: the very same object)."""
     for f in dataclasses.fields(Material):
         x, y = getattr(a, f.name), getattr(b, f.name)
-        if not (x is y if f.name == "main_tex" else _same_value(x, y)):
+        if not (x is y if f.name in _TEXTURE_FIELDS else _same_value(x, y)):
             return False
     return True
 
@@ -422,9 +432,9 @@ def reuse_unchanged(scene: DrawScene, previous: DrawScene | None) -> DrawScene:
     textures: dict[str, list[Texture]] = {}
     materials: dict[str, list[Material]] = {}
     for r in previous.renderers:
-        tex = r.material.main_tex
-        if tex is not None and all(t is not tex for t in textures.get(tex.name, [])):
-            textures.setdefault(tex.name, []).append(tex)
+        for tex in (getattr(r.material, name) for name in _TEXTURE_FIELDS):
+            if tex is not None and all(t is not tex for t in textures.get(tex.name, [])):
+                textures.setdefault(tex.name, []).append(tex)
         if all(m is not r.material for m in materials.get(r.material.name, [])):
             materials.setdefault(r.material.name, []).append(r.material)
     old_renderers = {(r.name, r.slot): r for r in previous.renderers}
@@ -439,8 +449,9 @@ def reuse_unchanged(scene: DrawScene, previous: DrawScene | None) -> DrawScene:
 
     def material_for(mat: Material) -> Material:
         if id(mat) not in chosen:
-            tex = texture_for(mat.main_tex)
-            mine = mat if tex is mat.main_tex else dataclasses.replace(mat, main_tex=tex)
+            found = {name: texture_for(getattr(mat, name)) for name in _TEXTURE_FIELDS}
+            changed = {name: tex for name, tex in found.items() if tex is not getattr(mat, name)}
+            mine = dataclasses.replace(mat, **changed) if changed else mat
             chosen[id(mat)] = next((m for m in materials.get(mat.name, []) if _same_material(m, mine)), mine)
         return chosen[id(mat)]
 

@@ -14,7 +14,7 @@ import numpy as np
 from . import colorspace
 from .lights import AddLight, light_terms
 from .scene import DrawScene
-from .vocabulary import ColorSpace, Lighting, Material, Texture, TextureFilter, TextureWrap, VertexColor
+from .vocabulary import ColorSpace, Lighting, Material, Pass, Texture, TextureFilter, TextureWrap, VertexColor
 
 
 def gamma_color_to_shading(rgb, color_space: ColorSpace) -> tuple[float, ...]:
@@ -45,6 +45,23 @@ class Lights:
     def positional(self) -> bool:
         """Whether Lambert shading reads the fragment's world position (a point or spot light)."""
         return self.add is not None and self.add.positional
+
+
+@dataclass(frozen=True)
+class OutlineColor:
+    """A pass's own colour (MToon's outline, :attr:`.vocabulary.Pass.outline_color`) in shading
+    space, and its lighting mix: the pass's fragments take ``rgb * lerp(1, lit, mix)``."""
+
+    rgb: tuple[float, float, float]
+    mix: float
+
+
+def outline_color(p: Pass, color_space: ColorSpace) -> OutlineColor | None:
+    """``p``'s outline colour brought to shading space (COLOR_GAMMA, as ``_Color``); None when the
+    pass draws the material's lit colour."""
+    if p.outline_color is None:
+        return None
+    return OutlineColor(gamma_color_to_shading(p.outline_color, color_space), float(p.outline_lighting_mix))
 
 
 def frame_lights(scene: DrawScene) -> Lights:
@@ -271,23 +288,24 @@ def shade(
     normal: np.ndarray,
     color: np.ndarray | None = None,
     position: np.ndarray | None = None,
+    outline: OutlineColor | None = None,
 ) -> np.ndarray:
     """Fragment colours (N, 4) float64 in shading space, straight alpha.
 
     ``uv`` (N, 2) float64 interpolated mesh UVs; ``normal`` (N, 3) float64 interpolated
     (unnormalised) world normals; ``texels`` (:class:`Texels`) from :func:`texture_texels`, sampled
-    at the base level (a mipmapped texture's levels are sampled by :mod:`.mips`); ``color`` and
-    ``position``: as :func:`shade_texels`.
+    at the base level (a mipmapped texture's levels are sampled by :mod:`.mips`); ``color``,
+    ``position`` and ``outline``: as :func:`shade_texels`.
     """
     tex = None
     if texels is not None:
         tex = sample(texels, texture_uv(material, uv), material.main_tex_filter, material.main_tex_wrap)
-    return shade_texels(material, tex, lights, color_space, normal, color, position)
+    return shade_texels(material, tex, lights, color_space, normal, color, position, outline)
 
 
 def texel_palette(
     material: Material, texels: Texels, lights: Lights, color_space: ColorSpace, normals: np.ndarray,
-    colors: np.ndarray | None = None,
+    colors: np.ndarray | None = None, outline: OutlineColor | None = None,
 ) -> np.ndarray:
     """Point filtering's colours for every (group, distinct texel): (G * D, 4) float64, row
     ``g * D + of_texel[t]`` (:meth:`Texels.distinct`) = what :func:`shade` gives a fragment with
@@ -297,7 +315,8 @@ def texel_palette(
     first, _ = texels.distinct()
     tex = np.tile(texels.fetch(first), (normals.shape[0], 1))
     color = None if colors is None else np.repeat(colors, first.size, axis=0)
-    return shade_texels(material, tex, lights, color_space, np.repeat(normals, first.size, axis=0), color)
+    return shade_texels(material, tex, lights, color_space, np.repeat(normals, first.size, axis=0), color,
+                        outline=outline)
 
 
 def _unit_normals(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -323,13 +342,14 @@ def _unit_normals(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarra
 
 def shade_texels(
     material: Material, tex: np.ndarray | None, lights: Lights, color_space: ColorSpace, normal: np.ndarray,
-    color: np.ndarray | None = None, position: np.ndarray | None = None,
+    color: np.ndarray | None = None, position: np.ndarray | None = None, outline: OutlineColor | None = None,
 ) -> np.ndarray:
     """The fragment program after the texture fetch: ``tex`` (N, 4) float64 sampled texels
     (None: no texture), ``normal`` (N, 3) float64, ``color`` (N, 4) float64 the interpolated
     vertex colour in shading space (None: white), ``position`` (N, 3) float64 the interpolated
-    world position (read only for a point or spot light's ForwardAdd draw) → colours (N, 4)
-    float64, straight alpha (docs/pipeline.md §7).
+    world position (read only for a point or spot light's ForwardAdd draw), ``outline`` the pass's
+    outline colour (:func:`outline_color`; None: none) → colours (N, 4) float64, straight alpha
+    (docs/pipeline.md §7).
 
     Per fragment, the albedo and alpha by ``vertex_color``: ``Off``: ``albedo = tex.rgb *
     color.rgb``, ``alpha = (tex.a * color.a) * _AlphaScale``; ``Multiply``: those × ``i.color``
@@ -339,8 +359,25 @@ def shade_texels(
     max(0, (n.x*l.x + n.y*l.y) + n.z*l.z)``: ``rgb = ambient*albedo + (light*albedo)*ndl``, or for
     a ForwardAdd draw (``lights.add``) ``rgb = ((light*albedo)*ndl)*atten`` (:mod:`.lights`). Lighting
     is computed one channel at a time on contiguous arrays, each operation as written (the same
-    rounding).
+    rounding). With ``outline`` (MToon's outline pass) the lit rgb becomes ``outline.rgb[c] * (1 +
+    mix * (lit - 1))`` (HLSL's ``lerp(1, lit, mix)``); alpha stays.
     """
+    out = _lit(material, tex, lights, color_space, normal, color, position)
+    if outline is not None:
+        for c in range(3):
+            v = out[:, c]
+            v -= 1.0
+            v *= outline.mix
+            v += 1.0
+            v *= outline.rgb[c]
+    return out
+
+
+def _lit(
+    material: Material, tex: np.ndarray | None, lights: Lights, color_space: ColorSpace, normal: np.ndarray,
+    color: np.ndarray | None, position: np.ndarray | None,
+) -> np.ndarray:
+    """:func:`shade_texels` before the outline colour."""
     n = normal.shape[0]
     mode = material.vertex_color
     out = np.empty((n, 4), dtype=np.float64)

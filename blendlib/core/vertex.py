@@ -310,6 +310,9 @@ class SetupInput:
     need_uvs: bool = True
     colors: np.ndarray | None = None
     program: Pass | None = None
+    #: The program's outline-width factor per corner ((3T,) float64, :func:`.outline.width_factors`;
+    #: None: ×1).
+    width_factors: np.ndarray | None = None
 
 
 def setup_triangles(
@@ -350,7 +353,7 @@ def setup_renderers(items: list[SetupInput], camera: Camera, pool=None, parts: i
     t_offsets = np.concatenate([[0], np.cumsum(t_counts)])
     v_count, t_count = int(v_offsets[-1]), int(t_offsets[-1])
     programs = [(int(v_offsets[k]), int(v_offsets[k + 1]), outline_clip(item.mesh, item.matrix_world, camera,
-                                                                          item.program))
+                                                                          item.program, item.width_factors))
                 for k, item in enumerate(items) if item.program is not None]
 
     # Per-vertex work first (V <= 3T), gathered per corner afterwards. Coordinates are kept

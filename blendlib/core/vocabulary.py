@@ -7,7 +7,9 @@ Field names of :class:`Pass` and :class:`Material` are the Blender property
 names of ``Material.unity`` (``blendlib/blender/schema.py``), so the Blender
 layer, the ShaderLab importer/exporter and the JSON output all map one to one.
 
-This module knows nothing of Blender and nothing of numpy.
+This module knows nothing of Blender and nothing of numpy. It is longer than the project's
+~600 lines because it is the one vocabulary every layer imports (enums, the two dataclasses,
+their text and dict forms, presets): split, each part would import the others.
 """
 
 from __future__ import annotations
@@ -328,6 +330,14 @@ class Pass:
     #: MToon 0.x's ``_OutlineScaledMaxDistance`` (Screen mode: the clip w beyond which the outline
     #: stops growing with distance).
     outline_max_distance: float = 1.0
+    #: MToon's outline colour (0.x ``_OutlineColor``, 1.0 ``outlineColorFactor`` as UniVRM sets
+    #: ``_OutlineColor``: COLOR_GAMMA rgb), which replaces the lit colour of the pass's fragments:
+    #: ``rgb = outline_color * lerp(1, lit, outline_lighting_mix)`` (docs/pipeline.md §7). None: the
+    #: pass draws the material's lit colour (every pass that is not an MToon outline).
+    outline_color: tuple[float, float, float] | None = None
+    #: MToon's ``_OutlineLightingMix`` / ``outlineLightingMixFactor``: 0 the outline colour alone
+    #: (0.x's ``MTOON_OUTLINE_COLOR_FIXED``), 1 the outline colour times the lit colour.
+    outline_lighting_mix: float = 0.0
 
     def __post_init__(self) -> None:
         if self.ztest is CompareFunction.Never:
@@ -337,6 +347,10 @@ class Pass:
             if not (isinstance(value, int) and 0 <= value <= 255):
                 raise ValueError(f"{name} must be an integer 0..255, got {value!r}")
         object.__setattr__(self, "color_mask", frozenset(self.color_mask))
+        if self.outline_color is not None:
+            object.__setattr__(self, "outline_color", tuple(float(c) for c in self.outline_color))
+            if len(self.outline_color) != 3:
+                raise ValueError(f"outline_color must be three numbers (rgb), got {self.outline_color!r}")
         if not self.color_mask <= ALL_CHANNELS:
             raise ValueError(f"color_mask must be a subset of RGBA, got {sorted(self.color_mask)}")
 
@@ -456,6 +470,12 @@ class Material:
     vertex_color: VertexColor = VertexColor.Off
     #: ``_TintColor`` (COLOR_GAMMA) of the particle shaders (``vertex_color`` Particle).
     tint_color: tuple[float, float, float, float] = (0.5, 0.5, 0.5, 0.5)
+    #: MToon's outline-width texture (0.x ``_OutlineWidthTexture``, 1.0 ``outlineWidthMultiplyTexture``):
+    #: an outline pass's width is multiplied per vertex by its red channel, sampled at level 0 at the
+    #: vertex's ``_MainTex`` coordinates (:mod:`.outline`). None: ×1 (MToon's default, white).
+    outline_width_tex: Texture | None = None
+    outline_width_tex_filter: TextureFilter = TextureFilter.Bilinear
+    outline_width_tex_wrap: TextureWrap = TextureWrap.Repeat
 
     @property
     def render_queue(self) -> int:

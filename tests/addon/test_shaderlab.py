@@ -10,6 +10,7 @@ import bpy
 import pytest
 
 import addon
+from blendlib.blender import write_pass
 from blendlib.core.vocabulary import (
     BlendFactor,
     BlendOp,
@@ -167,9 +168,7 @@ def test_operator_export_then_import_gives_back_the_settings(blender, tmp_path):
                             blend=True, separate_alpha=True, src_blend=BlendFactor.DstColor,
                             dst_blend=BlendFactor.Zero, src_blend_alpha=BlendFactor.One,
                             dst_blend_alpha=BlendFactor.One, blend_op_alpha=BlendOp.Max),):
-        item = u.passes.add()
-        for k, v in pass_to_dict(p).items():
-            setattr(item, k, set(v) if k == "color_mask" else v)
+        write_pass(u.passes.add(), p)  # the schema's writer (an outline colour None is its switch off)
     before = _snapshot(mat)
     out = tmp_path / "exported.shader"
     assert _call(bpy.ops.unity.shaderlab_export, mat, filepath=str(out)) == {"FINISHED"}

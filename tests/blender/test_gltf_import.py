@@ -12,7 +12,7 @@ from bpy_extras.object_utils import world_to_camera_view
 from mathutils import Vector
 
 from blendlib import blender
-from blendlib.blender import gltf_import
+from blendlib.blender import gltf_import, vrm_addon
 from blendlib.core.vocabulary import Cull, Queue
 from blendlib.formats.gltf import GltfError, import_file, read_document
 from blendlib.formats.gltf.records import f32
@@ -38,18 +38,41 @@ def stored(material):
                      for p in material.passes))
 
 
+#: The MToon materials of each file (VRM 0.x VRM/MToon, VRM 1.0 VRMC_materials_mtoon): they import as the
+#: VRM Add-on's MToon settings; the others (glTF Standard, VRM/UnlitTransparentZWrite) as Unity settings.
+MTOON = {"mtoon1_2_20_61_vrm0.vrm": {"Opaque", "Cutout", "Transparent", "TransparentWithZWrite"},
+         "mtoon1_2_20_61_vrm1.vrm": {"Opaque", "Cutout", "Transparent", "TransparentWithZWrite"},
+         "material.vrm": {"MToonUnversioned"}}
+
+
 @needs_corpus
 @pytest.mark.parametrize("file", ["mtoon1_2_20_61_vrm0.vrm", "mtoon1_2_20_61_vrm1.vrm", "material.vrm"])
-def test_every_material_gets_the_unity_settings_unitys_importer_sets(file):
+def test_every_material_gets_the_state_unitys_importer_sets(file):
     path = CORPUS / "vrm-addon" / file
     expected = import_file(path)
     document = read_document(path)
     empty_scene()
     done = gltf_import.import_gltf(path)
     assert len(done.materials) == len(expected.materials)
+    assert set(done.addon_materials) == MTOON[file] and not done.warnings
     for imported, mat in zip(expected.materials, done.materials, strict=True):
         assert mat.name == imported.material.name
         values = blender.material_values(mat)
+        if mat.name in MTOON[file]:  # the add-on's settings, Unity settings off: the same state read back
+            assert not values["enabled"] and values["main_tex"] is None
+            derived, image, width, _ = vrm_addon.derived_material(mat)
+            assert vrm_addon.spec_version(mat) == expected.vrm
+            assert derived.material == imported.material, mat.name  # queue, passes, cull, blend, outline...
+            assert (image is None) == (imported.main_tex is None) and (width is None) == (
+                imported.outline_width_tex is None)
+            if image is not None:
+                assert image.name == document.image_name(document.texture_image(imported.main_tex))
+            if width is not None:  # MToon's outline-width texture: an image no glTF material uses
+                assert width.name == document.image_name(document.texture_image(imported.outline_width_tex))
+                assert width.size[0] > 0 and width.has_data
+                assert blender.material_from_blender(mat, with_texture=True).outline_width_tex.encoding == \
+                    imported.outline_width_encoding
+            continue
         assert values["enabled"]
         got = blender.material_from_blender(mat)
         assert got == dataclasses.replace(stored(imported.material), name=mat.name), mat.name
@@ -59,6 +82,15 @@ def test_every_material_gets_the_unity_settings_unitys_importer_sets(file):
         else:  # the glTF image the texture names, with its name and pixels
             index = document.texture_image(imported.main_tex)
             assert image.name == document.image_name(index) and image.size[0] > 0 and image.has_data
+        width = values["outline_width_tex"]  # MToon's outline-width texture: an image no glTF material uses
+        if imported.outline_width_tex is None:
+            assert width is None
+        else:
+            assert width.name == document.image_name(document.texture_image(imported.outline_width_tex))
+            assert width.size[0] > 0 and width.has_data
+            assert width.colorspace_settings.is_data == (imported.outline_width_encoding == "Data")
+            assert blender.material_from_blender(mat, with_texture=True).outline_width_tex.encoding == \
+                imported.outline_width_encoding
 
 
 @needs_corpus
@@ -188,3 +220,23 @@ def test_a_file_blenders_importer_rejects_is_one_line_and_leaves_nothing(tmp_pat
         gltf_import.import_gltf(write_glb(tmp_path / "bad.glb", doc))
     assert "\n" not in str(info.value)
     assert {key: len(getattr(bpy.data, key)) for key in gltf_import._CREATED} == before
+
+
+def test_an_mtoon_material_the_vrm_addon_cannot_state_keeps_unity_settings(tmp_path):
+    """VRM 0.x ``_OutlineCullMode`` 0 (Cull Off on the outline): the add-on's exporter always writes 1,
+    so its settings cannot give this state: the material keeps Unity settings, with a warning; a plain
+    VRM/MToon material of the same file gets the add-on's settings and the file's spec version."""
+    entry = {"shader": "VRM/MToon", "floatProperties": {"_OutlineWidthMode": 1, "_OutlineCullMode": 0},
+             "keywordMap": {"MTOON_OUTLINE_WIDTH_WORLD": True, "MTOON_OUTLINE_COLOR_FIXED": True}}
+    doc = triangles_document([{"name": "Odd"}, {"name": "Plain"}])
+    doc["extensions"] = {"VRM": {"materialProperties": [entry, {"shader": "VRM/MToon"}]}}
+    path = write_glb(tmp_path / "odd.vrm", doc)
+    empty_scene()
+    done = gltf_import.import_gltf(path)
+    odd, plain = done.materials
+    assert blender.material_values(odd)["enabled"] and vrm_addon.derived_material(odd) is None
+    assert done.addon_materials == ("Plain",) and len(done.warnings) == 1
+    assert "'Odd'" in done.warnings[0] and "keeps Unity settings" in done.warnings[0]
+    assert blender.material_from_blender(odd).passes[1].cull is Cull.Off
+    assert not blender.material_values(plain)["enabled"] and vrm_addon.spec_version(plain) == "0.x"
+    assert vrm_addon.derived_material(plain)[0].material == import_file(path).materials[1].material

@@ -101,7 +101,7 @@ def test_version_2_settings_read_with_defaults_that_draw_as_before():
     assert m.main_tex_filter is TextureFilter.Point and m.vertex_color is VertexColor.Off
     settings = blender.scene_settings(bpy.context.scene)
     assert settings["msaa"] == 1 and settings["pixel_light_count"] == 4
-    assert migration.migrate_material({"schema_version": 2, "queue": 3}) == {"schema_version": 3, "queue": 3}
+    assert migration.migrate_material({"schema_version": 2, "queue": 3}) == {"schema_version": 4, "queue": 3}
 
 
 def test_msaa_takes_only_unitys_sample_counts(registered):

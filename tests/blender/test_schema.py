@@ -55,6 +55,8 @@ ENUM_NUMBERS = {
         "queue": {"Background": 0, "Geometry": 1, "AlphaTest": 2, "Transparent": 3, "Overlay": 4},
         "main_tex_filter": {"Bilinear": 0, "Point": 1, "Trilinear": 2},  # Trilinear appended in version 3
         "main_tex_wrap": {"Repeat": 0, "Clamp": 1},
+        "outline_width_tex_filter": {"Bilinear": 0, "Point": 1, "Trilinear": 2},  # version 4
+        "outline_width_tex_wrap": {"Repeat": 0, "Clamp": 1},
         "lighting": {"Lambert": 0, "Unlit": 1},
         "vertex_color": {"Off": 0, "Multiply": 1, "Particle": 2},
     },
@@ -104,7 +106,7 @@ def test_every_enum_number_is_pinned():
         assert enums == ENUM_NUMBERS[group], group
     assert COLOR_MASK_BITS == COLOR_MASK
     assert [f.name for f in blender.PASS_FIELDS if f.kind == "flags"] == ["color_mask"]
-    assert migration.SCHEMA_VERSION == 3 and migration.VERSION_KEY == "schema_version"
+    assert migration.SCHEMA_VERSION == 4 and migration.VERSION_KEY == "schema_version"
 
 
 def test_registered_properties_store_the_pinned_numbers(registered):
@@ -129,14 +131,14 @@ def test_migration_of_version_1_reverses_the_color_mask_bits():
     v1 = {"enabled": 1, "queue": 3, "passes": [{"color_mask": 1}, {"color_mask": 3}, {"cull": 2}, {"color_mask": 14}]}
     got = migration.migrate_material(v1)
     # v1 R=1 → R=8; R|G=3 → 12; G|B|A=14 → 7; absent stays absent.
-    assert got == {"enabled": 1, "queue": 3, "schema_version": 3,
+    assert got == {"enabled": 1, "queue": 3, "schema_version": 4,
                    "passes": [{"color_mask": 8}, {"color_mask": 12}, {"cull": 2}, {"color_mask": 7}]}
     assert v1["passes"][0] == {"color_mask": 1}, "the input is not changed"
     assert migration.migrate_material(got) == got, "current values are left as they are"
-    assert migration.migrate_material(None) == {"schema_version": 3}
-    assert migration.migrate_scene({"color_space": 1}) == {"color_space": 1, "schema_version": 3}
-    with pytest.raises(ValueError, match="schema version 4"):
-        migration.migrate_material({"schema_version": 4})
+    assert migration.migrate_material(None) == {"schema_version": 4}
+    assert migration.migrate_scene({"color_space": 1}) == {"color_space": 1, "schema_version": 4}
+    with pytest.raises(ValueError, match="schema version 5"):
+        migration.migrate_material({"schema_version": 5})
 
 
 def _write_everything(mat, scene):
@@ -176,8 +178,8 @@ def test_writers_store_the_same_numbers_registered_or_not(registered):
     (a_mat, a_scene, a_values, a_sv), (b_mat, b_scene, b_values, b_sv) = results
     assert a_values == b_values and a_sv == b_sv
     assert a_scene == b_scene == {"color_space": 1, "hdr": True, "clear_color": pytest.approx([0.1, 0.2, 0.3, 0.4]),
-                                  "sort_mode": 3, "sort_axis": [0.0, 1.0, 0.0], "schema_version": 3}
-    assert a_mat["schema_version"] == b_mat["schema_version"] == 3
+                                  "sort_mode": 3, "sort_axis": [0.0, 1.0, 0.0], "schema_version": 4}
+    assert a_mat["schema_version"] == b_mat["schema_version"] == 4
     assert [p["color_mask"] for p in a_mat["passes"]] == [p["color_mask"] for p in b_mat["passes"]] == [9, 15]
     assert a_mat["passes"][0]["stencil_comp"] == b_mat["passes"][0]["stencil_comp"] == 0  # Never
     assert a_mat["queue"] == b_mat["queue"] == 3 and a_mat["main_tex_wrap"] == b_mat["main_tex_wrap"] == 1
@@ -204,9 +206,9 @@ def test_editing_a_property_records_the_current_version(registered):
     assert mat.unity.schema_version == 1  # nothing stored: as a 0.1 file
     item = mat.unity.passes.add()
     item.color_mask = {"R"}
-    assert raw(mat)["schema_version"] == 3 and raw(mat)["passes"][0]["color_mask"] == 8
+    assert raw(mat)["schema_version"] == 4 and raw(mat)["passes"][0]["color_mask"] == 8
     bpy.context.scene.unity.hdr = True
-    assert raw(bpy.context.scene)["schema_version"] == 3
+    assert raw(bpy.context.scene)["schema_version"] == 4
 
 
 def _save_v1_material(path, masks):
@@ -244,7 +246,7 @@ def test_a_v1_file_is_migrated_when_it_loads_registered(tmp_path, registered):
     assert migrate_on_load in bpy.app.handlers.load_post
     bpy.ops.wm.open_mainfile(filepath=str(path), load_ui=False)
     mat = bpy.data.materials["Old"]
-    assert raw(mat)["schema_version"] == 3
+    assert raw(mat)["schema_version"] == 4
     assert [p["color_mask"] for p in raw(mat)["passes"]] == [8, 12, 7, 1, 0]
     assert [set(p.color_mask) for p in mat.unity.passes] == [set(m) for m in MASKS]
     assert [p["color_mask"] for p in blender.material_values(mat)["passes"]] == [frozenset(m) for m in MASKS]
@@ -254,7 +256,7 @@ def test_a_v1_file_is_migrated_when_it_loads_registered(tmp_path, registered):
         bpy.ops.wm.open_mainfile(filepath=str(path), load_ui=False)
         mat = bpy.data.materials["Old"]
         blender.write_material(mat, queue_offset=1)
-        assert raw(mat)["schema_version"] == 3 and [p["color_mask"] for p in raw(mat)["passes"]] == [8, 12, 7, 1, 0]
+        assert raw(mat)["schema_version"] == 4 and [p["color_mask"] for p in raw(mat)["passes"]] == [8, 12, 7, 1, 0]
     finally:
         addon.register()
 
@@ -283,7 +285,7 @@ def test_presets_and_copy_go_through_the_writers(registered):
     mat = bpy.data.materials.new("Preset")
     operators.apply_preset(mat, "Alpha Blend ZWrite")
     queue, passes = preset("Alpha Blend ZWrite")
-    assert raw(mat)["schema_version"] == 3 and raw(mat)["passes"][0]["color_mask"] == 0
+    assert raw(mat)["schema_version"] == 4 and raw(mat)["passes"][0]["color_mask"] == 0
     assert blender.material_from_blender(mat).passes == passes and mat.unity.queue == queue.value
     item = mat.unity.passes.add()
     operators.copy_pass(mat.unity.passes[1], item)

@@ -28,6 +28,10 @@ V3_MATERIAL = {"main_tex_mipmaps": False, "main_tex_preserve_coverage": False, "
 V3_PASS = {"alpha_to_mask": False, "alpha_test_comp": "GEqual", "light_mode": "ForwardBase", "outline_mode": "Off",
            "outline_width": 0.0, "outline_formula": "MToon0x", "outline_max_distance": 1.0}
 V3_SCENE = {"msaa": 1, "pixel_light_count": 4}
+#: Schema version 4 (issue 28): MToon's outline colour per pass and outline-width texture per material,
+#: absent from older files: off / none, which draw as before.
+V3_MATERIAL |= {"outline_width_tex": None, "outline_width_tex_filter": "Bilinear", "outline_width_tex_wrap": "Repeat"}
+V3_PASS |= {"outline_colored": False, "outline_color": [0.0, 0.0, 0.0], "outline_lighting_mix": 0.0}
 
 
 def _as_read_now(snapshot: dict) -> dict:

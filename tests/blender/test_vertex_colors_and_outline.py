@@ -74,3 +74,29 @@ def test_outline_settings_round_trip_and_render():
     assert (got.outline_mode, got.outline_width, got.outline_formula, got.outline_max_distance) == \
         (OutlineMode.Screen, 2.5, OutlineFormula.MToon10, 3.0)
     assert blender.material_from_blender(mat).passes[0].outline_mode is OutlineMode.Off
+
+
+def test_outline_colour_round_trips_and_an_older_group_has_none():
+    """Schema version 4 appends the outline colour: written and read back (float32 as Blender stores
+    it); a version-3 pass group without it reads as no outline colour (the lit colour, as before)."""
+    from blendlib.blender import material_values
+
+    empty_scene()
+    outline = Pass(name="Outline", outline_mode=OutlineMode.World, outline_width=0.5,
+                   outline_color=(1.0, 0.25, 0.0), outline_lighting_mix=0.5)
+    mat = unlit_material("Toon", passes=[Pass(name="Base"), outline])
+    got = blender.material_from_blender(mat).passes
+    assert got[1].outline_color == (1.0, 0.25, 0.0) and got[1].outline_lighting_mix == 0.5
+    assert got[0].outline_color is None
+    stored = material_values(mat)["passes"]
+    assert [p["outline_colored"] for p in stored] == [False, True]
+    # A file saved before version 4: the group stores version 3 and none of the three names.
+    group = mat.bl_system_properties_get()["unity"]
+    if "schema_version" in group:
+        group["schema_version"] = 3
+    for item in group["passes"]:
+        for name in ("outline_colored", "outline_color", "outline_lighting_mix"):
+            if name in item:
+                del item[name]
+    old = blender.material_from_blender(mat).passes
+    assert [p.outline_color for p in old] == [None, None] and old[1].outline_width == 0.5

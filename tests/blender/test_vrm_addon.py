@@ -35,8 +35,12 @@ def test_each_blend_equals_its_own_export(spec, version):
         mat = bpy.data.materials[name]
         assert not blender.material_values(mat)["enabled"]
         assert vrm_addon.spec_version(mat) == version
-        imported, image, mtoon = vrm_addon.derived_material(mat)
+        imported, image, width, mtoon = vrm_addon.derived_material(mat)
         assert imported.material == exported[name].material, name
+        # the outline-width texture (outline_width_multiply_texture): the image, read as the export's
+        assert (width.name if width else None) == ("20.png" if name == "Transparent" else None)
+        assert (imported.outline_width_tex is None) == (exported[name].outline_width_tex is None)
+        assert imported.outline_width_encoding == exported[name].outline_width_encoding
         # the outline (mode, width, max distance, colour): the same program on the same pass, the same record
         outline = [p for p in imported.material.passes if p.outline_mode is not OutlineMode.Off]
         expected = {"Opaque": [OutlineMode.World], "Cutout": []}.get(name, [OutlineMode.Screen])

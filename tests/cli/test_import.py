@@ -16,12 +16,18 @@ CHECK = r"""
 import sys, json, bpy
 sys.path.insert(0, ".")
 from blendlib import blender
+from blendlib.blender import vrm_addon
 blender.open_blend(sys.argv[1])
 scene = bpy.context.scene
+
+def image(m):  # _MainTex: of the Unity settings, or of the VRM Add-on's settings when those are off
+    derived = vrm_addon.derived_material(m)
+    return getattr(derived[1] if derived else blender.material_values(m)["main_tex"], "name", None)
+
 out = {"camera": scene.camera.name if scene.camera else None,
        "suns": [o.name for o in scene.objects if o.type == "LIGHT" and o.data.type == "SUN"],
        "materials": {m.name: [blender.material_values(m)["enabled"], blender.material_from_blender(m).render_queue,
-                              getattr(blender.material_values(m)["main_tex"], "name", None)]
+                              image(m), vrm_addon.summary(m) is not None]
                      for m in bpy.data.materials},
        "packed": all(i.packed_file is not None for i in bpy.data.images),
        "size": [scene.render.resolution_x, scene.render.resolution_y]}
@@ -50,8 +56,9 @@ def test_import_a_vrm_writes_a_blend_and_the_json_records(tmp_path):
     check = run_cli(str(out), code=CHECK)
     assert check.returncode == 0, check.stderr
     state = json.loads(check.stdout.splitlines()[-1])
-    assert state["materials"]["Transparent"] == [True, 2952, "16.png"]
-    assert state["materials"]["TransparentWithZWrite"][:2] == [True, 2550]
+    # MToon materials of a .vrm: the VRM Add-on's settings (Unity settings off), the same state
+    assert state["materials"]["Transparent"] == [False, 2952, "16.png", True]
+    assert state["materials"]["TransparentWithZWrite"] == [False, 2550, "3.png", True]
     assert state["camera"] == "VRM Camera" and state["suns"] == ["VRM Sun"]
     assert state["packed"] and state["size"] == [768, 1024]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["avatar.blend"]  # no temporary file left

@@ -104,6 +104,24 @@ def with_renderer(draw, k: int, **changes):
                                                 *draw.renderers[k + 1:]))
 
 
+def test_reuse_unchanged_shares_an_equal_outline_width_texture_and_the_memo_converts_it_once(monkeypatch):
+    """MToon's outline-width texture is a texture part like ``_MainTex``: re-extracted equal, the
+    material is the old one; its texels are converted once across frames."""
+    from tests.reference.feature_sweeps import outline_sweep
+
+    draw = outline_sweep(width_textures=True)
+    same = reuse_unchanged(extracted_again(draw), draw)
+    assert all(a is b for a, b in zip(same.renderers, draw.renderers, strict=True))
+    widths = {id(r.material.outline_width_tex) for r in draw.renderers if r.material.outline_width_tex is not None}
+    assert widths and widths <= {id(p) for p in scene_parts(draw)}
+    conversions = counting(monkeypatch, shade, "texture_texels")
+    memo = SceneMemo()
+    first = render_scene(draw, memo=memo)
+    again = render_scene(same, memo=memo)
+    np.testing.assert_array_equal(first.color, again.color)
+    assert len(conversions) == len(widths)
+
+
 def test_reuse_unchanged_shares_equal_parts_and_keeps_changed_ones():
     draw = seeded_scene(8)  # four renderers, three textured
     assert len(draw.renderers) == 4

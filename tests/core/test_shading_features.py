@@ -22,6 +22,7 @@ from blendlib import render_scene
 from blendlib.core import colorspace, drawlist, lights, mips, outline, shade
 from blendlib.core.scene import Camera, DrawScene, ForwardLight
 from blendlib.core.vocabulary import (
+    BlendFactor,
     ColorSpace,
     Cull,
     Lighting,
@@ -411,6 +412,93 @@ def test_outline_off_is_the_plain_vertex_stage_and_a_pass_like_any():
 
     stats = framedebug.draw_list(two)
     assert stats[1].fragments > stats[0].fragments  # the pushed-out quad covers more pixels
+
+
+def _outline_codes(color, outline_color, mix, blend=False, clear=(0, 0, 0, 0), color_space=ColorSpace.Gamma):
+    """The 8-bit codes at the centre of a quad drawn by one MToon outline pass (Unlit ``color``)."""
+    p = Pass(name="Outline", cull=Cull.Off, outline_mode=OutlineMode.World, outline_formula=OutlineFormula.MToon10,
+             outline_width=0.0, outline_color=outline_color, outline_lighting_mix=mix)
+    if blend:
+        p = replace(p, blend=True, src_blend=BlendFactor.SrcAlpha, dst_blend=BlendFactor.OneMinusSrcAlpha, zwrite=False)
+    scene = _outline_scene(p)
+    scene = replace(scene, clear_color=clear, color_space=color_space, renderers=(replace(
+        scene.renderers[0], material=replace(scene.renderers[0].material, color=color)),))
+    frame = _core(scene)
+    assert np.array_equal(frame.color, render_reference(scene)[0])
+    return np.round(frame.color[24, 32] * 255).astype(int).tolist()
+
+
+def test_outline_colour_is_mtoons_outline_colour_mixed_with_the_lit_colour():
+    """MToon 0.x (MToonCore.cginc): ``MTOON_OUTLINE_COLOR_FIXED``: ``col = _OutlineColor``;
+    ``MTOON_OUTLINE_COLOR_MIXED``: ``col = _OutlineColor * lerp(1, col, _OutlineLightingMix)``; MToon 1.0
+    (vrmc_materials_mtoon_lighting_mtoon.hlsl): ``outlineCol = _OutlineColor.rgb * lerp(1, baseCol,
+    _OutlineLightingMix)``, alpha ``input.alpha`` (the base pass's). Codes by hand from those formulas."""
+    lit = (0.8, 0.6, 1.0, 1.0)
+    # Fixed (mix 0): exactly the outline colour, whatever the lit colour.
+    assert _outline_codes(lit, (1.0, 0.0, 0.0), 0.0) == [255, 0, 0, 255]
+    # Mix 1: the product (0.5 * 0.8, 1.0 * 0.6, 0.2 * 1.0) = (0.4, 0.6, 0.2) → 102, 153, 51.
+    assert _outline_codes(lit, (0.5, 1.0, 0.2), 1.0) == [102, 153, 51, 255]
+    # Mix 0.5: outline * (1 + 0.5 * (lit - 1)) = (0.5 * 0.9, 1.0 * 0.8, 0.2 * 1.0) = (0.45, 0.8, 0.2).
+    assert _outline_codes(lit, (0.5, 1.0, 0.2), 0.5) == [115, 204, 51, 255]
+    # Alpha is the base pass's: _Color.a 0.4 blends the red outline over a blue background.
+    assert _outline_codes((0.8, 0.4, 1.0, 0.4), (1.0, 0.0, 0.0), 0.0, blend=True, clear=(0, 0, 1, 1)) == [
+        round(0.4 * 255), 0, round(0.6 * 255), round((0.4 * 0.4 + 0.6 * 1.0) * 255)]  # alpha blends too
+    # Linear colour space: _OutlineColor is a gamma colour (decoded, then encoded when stored).
+    assert _outline_codes(lit, (0.5, 1.0, 0.2), 0.0, color_space=ColorSpace.Linear) == [128, 255, 51, 255]
+    # No outline colour: the lit colour, as every other pass.
+    assert _outline_codes(lit, None, 0.0) == [204, 153, 255, 255]
+
+
+def test_outline_width_texture_multiplies_the_width_per_vertex():
+    """MToon: ``width × tex2Dlod(_OutlineWidthTexture, TRANSFORM_TEX(uv, _MainTex)).r``. A sphere whose
+    left half (u < 0.5) samples red 0 and right half red 1 (Point): no outline ring on the left, a
+    ring of ``outlineWidthFactor`` metres on the right (MToon 1.0 World); 0.x's texture is sRGB:
+    in Linear red 0.5 (code 128) decodes to 0.2158, in Gamma stays 0.502."""
+    from tests.reference.feature_sweeps import planar_uvs
+
+    sphere = planar_uvs(sc.uv_sphere(0.5, 48, 24), 0.5)
+    pixels = np.ones((1, 2, 4), np.float32)
+    pixels[0, 0, 0] = 0.0
+
+    def ring(texture_pixels, encoding="Data", formula=OutlineFormula.MToon10, width=0.1, color_space=ColorSpace.Gamma):
+        line = Pass(name="Outline", cull=Cull.Front, outline_mode=OutlineMode.World, outline_formula=formula,
+                    outline_width=width, outline_color=(0.0, 1.0, 0.0))
+        mat = Material(lighting=Lighting.Unlit, color=(1, 0, 0, 1), passes=(Pass(name="Base"), line),
+                       outline_width_tex=Texture(texture_pixels, encoding=encoding),
+                       outline_width_tex_filter=TextureFilter.Point, outline_width_tex_wrap=TextureWrap.Clamp)
+        scene = DrawScene(camera=sc.camera(200, 100, eye=(0, 0, 5), fov=30.0), clear_color=(0, 0, 0, 1),
+                          renderers=(sc.renderer(sphere, mat),), color_space=color_space)
+        frame = _core(scene)
+        assert np.array_equal(frame.color, render_reference(scene)[0])
+        green = (frame.color[50, :, 1] > 0.5) & (frame.color[50, :, 0] < 0.5)
+        columns = np.flatnonzero(green)
+        return columns, frame
+
+    columns, frame = ring(pixels)
+    red = np.flatnonzero(frame.color[50, :, 0] > 0.5)
+    assert columns.size and columns.min() > red.max()  # only right of the sphere
+    # The ring: the sphere's silhouette grown from 0.5 to 0.6 m at 5 m, fov 30°: tan(asin(r / 5)) × 50 /
+    # tan(15°) pixels from the centre, each side.
+    def edge(r):
+        return 100 + math.tan(math.asin(r / 5)) / math.tan(math.radians(15)) * 50
+    assert abs(columns.max() + 1 - edge(0.6)) < 1.0 and abs(columns.min() - edge(0.5)) < 1.5
+    # 0.x, sRGB texture, red code 128 on the right: ×0.5020 in Gamma, ×0.2158 in Linear (decoded).
+    half = pixels.copy()
+    half[0, 1, 0] = 128 / 255
+    for color_space, factor in ((ColorSpace.Gamma, 128 / 255), (ColorSpace.Linear, colorspace.decode(128 / 255))):
+        columns, _ = ring(half, "sRGB", OutlineFormula.MToon0x, width=10.0, color_space=color_space)
+        assert abs(columns.max() + 1 - edge(0.5 + 0.1 * factor)) < 1.0, color_space
+
+
+def test_outline_colour_out_of_range_is_a_one_line_error():
+    from blendlib.core.scene import SceneError, validate_scene
+
+    for bad, words in ((dict(outline_color=(math.nan, 0.0, 0.0)), "outline colour"),
+                       (dict(outline_color=(-0.5, 0.0, 0.0)), "outline colour"),
+                       (dict(outline_color=(1.0, 0.0, 0.0), outline_lighting_mix=1.5), "outline lighting mix")):
+        with pytest.raises(SceneError, match=words) as info:
+            validate_scene(_outline_scene(Pass(**bad)))
+        assert "\n" not in str(info.value)
 
 
 def test_forward_add_passes_count_per_light_in_the_scalar_reference_too():

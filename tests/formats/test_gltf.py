@@ -325,3 +325,73 @@ def test_json_record_is_the_shaderlab_record_per_material():
     assert (shadow["drawn"], shadow["reason"]) == (False, "ShadowCaster: renders shadow maps and the depth "
                                                           "texture, not the frame")
     assert data["warnings"][0].startswith("MToon and PBR shading are approximated")
+
+
+def test_vrm0_outline_colour_keywords_decide_the_outline_colour():
+    """MToonCore.cginc: ``MTOON_OUTLINE_COLOR_FIXED`` → ``col = _OutlineColor`` (mix 0, whatever
+    ``_OutlineLightingMix`` says); ``_MIXED`` → ``_OutlineColor * lerp(1, col, _OutlineLightingMix)``;
+    neither → the lit colour; MToon.shader's defaults ``_OutlineLightingMix`` 1, ``_OutlineColor`` (0,0,0,1)."""
+    def line(keywords, floats=None, vectors=None):
+        imported = _vrm0({"shader": "VRM/MToon", "floatProperties": {"_OutlineWidthMode": 1, **(floats or {})},
+                          "keywordMap": {"MTOON_OUTLINE_WIDTH_WORLD": True, **keywords},
+                          "vectorProperties": vectors or {}})
+        p = imported.material.passes[1]
+        return p.outline_color, p.outline_lighting_mix, imported.warnings
+
+    red = {"_OutlineColor": [1.0, 0.0, 0.0, 1.0]}
+    assert line({"MTOON_OUTLINE_COLOR_FIXED": True}, {"_OutlineLightingMix": 0.7}, red) == ((1.0, 0.0, 0.0), 0.0, ())
+    assert line({"MTOON_OUTLINE_COLOR_MIXED": True}, {"_OutlineColorMode": 1, "_OutlineLightingMix": 0.75},
+                red) == ((1.0, 0.0, 0.0), 0.75, ())
+    assert line({"MTOON_OUTLINE_COLOR_MIXED": True}, {"_OutlineColorMode": 1})[:2] == ((0.0, 0.0, 0.0), 1.0)
+    assert line({}, {}, red) == (None, 0.0, ())
+    colour, mix, warnings = line({"MTOON_OUTLINE_COLOR_MIXED": True}, {"_OutlineLightingMix": 2.0})
+    assert mix == 1.0 and len(warnings) == 2  # _OutlineColorMode 0 disagrees; the mix is drawn clamped
+    assert "_OutlineColorMode 0 disagrees" in warnings[0] and "outside 0..1" in warnings[1]
+
+
+def test_vrm1_outline_colour_is_converted_to_gamma_with_the_mix():
+    """UniVRM sets ``_OutlineColor`` from the linear ``outlineColorFactor`` as ``_Color`` from
+    ``baseColorFactor`` (gamma), ``_OutlineLightingMix`` from ``outlineLightingMixFactor`` (default 1)."""
+    def line(**mtoon):
+        doc = triangles_document([{"name": "M", "extensions": {"VRMC_materials_mtoon": {
+            "specVersion": "1.0", "outlineWidthMode": "worldCoordinates", "outlineWidthFactor": 0.01, **mtoon}}}])
+        doc["extensions"] = {"VRMC_vrm": {"specVersion": "1.0"}}
+        p = _import(doc).materials[0].material.passes[1]
+        return p.outline_color, p.outline_lighting_mix
+
+    assert line() == ((0.0, 0.0, 0.0), 1.0)
+    colour, mix = line(outlineColorFactor=[1.0, 0.0031308, 0.5], outlineLightingMixFactor=0.25)
+    assert colour == pytest.approx((1.0, 0.0031308 * 12.92, 1.055 * 0.5 ** (1 / 2.4) - 0.055), rel=1e-6)
+    assert mix == 0.25
+
+
+def test_vrm_addon_settings_of_an_mtoon_material_export_to_the_same_state():
+    """An MToon material of a .vrm as the VRM Add-on's settings (formats/gltf/addon_settings.py): its
+    export (the add-on's exporter's values) imports as the file did; what the add-on's 0.x exporter
+    never writes (``_OutlineCullMode`` 0: it always writes 1) cannot be held: None and why."""
+    from blendlib.formats.gltf.addon_settings import addon_mtoon_of
+    from blendlib.formats.gltf.vrm_addon import addon_material
+
+    entry = {"shader": "VRM/MToon", "renderQueue": 2990,
+             "floatProperties": {"_BlendMode": 2, "_SrcBlend": 5, "_DstBlend": 10, "_ZWrite": 0, "_CullMode": 0,
+                                 "_OutlineWidthMode": 1, "_OutlineWidth": 0.5, "_OutlineColorMode": 1,
+                                 "_OutlineLightingMix": 0.5},
+             "keywordMap": {"_ALPHABLEND_ON": True, "MTOON_OUTLINE_WIDTH_WORLD": True,
+                            "MTOON_OUTLINE_COLOR_MIXED": True},
+             "vectorProperties": {"_Color": [0.5, 0.25, 1.0, 0.5], "_OutlineColor": [1.0, 0.5, 0.0, 1.0]}}
+    doc = triangles_document([{"name": "M"}])
+    doc["extensions"] = {"VRM": {"materialProperties": [entry]}}
+    document = document_from_json(doc, "t.vrm")
+    imported = import_materials(document).materials[0]
+    mtoon, why = addon_mtoon_of(document, imported, "0.x")
+    assert why is None and mtoon.mtoon0_render_queue == 2990 and mtoon.double_sided
+    assert (mtoon.alpha_mode, mtoon.outline_width_mode, mtoon.outline_lighting_mix_factor) == (
+        "BLEND", "worldCoordinates", 0.5)
+    assert addon_material(mtoon, "0.x").material == imported.material
+    entry["floatProperties"]["_OutlineCullMode"] = 0
+    document = document_from_json(doc, "t.vrm")
+    imported = import_materials(document).materials[0]
+    mtoon, why = addon_mtoon_of(document, imported, "0.x")
+    assert mtoon is None and "passes would differ" in why and "keeps Unity settings" in why
+    # not MToon: no settings, no reason
+    assert addon_mtoon_of(document, _import(triangles_document([{"name": "G"}])).materials[0], None) == (None, None)

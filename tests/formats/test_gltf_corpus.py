@@ -157,6 +157,42 @@ def test_vrm1_export_imports_through_mtoons_validator():
     assert mats["Opaque"].extra["outline"]["color"] == [0.0, 0.0, 0.5]  # outlineColorFactor as stored (linear)
 
 
+def _outline_colour(imported):
+    line = next(p for p in imported.material.passes if p.outline_mode is not OutlineMode.Off)
+    return line.outline_color, line.outline_lighting_mix
+
+
+def test_corpus_outlines_draw_in_mtoons_outline_colour():
+    """MToon 0.x: ``MTOON_OUTLINE_COLOR_MIXED`` → ``_OutlineColor * lerp(1, col, _OutlineLightingMix)``, the
+    stored ``_OutlineColor`` (gamma) and ``_OutlineLightingMix``; MToon 1.0: ``_OutlineColor`` is
+    ``outlineColorFactor`` linear → gamma, mix ``outlineLightingMixFactor`` (values from the files)."""
+    _, v0 = _materials("mtoon1_2_20_61_vrm0.vrm")
+    # Opaque: _OutlineColor [0, 0, 0.7297400528407231, 1], _OutlineLightingMix 0.5, MTOON_OUTLINE_COLOR_MIXED.
+    colour, mix = _outline_colour(v0["Opaque"])
+    assert colour == pytest.approx((0.0, 0.0, 0.7297400528407231), rel=1e-7) and mix == 0.5
+    colour, mix = _outline_colour(v0["TransparentWithZWrite"])  # [0.5325.., 0.5325.., 0], mix 0.75
+    assert colour == pytest.approx((0.5325205447199813, 0.5325205447199813, 0.0), rel=1e-7) and mix == 0.75
+    assert _outline_colour(v0["Transparent"])[1] == 1.0
+    _, v1 = _materials("mtoon1_2_20_61_vrm1.vrm")
+    # Opaque: outlineColorFactor [0, 0, 0.5] → sRGB encode(0.5) = 1.055 * 0.5^(1/2.4) - 0.055, mix 0.5.
+    colour, mix = _outline_colour(v1["Opaque"])
+    assert colour == pytest.approx((0.0, 0.0, 1.055 * 0.5 ** (1 / 2.4) - 0.055), rel=1e-6) and mix == 0.5
+    colour, mix = _outline_colour(v1["TransparentWithZWrite"])  # [0.25, 0.25, 0], mix 0.75
+    assert colour == pytest.approx((1.055 * 0.25 ** (1 / 2.4) - 0.055,) * 2 + (0.0,), rel=1e-6) and mix == 0.75
+    assert not any("outline" in w for m in (*v0.values(), *v1.values()) for w in m.warnings)
+
+
+def test_corpus_outline_width_textures_are_read_for_outlined_materials():
+    """0.x ``textureProperties._OutlineWidthTexture`` (imported sRGB by UniVRM's legacy loader, the
+    default case of ``VRMMToonTextureImporter``); 1.0 ``outlineWidthMultiplyTexture`` (imported linear,
+    ``Vrm10MToonTextureImporter.TryGetLinearTexture``). The files' Transparent materials have one."""
+    _, v0 = _materials("mtoon1_2_20_61_vrm0.vrm")
+    _, v1 = _materials("mtoon1_2_20_61_vrm1.vrm")
+    assert (v0["Transparent"].outline_width_tex, v0["Transparent"].outline_width_encoding) == (12, "sRGB")
+    assert (v1["Transparent"].outline_width_tex, v1["Transparent"].outline_width_encoding) == (13, "Data")
+    assert all(m.outline_width_tex is None for name, m in (*v0.items(), *v1.items()) if name != "Transparent")
+
+
 def test_vrm1_base_color_is_linear_converted_and_texture_transform_flipped():
     _, mats = _materials("mtoon1_2_20_61_vrm1.vrm")
     opaque = mats["Opaque"].material

@@ -743,7 +743,8 @@ def test_cli_main_prints_json(tmp_path, capsys):
     assert set(out["material"]) == {"enabled", "queue", "queue_offset", "color", "main_tex", "main_tex_tiling",
                                     "main_tex_offset", "main_tex_filter", "main_tex_wrap", "alpha_scale",
                                     "cutoff", "lighting", "main_tex_mipmaps", "main_tex_preserve_coverage",
-                                    "vertex_color", "tint_color"}
+                                    "vertex_color", "tint_color", "outline_width_tex", "outline_width_tex_filter",
+                                    "outline_width_tex_wrap"}
     (p,) = out["passes"]
     assert p == pass_to_dict(Pass(name="Pass", zwrite=False, blend=True, src_blend=SA, dst_blend=OMSA,
                                   color_mask=frozenset("RGB"), light_mode=ALWAYS)) | {

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -172,11 +173,44 @@ def mip_sweep(filt: TextureFilter = TextureFilter.Trilinear, color_space: ColorS
     return DrawScene(camera=cam, renderers=renderers, light=None, color_space=color_space, clear_color=(0, 0, 0, 1))
 
 
-def outline_sweep(seed: int = 24) -> DrawScene:
+#: (outline colour, lighting mix) of :func:`outline_sweep`'s eight spheres with ``colored``: MToon 0.x's
+#: fixed colour (mix 0), mixes between, the lit colour times the outline colour (1), and none.
+OUTLINE_COLORS = (((1.0, 0.0, 0.0), 0.0), ((0.2, 0.6, 1.0), 1.0), ((0.9, 0.8, 0.1), 0.5), (None, 0.0),
+                  ((0.0, 0.0, 0.0), 0.25), ((1.0, 1.0, 1.0), 1.0), ((0.35, 0.1, 0.7), 0.75), ((0.5, 0.5, 0.5), 0.0))
+
+
+def planar_uvs(mesh, radius: float):
+    """``mesh`` with UVs projected along z: (0.5 + x / 2r, 0.5 + y / 2r) per corner."""
+    pos = np.asarray(mesh.positions, np.float64)[np.asarray(mesh.triangles)]
+    return replace(mesh, uvs=(0.5 + pos[..., :2] / (2 * radius)).astype(np.float32))
+
+
+def width_texture(k: int) -> dict:
+    """Material fields of an outline-width texture for sphere ``k`` of :func:`outline_sweep`: red
+    0, 0.25, 0.75, 1 across (0.x's are imported sRGB, 1.0's linear data), Point or Bilinear, with a
+    ``_MainTex`` tiling and offset (the coordinates MToon samples it at)."""
+    red = np.array([0.0, 0.25, 0.75, 1.0], np.float32)
+    pixels = np.ones((2, 4, 4), np.float32)
+    pixels[..., 0] = red
+    texture = Texture(pixels, encoding="sRGB" if k % 4 < 2 else "Data", name=f"Width{k}")
+    first = k < 4
+    return dict(outline_width_tex=texture,
+                outline_width_tex_filter=TextureFilter.Point if k % 2 else TextureFilter.Bilinear,
+                outline_width_tex_wrap=TextureWrap.Clamp if first else TextureWrap.Repeat,
+                main_tex_tiling=(1.0, 1.0) if first else (0.8, 1.0),
+                main_tex_offset=(0.0, 0.0) if first else (0.1, 0.0))
+
+
+def outline_sweep(seed: int = 24, colored: bool = False, color_space: ColorSpace = ColorSpace.Gamma,
+                  width_textures: bool = False) -> DrawScene:
     """Spheres with a base pass and an outline pass (Cull Front, Offset 1, 1, ZWrite On) in every
-    OutlineMode x OutlineFormula, under uniform, non-uniform (World 0.x) and mirroring matrices."""
+    OutlineMode x OutlineFormula, under uniform, non-uniform (World 0.x) and mirroring matrices;
+    ``colored``: the outline passes with MToon's outline colours (:data:`OUTLINE_COLORS`);
+    ``width_textures``: the materials with outline-width textures (:func:`width_texture`)."""
     rng = np.random.default_rng(seed)
     sphere = uv_sphere(0.45, 18, 12)
+    if width_textures:
+        sphere = planar_uvs(sphere, 0.45)
     widths = {(OutlineMode.World, OutlineFormula.MToon0x): 6.0, (OutlineMode.World, OutlineFormula.MToon10): 0.05,
               (OutlineMode.Screen, OutlineFormula.MToon0x): 1.5, (OutlineMode.Screen, OutlineFormula.MToon10): 0.01}
     renderers = []
@@ -187,8 +221,11 @@ def outline_sweep(seed: int = 24) -> DrawScene:
         outline = Pass(name="Outline", cull=Cull.Front, offset_factor=1.0, offset_units=1.0, outline_mode=mode,
                        outline_formula=formula, outline_width=widths[(mode, formula)],
                        outline_max_distance=3.0)
+        if colored:
+            outline = replace(outline, outline_color=OUTLINE_COLORS[k][0], outline_lighting_mix=OUTLINE_COLORS[k][1])
         mat = Material(name=f"Toon{k}", color=tuple(rng.uniform(0.3, 1.0, 3).tolist()) + (1.0,),
-                       lighting=Lighting.Unlit if k % 2 else Lighting.Lambert, passes=(Pass(name="Base"), outline))
+                       lighting=Lighting.Unlit if k % 2 else Lighting.Lambert, passes=(Pass(name="Base"), outline),
+                       **(width_texture(k) if width_textures else {}))
         matrix = translate(x, y, 0.0)
         if kind == "stretched":
             matrix = matrix @ scale(1.3 if k % 2 else -1.3, 0.8, 1.0)
@@ -198,7 +235,7 @@ def outline_sweep(seed: int = 24) -> DrawScene:
     renderers.append(renderer(quad(-3, -2, 3, 2, z=-1.0), backdrop, name="Back"))
     cam = camera(128, 72, eye=(0.2, -0.4, 4.5), target=(0.0, 0.0, 0.0), fov=45.0)
     return DrawScene(camera=cam, renderers=tuple(renderers), light=Light(direction=(0.3, 0.5, 0.8)),
-                     ambient=(0.25, 0.25, 0.3))
+                     ambient=(0.25, 0.25, 0.3), color_space=color_space)
 
 
 FEATURE_SWEEPS = {
@@ -212,4 +249,8 @@ FEATURE_SWEEPS = {
     "mips_trilinear": lambda: mip_sweep(TextureFilter.Trilinear),
     "mips_trilinear_linear": lambda: mip_sweep(TextureFilter.Trilinear, ColorSpace.Linear),
     "outline": outline_sweep,
+    "outline_color": lambda: outline_sweep(colored=True),
+    "outline_color_linear": lambda: outline_sweep(colored=True, color_space=ColorSpace.Linear),
+    "outline_width_tex": lambda: outline_sweep(colored=True, width_textures=True),
+    "outline_width_tex_linear": lambda: outline_sweep(width_textures=True, color_space=ColorSpace.Linear),
 }

@@ -66,7 +66,7 @@ from blendlib.core.vocabulary import (
 )
 
 from .scalar import renderer_calls
-from .scalar_shading import build_mips, outline_clip
+from .scalar_shading import build_mips, outline_clip, width_factor
 
 DMAX = 2**24 - 1
 
@@ -243,6 +243,9 @@ uniform vec3 ambient;
 uniform vec3 light;
 uniform vec3 ldir;
 uniform sampler2D tex;
+uniform bool has_outline;  // an MToon outline pass: rgb = outline_color * mix(1, lit, outline_mix)
+uniform vec3 outline_color;
+uniform float outline_mix;
 out vec4 frag;
 void main() {
     vec2 uv = v_uv * tiling + uv_offset;
@@ -294,6 +297,7 @@ void main() {
             rgb = ((add_color * albedo) * max(0.0, dot(n, l))) * atten;
         }
     }
+    if (has_outline) rgb = outline_color * (1.0 + outline_mix * (rgb - 1.0));
     frag = vec4(rgb, alpha);
 }
 """
@@ -413,7 +417,10 @@ def vertex_data(scene: DrawScene, r, program=None) -> tuple[np.ndarray, bool, in
         clip = np.stack([((mvp[i, 0] * x + mvp[i, 1] * y) + mvp[i, 2] * z) + mvp[i, 3] for i in range(4)], axis=-1)
     else:
         lists = [M.tolist(), V.tolist(), P.tolist()]
-        clip = np.array([[outline_clip(program, pos[t, k].tolist(), n[t, k].tolist(), *lists) for k in range(3)]
+        uvs = np.zeros((tri.shape[0], 3, 2)) if mesh.uvs is None else np.asarray(mesh.uvs, np.float64).reshape(-1, 3, 2)
+        linear = scene.color_space is ColorSpace.Linear
+        clip = np.array([[outline_clip(program, pos[t, k].tolist(), n[t, k].tolist(), *lists,
+                                       width_factor(r.material, uvs[t, k].tolist(), linear)) for k in range(3)]
                          for t in range(tri.shape[0])], dtype=np.float64).reshape(-1, 3, 4)
     nw = np.stack([(N[i, 0] * n[..., 0] + N[i, 1] * n[..., 1]) + N[i, 2] * n[..., 2] for i in range(3)], axis=-1)
     t = tri.shape[0]
@@ -448,6 +455,14 @@ def _light_uniforms(scene: DrawScene, light) -> dict:
             "add_tan_half": math.tan(math.radians(float(light.spot_angle)) / 2.0)}
 
 
+def _outline_uniforms(sh: _Shading, p) -> dict:
+    """The ``outline_*`` uniforms of pass ``p`` (MToon's outline colour in shading space)."""
+    if p.outline_color is None:
+        return {"has_outline": False, "outline_color": (0.0, 0.0, 0.0), "outline_mix": 0.0}
+    return {"has_outline": True, "outline_color": tuple(float(c) for c in sh.from_gamma(p.outline_color)),
+            "outline_mix": float(p.outline_lighting_mix)}
+
+
 class _Shading:
     """Material constants in shading space (docs/pipeline.md §7)."""
 
@@ -460,6 +475,7 @@ class _Shading:
         def from_linear(c):
             return np.asarray(c, np.float64) if linear else encode(c)
 
+        self.from_gamma = lambda c: from_gamma(np.asarray(c, np.float64))
         col = np.asarray(material.color, np.float64)
         self.color = tuple(np.concatenate([from_gamma(col[:3]), col[3:]]).tolist())
         amb = np.asarray(scene.ambient, np.float64)
@@ -565,7 +581,8 @@ class GLRenderer:
                 if key not in buffers:
                     buffers[key] = self._vertex_buffer(vertex_data(scene, r, p)[0])
                 vbo, vao, count = buffers[key]
-                self.calls.append((vao, count, mirrored, tex, {**uniforms, **_light_uniforms(scene, light)}, p))
+                self.calls.append((vao, count, mirrored, tex,
+                                   {**uniforms, **_light_uniforms(scene, light), **_outline_uniforms(sh, p)}, p))
                 self.call_numbers.append(number - len(calls) + k + 1)
                 self.call_queues.append(mat.render_queue)
                 self._call_buffers.append(vbo)

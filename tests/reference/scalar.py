@@ -463,7 +463,10 @@ def draw_renderer(scene, r, V, P, buf: Buffers, warnings, budget, log: FragmentL
             if p.outline_mode is OutlineMode.Off:
                 clips = [clip_of(positions[k]) for k in tri]
             else:  # the outline vertex program, per corner
-                clips = [sh.outline_clip(p, positions[k], normals[t][c], M, V, P) for c, k in enumerate(tri)]
+                clips = [sh.outline_clip(p, positions[k], normals[t][c], M, V, P,
+                                         sh.width_factor(r.material, uvs[t][c] if uvs is not None else [0.0, 0.0],
+                                                         scene.color_space is ColorSpace.Linear))
+                         for c, k in enumerate(tri)]
             if not all(math.isfinite(c) for v in clips for c in v):
                 skipped += 1
                 continue
@@ -495,7 +498,7 @@ def draw_renderer(scene, r, V, P, buf: Buffers, warnings, budget, log: FragmentL
                                                                p.outline_width, p.outline_max_distance)
         if key not in stages:
             stages[key] = vertex_stage(p)[0]
-        shader.for_light(light, linear)
+        shader.for_light(light, linear).for_pass(p)
         drawn = 0
         for t, tris, clipped, attrs in stages[key]:
             if where is not None:

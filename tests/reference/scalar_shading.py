@@ -112,10 +112,14 @@ def signed_cofactors(m) -> tuple[list, float]:
 # ---------------------------------------------------------------- §1 outline vertex program
 
 
-def outline_clip(p, position, normal, M, V, P) -> list:
-    """Clip coordinates of one corner (object ``position``, ``normal``) under pass ``p``'s outline."""
+def outline_clip(p, position, normal, M, V, P, factor: float | None = None) -> list:
+    """Clip coordinates of one corner (object ``position``, ``normal``) under pass ``p``'s outline;
+    ``factor`` the outline-width texture's at the corner (:func:`width_factor`; None: ×1)."""
     n = unit3(normal)
     width = float(p.outline_width)
+
+    def times(w: float) -> float:
+        return w if factor is None else w * factor
     mv = matmul4(V, M)
     mvp = matmul4(P, mv)
     old = p.outline_formula is OutlineFormula.MToon0x
@@ -123,12 +127,12 @@ def outline_clip(p, position, normal, M, V, P) -> list:
         N, det = signed_cofactors(M)
         wn = rows3(N, n, affine=False)
         if old:
-            scale = div(length3(wn), abs(det)) * (0.01 * width)
+            scale = div(length3(wn), abs(det)) * times(0.01 * width)
             moved = [position[k] + scale * n[k] for k in range(3)]
             return rows3(mvp, moved, affine=True)
         u = unit3(wn)
         world = rows3(M[:3], position, affine=True)
-        moved = [world[k] + u[k] * width for k in range(3)]
+        moved = [world[k] + u[k] * times(width) for k in range(3)]
         return rows3(matmul4(P, V), moved, affine=True)
     clip = rows3(mvp, position, affine=True)
     Nv, _ = signed_cofactors(mv)
@@ -146,15 +150,64 @@ def outline_clip(p, position, normal, M, V, P) -> list:
         dx, dy = dx * reach, dy * reach
         dx *= aspect
         facing = 1.0 - abs(vz)
-        k = 0.01 * width
+        k = times(0.01 * width)
         dx, dy = k * dx, k * dy
     else:
-        reach = nmin(w, P[1][1]) * (2.0 * width)
+        reach = nmin(w, P[1][1]) * times(2.0 * width)
         dx, dy = dx * reach, dy * reach
         dx *= aspect
         facing = 1.0 - vz * vz
     facing = nmin(nmax(facing, 0.0), 1.0)
     return [clip[0] + dx * facing, clip[1] + dy * facing, clip[2], clip[3]]
+
+
+def width_factor(material, uv: list, linear: bool) -> float | None:
+    """The outline-width texture's red channel at mesh coordinates ``uv`` (after ``_MainTex``'s
+    tiling and offset), level 0, Point or Bilinear, in shading space; None without a texture."""
+    tex = material.outline_width_tex
+    if tex is None:
+        return None
+    conv = convert_of(tex.encoding, linear)
+    rows = [[[conv(t[0]), t[1], t[2], t[3]] for t in row] for row in to_list(np.asarray(tex.pixels, np.float32))]
+    u = uv[0] * float(material.main_tex_tiling[0]) + float(material.main_tex_offset[0])
+    v = uv[1] * float(material.main_tex_tiling[1]) + float(material.main_tex_offset[1])
+    return sample_rows(rows, u, v, material.outline_width_tex_filter is TextureFilter.Point,
+                       material.outline_width_tex_wrap is TextureWrap.Repeat)[0]
+
+
+def convert_of(encoding: str, linear: bool):
+    """A texel's colour channel → shading space (§7: sRGB decoded in Linear, Linear encoded in Gamma)."""
+    if encoding == "sRGB":
+        return decode if linear else (lambda c: c)
+    if encoding == "Linear":
+        return (lambda c: c) if linear else encode
+    return lambda c: c
+
+
+def sample_rows(T: list, u: float, v: float, point: bool, repeat: bool) -> list:
+    """Sample one level (rows of texels) at texture coordinates (u, v), Point or Bilinear (§7)."""
+    def wrap(i: int, n: int) -> int:
+        return i % n if repeat else min(max(i, 0), n - 1)
+
+    w, h = len(T[0]), len(T)
+    if not (math.isfinite(u) and math.isfinite(v)):
+        return list(T[0][0])
+    if point:
+        return list(T[wrap(math.floor(v * h), h)][wrap(math.floor(u * w), w)])
+    fu = u * w - 0.5
+    fv = v * h - 0.5
+    i0 = math.floor(fu)
+    j0 = math.floor(fv)
+    au = fu - i0
+    av = fv - j0
+    i1, j1 = wrap(i0 + 1, w), wrap(j0 + 1, h)
+    i0, j0 = wrap(i0, w), wrap(j0, h)
+    out = []
+    for c in range(4):
+        lo = T[j0][i0][c] * (1 - au) + T[j0][i1][c] * au
+        hi = T[j1][i0][c] * (1 - au) + T[j1][i1][c] * au
+        out.append(lo * (1 - av) + hi * av)
+    return out
 
 
 # ---------------------------------------------------------------- §7 a ForwardAdd draw's light
@@ -328,17 +381,13 @@ class Shader:
             self.light = [from_linear(float(c)) * energy for c in scene.light.color]
             self.ldir = normalise([float(v) for v in scene.light.direction])
         self.add = None  # a ForwardAdd draw's light (scalar_shading.AddLight)
+        self.outline = None  # the pass's outline colour (shading space) and lighting mix
         tex = material.main_tex
         self.tex = None
         self.mips = None
         if tex is not None:
             rows = to_list(np.asarray(tex.pixels, dtype=np.float32))
-            if tex.encoding == "sRGB":
-                conv = decode if linear else (lambda c: c)
-            elif tex.encoding == "Linear":
-                conv = (lambda c: c) if linear else encode
-            else:
-                conv = lambda c: c  # noqa: E731
+            conv = convert_of(tex.encoding, linear)
             self.tex = [[[conv(t[0]), conv(t[1]), conv(t[2]), t[3]] for t in row] for row in rows]
             self.th = len(rows)
             self.tw = len(rows[0])
@@ -350,8 +399,12 @@ class Shader:
         self.add = None if light is None else AddLight(light, linear)
         return self
 
-    def wrap(self, i: int, n: int) -> int:
-        return i % n if self.repeat else min(max(i, 0), n - 1)
+    def for_pass(self, p) -> Shader:
+        """This program with pass ``p``'s outline colour (MToon's outline: None, the lit colour)."""
+        self.outline = None
+        if p.outline_color is not None:
+            self.outline = ([self.from_gamma(float(c)) for c in p.outline_color], float(p.outline_lighting_mix))
+        return self
 
     def sample(self, u: float, v: float) -> list:
         if self.tex is None:
@@ -360,27 +413,7 @@ class Shader:
 
     def sample_level(self, T: list, u: float, v: float) -> list:
         """Sample one level (rows of texels) at texture coordinates (u, v) with the filter (§7)."""
-        w, h = len(T[0]), len(T)
-        if not (math.isfinite(u) and math.isfinite(v)):
-            return list(T[0][0])
-        if self.point:
-            i = self.wrap(math.floor(u * w), w)
-            j = self.wrap(math.floor(v * h), h)
-            return list(T[j][i])
-        fu = u * w - 0.5
-        fv = v * h - 0.5
-        i0 = math.floor(fu)
-        j0 = math.floor(fv)
-        au = fu - i0
-        av = fv - j0
-        i1, j1 = self.wrap(i0 + 1, w), self.wrap(j0 + 1, h)
-        i0, j0 = self.wrap(i0, w), self.wrap(j0, h)
-        out = []
-        for c in range(4):
-            lo = T[j0][i0][c] * (1 - au) + T[j0][i1][c] * au
-            hi = T[j1][i0][c] * (1 - au) + T[j1][i1][c] * au
-            out.append(lo * (1 - av) + hi * av)
-        return out
+        return sample_rows(T, u, v, self.point, self.repeat)
 
     def texture_uv(self, uv: list) -> tuple[float, float]:
         return uv[0] * self.tiling[0] + self.offset[0], uv[1] * self.tiling[1] + self.offset[1]
@@ -388,7 +421,17 @@ class Shader:
     def shade(self, uv: list, nw: list, vc: list | None = None, pos: list | None = None,
               lod: float | None = None) -> list:
         """rgba of the fragment in shading space (before clamping); ``vc`` the vertex colour in
-        shading space (None: white), ``pos`` the world position, ``lod`` the quad's LOD (mipmaps)."""
+        shading space (None: white), ``pos`` the world position, ``lod`` the quad's LOD (mipmaps).
+        An outline pass's colour replaces the lit rgb: ``outline * lerp(1, lit, mix)``, HLSL's
+        ``lerp(a, b, t) = a + t * (b - a)``."""
+        rgba = self.lit(uv, nw, vc, pos, lod)
+        if self.outline is None:
+            return rgba
+        color, mix = self.outline
+        return [color[c] * (1.0 + mix * (rgba[c] - 1.0)) for c in range(3)] + [rgba[3]]
+
+    def lit(self, uv: list, nw: list, vc: list | None, pos: list | None, lod: float | None) -> list:
+        """:meth:`shade` before the outline colour."""
         u, v = self.texture_uv(uv)
         if self.mips is not None and lod is not None:
             tex = mip_sample(self.mips, self.sample_level, u, v, lod, self.filter)

@@ -38,6 +38,10 @@ class ImportedMaterial:
     importer: str
     warnings: tuple[str, ...] = ()
     extra: dict[str, Any] = field(default_factory=dict)
+    #: The glTF texture index that is MToon's outline-width texture (None: none, ×1), and its
+    #: encoding: ``"sRGB"`` (VRM 0.x imports it as a colour texture) or ``"Data"`` (VRM 1.0: linear).
+    outline_width_tex: int | None = None
+    outline_width_encoding: str = "sRGB"
 
     def record(self) -> dict[str, Any]:
         """The material's JSON record: THE record ``shaderlab --json`` prints

@@ -11,7 +11,7 @@ take MToon's Properties defaults (``MToon.shader`` @1499e25a)::
 
     _Cutoff 0.5  _BlendMode 0  _OutlineWidthMode 0  _CullMode 2.0  _OutlineCullMode 1.0
     _SrcBlend 1.0  _DstBlend 0.0  _ZWrite 1.0  _AlphaToMask 0.0  _OutlineWidth 0.5
-    _OutlineScaledMaxDistance 1
+    _OutlineScaledMaxDistance 1  _OutlineColorMode 0  _OutlineLightingMix 1
 
 The importer order (``BuiltInVrmMaterialDescriptorGenerator.cs`` @58f2f7ff): the legacy
 ``VRM/UnlitTransparentZWrite`` first, then any shader name except ``VRM_USE_GLTFSHADER`` (which
@@ -28,7 +28,15 @@ from typing import Any
 from ...core.vocabulary import BlendFactor, Cull, Lighting, LightMode, Material, Pass, VertexColor
 from ..shaderlab.state import _CULL_BY_NUMBER, _FACTOR_BY_NUMBER
 from .container import GltfDocument
-from .mtoon import BLEND_CLIP_MTOON0, OUTLINE_NONE, OUTLINE_SCREEN, OUTLINE_WORLD, mtoon_passes
+from .mtoon import (
+    BLEND_CLIP_MTOON0,
+    OUTLINE_NONE,
+    OUTLINE_SCREEN,
+    OUTLINE_WORLD,
+    mtoon_passes,
+    outline_colour,
+    outline_width_sampler,
+)
 from .records import ImportedMaterial, MaterialError, number, queue_fields, rgba_values
 from .textures import sampler_settings
 from .unigltf import standard_passes, uniunlit_pass
@@ -40,7 +48,8 @@ USE_GLTF_SHADER = "VRM_USE_GLTFSHADER"
 #: MToon 0.x's Properties defaults that decide the state (MToon.shader).
 MTOON_DEFAULTS = {"_Cutoff": 0.5, "_BlendMode": 0.0, "_OutlineWidthMode": 0.0, "_CullMode": 2.0,
                   "_OutlineCullMode": 1.0, "_SrcBlend": 1.0, "_DstBlend": 0.0, "_ZWrite": 1.0,
-                  "_AlphaToMask": 0.0, "_OutlineWidth": 0.5, "_OutlineScaledMaxDistance": 1.0}
+                  "_AlphaToMask": 0.0, "_OutlineWidth": 0.5, "_OutlineScaledMaxDistance": 1.0,
+                  "_OutlineColorMode": 0.0, "_OutlineLightingMix": 1.0}
 #: MToon 0.x's ``_OutlineColor ("Outline Color", Color) = (0,0,0,1)``.
 OUTLINE_COLOR_DEFAULT = (0.0, 0.0, 0.0, 1.0)
 #: UniUnlit's Properties defaults (UniUnlit.shader).
@@ -129,6 +138,30 @@ def _outline_mode(props: _Properties, warnings: list[str]) -> str:
     return outline
 
 
+def _outline_colour(props: _Properties, outline: str, warnings: list[str]
+                    ) -> tuple[tuple[float, float, float] | None, float]:
+    """(outline colour, lighting mix) of the outline pass. The shader reads the keyword:
+    ``MTOON_OUTLINE_COLOR_FIXED`` the colour alone (mix 0), ``MTOON_OUTLINE_COLOR_MIXED`` the colour
+    times ``lerp(1, lit, _OutlineLightingMix)``, neither the lit colour (None); ``_OutlineColorMode``
+    (0 fixed, 1 mixed) is what the inspector derives them from: a keyword it disagrees with gets a
+    warning."""
+    keywords = props.keywords
+    mode = "fixed" if "MTOON_OUTLINE_COLOR_FIXED" in keywords else \
+        "mixed" if "MTOON_OUTLINE_COLOR_MIXED" in keywords else "none"
+    if outline != OUTLINE_NONE and mode != "none":
+        stated = {0: "fixed", 1: "mixed"}.get(int(props.float("_OutlineColorMode")))
+        if stated != mode:
+            warnings.append(f"{props.where}: _OutlineColorMode {props.float('_OutlineColorMode'):g} disagrees with "
+                            f"the keywords (outline colour {mode}); UniVRM sets the keywords from keywordMap, so "
+                            f"the outline colour is {mode}")
+    if mode == "none":
+        return None, 0.0
+    rgba = rgba_values(props.vector("_OutlineColor"), f"{props.where}: vectorProperties._OutlineColor",
+                       OUTLINE_COLOR_DEFAULT)
+    return outline_colour(rgba, props.float("_OutlineLightingMix") if mode == "mixed" else 0.0, props.where,
+                          warnings)
+
+
 def _mtoon(document: GltfDocument, index: int, name: str, props: _Properties, warnings: list[str]
            ) -> ImportedMaterial:
     where = props.where
@@ -139,6 +172,7 @@ def _mtoon(document: GltfDocument, index: int, name: str, props: _Properties, wa
                         "Unity does not document which variant draws); imported as _ALPHATEST_ON")
         alpha_blend_on = False
     outline = _outline_mode(props, warnings)
+    outline_color, outline_mix = _outline_colour(props, outline, warnings)
     queue, queue_values = props.queue(2000)
     texture, fields = _main_tex(document, props, warnings)
     color = rgba_values(props.vector("_Color"), f"{where}: vectorProperties._Color")
@@ -154,7 +188,8 @@ def _mtoon(document: GltfDocument, index: int, name: str, props: _Properties, wa
         dst=props.enum("_DstBlend", _FACTOR_BY_NUMBER, "BlendMode"),
         zwrite=props.float("_ZWrite") != 0, alpha_to_mask=props.float("_AlphaToMask") != 0,
         alpha_test=alpha_test_on or alpha_blend_on, outline_mode=outline,
-        outline_width=props.float("_OutlineWidth"), outline_max_distance=props.float("_OutlineScaledMaxDistance"))
+        outline_width=props.float("_OutlineWidth"), outline_max_distance=props.float("_OutlineScaledMaxDistance"),
+        outline_color=outline_color, outline_lighting_mix=outline_mix)
     # _BlendMode only records the mode the author chose (UniVRM's loader does not re-derive the state from it).
     mode = RENDER_MODES.get(int(props.float("_BlendMode")), f"_BlendMode {props.float('_BlendMode'):g}")
     extra = {"shader": props.entry.get("shader"), "render_queue": queue, "render_mode": mode,
@@ -166,9 +201,12 @@ def _mtoon(document: GltfDocument, index: int, name: str, props: _Properties, wa
                  "scaled_max_distance": props.float("_OutlineScaledMaxDistance"), "formula": "0.x",
                  "color": list(rgba_values(props.vector("_OutlineColor"), f"{where}: vectorProperties._OutlineColor",
                                            OUTLINE_COLOR_DEFAULT))}}
+    width_tex = props.texture("_OutlineWidthTexture") if outline != OUTLINE_NONE else None
+    if width_tex is not None:  # sampled at _MainTex's coordinates (the property is [NoScaleOffset])
+        fields |= outline_width_sampler(document, width_tex, where, warnings)
     material = Material(name=name, color=color, cutoff=cutoff, lighting=Lighting.Lambert, passes=passes,
                         **queue_values, **fields)
-    return ImportedMaterial(index, material, texture, f"VRM 0.x {MTOON}", tuple(warnings), extra)
+    return ImportedMaterial(index, material, texture, f"VRM 0.x {MTOON}", tuple(warnings), extra, width_tex, "sRGB")
 
 
 def _unlit_transparent_zwrite(document: GltfDocument, index: int, name: str, props: _Properties,

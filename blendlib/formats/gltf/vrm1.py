@@ -24,7 +24,15 @@ from typing import Any
 
 from ...core.vocabulary import BlendFactor, Cull, Lighting, Material
 from .container import GltfDocument
-from .mtoon import BLEND_CLIP_MTOON1, OUTLINE_NONE, OUTLINE_SCREEN, OUTLINE_WORLD, mtoon_passes
+from .mtoon import (
+    BLEND_CLIP_MTOON1,
+    OUTLINE_NONE,
+    OUTLINE_SCREEN,
+    OUTLINE_WORLD,
+    mtoon_passes,
+    outline_colour,
+    outline_width_sampler,
+)
 from .records import ImportedMaterial, MaterialError, gamma_color, number, queue_fields
 from .unigltf import alpha_cutoff, alpha_mode, base_color_texture
 
@@ -52,6 +60,15 @@ def _outline_color(mtoon: dict[str, Any], where: str) -> tuple[float, float, flo
         raise MaterialError(f"{where}: {EXTENSION}.outlineColorFactor is not three numbers ({value!r})")
     r, g, b = (number(v, f"{where}: {EXTENSION}.outlineColorFactor") for v in value)
     return r, g, b
+
+
+def _outline_colour_fields(mtoon: dict[str, Any], where: str, warnings: list[str]) -> dict[str, Any]:
+    """The outline pass's colour: ``outlineColorFactor`` as UniVRM sets ``_OutlineColor`` (linear →
+    gamma, as ``_Color``) and ``outlineLightingMixFactor`` (the schema's default 1)."""
+    r, g, b, _ = gamma_color([*_outline_color(mtoon, where), 1.0], f"{where}: {EXTENSION}.outlineColorFactor")
+    mix = number(mtoon.get("outlineLightingMixFactor", 1.0), f"{where}: {EXTENSION}.outlineLightingMixFactor")
+    colour, mix = outline_colour((r, g, b), mix, where, warnings)
+    return {"outline_color": colour, "outline_lighting_mix": mix}
 
 
 def vrm1_material(document: GltfDocument, index: int) -> ImportedMaterial:
@@ -84,7 +101,8 @@ def vrm1_material(document: GltfDocument, index: int) -> ImportedMaterial:
         src=BlendFactor.SrcAlpha if blend else BlendFactor.One,
         dst=BlendFactor.OneMinusSrcAlpha if blend else BlendFactor.Zero,
         zwrite=not blend or zwrite_flag, alpha_to_mask=mode == "MASK", alpha_test=mode != "OPAQUE",
-        outline_mode=outline, outline_width=width)
+        outline_mode=outline, outline_width=width,
+        **_outline_colour_fields(mtoon, where, warnings))
     texture, fields = base_color_texture(document, material, where, warnings)
     color = gamma_color((material.get("pbrMetallicRoughness") or {}).get("baseColorFactor"),
                         f"{where}.baseColorFactor")
@@ -99,6 +117,13 @@ def vrm1_material(document: GltfDocument, index: int) -> ImportedMaterial:
     if mode == "OPAQUE":
         color = color[:3] + (1.0,)  # MToon writes alpha 1 without an alpha keyword
     cutoff = alpha_cutoff(material, where) if mode == "MASK" else BLEND_CLIP_MTOON1 if blend else 0.5
+    width_tex = None
+    width_info = mtoon.get("outlineWidthMultiplyTexture")
+    if outline != OUTLINE_NONE and isinstance(width_info, dict) and width_info.get("index") is not None:
+        # UniVRM imports it linear and samples it at _MainTex's coordinates (its own transform unused).
+        width_tex = int(width_info["index"])
+        fields |= outline_width_sampler(document, width_tex, where, warnings)
     out = Material(name=name, color=color, cutoff=cutoff, lighting=Lighting.Lambert, passes=passes,
                    **queue_fields(queue, f"{where}: render queue"), **fields)
-    return ImportedMaterial(index, out, texture, "VRM 1.0 VRMC_materials_mtoon", tuple(warnings), extra)
+    return ImportedMaterial(index, out, texture, "VRM 1.0 VRMC_materials_mtoon", tuple(warnings), extra,
+                            width_tex, "Data")

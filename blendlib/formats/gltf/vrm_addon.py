@@ -20,6 +20,8 @@ VRM 0.x (``vrm0_exporter.py``, ``write_mtoon1_downgraded_material``; research-vr
     _OutlineWidth = outline_width_factor * 100 (world) / * 200 (screen) / 0.0 (none); _OutlineScaledMaxDistance
     vector_properties["_Color"] = convert.linear_to_srgb(base_color_factor)   (x ** (1 / 2.2))
     vector_properties["_OutlineColor"] = convert.linear_to_srgb(outline_color_factor) + [1]
+    _OutlineLightingMix = outline_lighting_mix_factor; _OutlineColorMode = 1 if that mix > 0 else 0
+    and with an outline MTOON_OUTLINE_COLOR_MIXED / _FIXED by it (none: mix 0, mode 0, no keyword)
 
 ``blend_method`` follows the add-on's alpha mode in the Blender versions it was written for
 (OPAQUE, CLIP, BLEND/HASHED); Blender 4.2 and later read every material's ``blend_method`` as
@@ -32,7 +34,7 @@ VRM 1.0 (``vrm1_exporter.py``, ``create_mtoon1_material_dict``): ``alphaMode``, 
 only), ``doubleSided``, ``baseColorFactor``/``baseColorTexture`` with its ``KHR_texture_transform``,
 ``KHR_materials_unlit`` and ``VRMC_materials_mtoon`` with ``transparentWithZWrite``,
 ``renderQueueOffsetNumber`` (unclamped: UniVRM's validator clamps it), ``outlineWidthMode``,
-``outlineWidthFactor`` and ``outlineColorFactor``.
+``outlineWidthFactor``, ``outlineColorFactor`` and ``outlineLightingMixFactor``.
 """
 
 from __future__ import annotations
@@ -77,8 +79,14 @@ class AddonMToon:
     outline_width_factor: float = 0.0
     #: ``outline_color_factor`` (linear RGB; the add-on's default black).
     outline_color_factor: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    #: ``outline_lighting_mix_factor`` (the add-on's default 1, VRMC_materials_mtoon's).
+    outline_lighting_mix_factor: float = 1.0
     base_color_factor: tuple[float, float, float, float] = (1.0, 1.0, 1.0, 1.0)
     base_color_texture: AddonTexture | None = None
+    #: ``outline_width_multiply_texture`` (exported as 0.x ``_OutlineWidthTexture``, 1.0
+    #: ``outlineWidthMultiplyTexture``; its transform is exported but MToon samples it at the base
+    #: colour texture's coordinates).
+    outline_width_multiply_texture: AddonTexture | None = None
     mtoon0_render_queue: int = 2000
     mtoon0_front_cull_mode: bool = False
     mtoon0_outline_scaled_max_distance: float = 1.0
@@ -108,16 +116,22 @@ def _srgb_gamma(value: float) -> float:
     return max(0.0, float(value)) ** (1 / 2.2)
 
 
-def _texture_json(texture: AddonTexture | None) -> tuple[list, list, list]:
-    """(images, samplers, textures) arrays for the one base colour texture (empty without one)."""
-    if texture is None:
-        return [], [], []
-    sampler = {"magFilter": texture.mag_filter, "minFilter": texture.min_filter,
-               "wrapS": texture.wrap_s, "wrapT": texture.wrap_t}
-    return [{"name": "base color"}], [sampler], [{"source": 0, "sampler": 0}]
+def _texture_json(mtoon: AddonMToon) -> tuple[list, list, list, dict[str, int]]:
+    """(images, samplers, textures) arrays for the base colour and outline-width textures (those the
+    material has), and the texture index of each by role (``"base"``, ``"width"``)."""
+    images, samplers, textures, index = [], [], [], {}
+    for role, texture in (("base", mtoon.base_color_texture), ("width", mtoon.outline_width_multiply_texture)):
+        if texture is None:
+            continue
+        index[role] = len(textures)
+        samplers.append({"magFilter": texture.mag_filter, "minFilter": texture.min_filter,
+                         "wrapS": texture.wrap_s, "wrapT": texture.wrap_t})
+        images.append({"name": role})
+        textures.append({"source": index[role], "sampler": index[role]})
+    return images, samplers, textures, index
 
 
-def _vrm0_entry(mtoon: AddonMToon) -> dict[str, Any]:
+def _vrm0_entry(mtoon: AddonMToon, index: dict[str, int]) -> dict[str, Any]:
     floats: dict[str, float] = {"_Cutoff": 0.5}
     keywords: dict[str, bool] = {}
     if mtoon.alpha_mode == "OPAQUE":
@@ -149,25 +163,32 @@ def _vrm0_entry(mtoon: AddonMToon) -> dict[str, Any]:
         keywords["MTOON_OUTLINE_WIDTH_SCREEN"] = True
         floats["_OutlineWidth"] = mtoon.outline_width_factor * 200
     floats["_OutlineScaledMaxDistance"] = mtoon.mtoon0_outline_scaled_max_distance
+    mixed = mtoon.outline_lighting_mix_factor > 0
+    floats["_OutlineLightingMix"] = mtoon.outline_lighting_mix_factor if mode else 0.0
+    floats["_OutlineColorMode"] = 1 if mixed and mode else 0
+    if mode:
+        keywords["MTOON_OUTLINE_COLOR_MIXED" if mixed else "MTOON_OUTLINE_COLOR_FIXED"] = True
     r, g, b, a = mtoon.base_color_factor
     vectors: dict[str, list[float]] = {"_Color": [_srgb_gamma(r), _srgb_gamma(g), _srgb_gamma(b), float(a)],
                                        "_OutlineColor": [*(_srgb_gamma(c) for c in mtoon.outline_color_factor), 1.0]}
     textures: dict[str, int] = {}
     texture = mtoon.base_color_texture
     if texture is not None:
-        textures["_MainTex"] = 0
+        textures["_MainTex"] = index["base"]
         (ox, oy), (sx, sy) = texture.offset, texture.scale
         vectors["_MainTex"] = [ox, 1.0 - oy - sy, sx, sy]
+    if "width" in index:
+        textures["_OutlineWidthTexture"] = index["width"]
     return {"name": mtoon.name, "shader": "VRM/MToon", "renderQueue": queue, "floatProperties": floats,
             "keywordMap": keywords, "vectorProperties": vectors, "textureProperties": textures}
 
 
-def vrm1_material_json(mtoon: AddonMToon) -> dict[str, Any]:
-    """The glTF material the add-on's VRM 1.0 exporter writes for ``mtoon`` (texture index 0)."""
+def vrm1_material_json(mtoon: AddonMToon, index: dict[str, int]) -> dict[str, Any]:
+    """The glTF material the add-on's VRM 1.0 exporter writes for ``mtoon`` (texture indices by role)."""
     base: dict[str, Any] = {"baseColorFactor": list(mtoon.base_color_factor)}
     texture = mtoon.base_color_texture
     if texture is not None:
-        base["baseColorTexture"] = {"index": 0, "extensions": {"KHR_texture_transform": {
+        base["baseColorTexture"] = {"index": index["base"], "extensions": {"KHR_texture_transform": {
             "offset": list(texture.offset), "scale": list(texture.scale)}}}
     material: dict[str, Any] = {
         "name": mtoon.name, "alphaMode": mtoon.alpha_mode, "doubleSided": mtoon.double_sided,
@@ -176,8 +197,11 @@ def vrm1_material_json(mtoon: AddonMToon) -> dict[str, Any]:
             "specVersion": "1.0", "transparentWithZWrite": mtoon.transparent_with_z_write,
             "renderQueueOffsetNumber": mtoon.render_queue_offset_number,
             "outlineWidthMode": mtoon.outline_width_mode, "outlineWidthFactor": mtoon.outline_width_factor,
-            "outlineColorFactor": list(mtoon.outline_color_factor)}},
+            "outlineColorFactor": list(mtoon.outline_color_factor),
+            "outlineLightingMixFactor": mtoon.outline_lighting_mix_factor}},
     }
+    if "width" in index:
+        material["extensions"]["VRMC_materials_mtoon"]["outlineWidthMultiplyTexture"] = {"index": index["width"]}
     if mtoon.alpha_mode == "MASK":
         material["alphaCutoff"] = mtoon.alpha_cutoff
     return material
@@ -185,15 +209,15 @@ def vrm1_material_json(mtoon: AddonMToon) -> dict[str, Any]:
 
 def export_document(mtoon: AddonMToon, spec_version: str) -> GltfDocument:
     """The one-material document the add-on's exporter for ``spec_version`` (``"0.x"``/``"1.0"``) writes."""
-    images, samplers, textures = _texture_json(mtoon.base_color_texture)
+    images, samplers, textures, index = _texture_json(mtoon)
     data: dict[str, Any] = {"asset": {"version": "2.0", "generator": "Unity Passes: VRM Add-on settings"},
                             "images": images, "samplers": samplers, "textures": textures}
     if spec_version == "0.x":
         material = {"name": mtoon.name, "alphaMode": mtoon.alpha_mode, "doubleSided": mtoon.double_sided,
                     "extensions": {"KHR_materials_unlit": {}}}
-        data |= {"materials": [material], "extensions": {"VRM": {"materialProperties": [_vrm0_entry(mtoon)]}}}
+        data |= {"materials": [material], "extensions": {"VRM": {"materialProperties": [_vrm0_entry(mtoon, index)]}}}
     elif spec_version == "1.0":
-        data |= {"materials": [vrm1_material_json(mtoon)], "extensions": {"VRMC_vrm": {"specVersion": "1.0"}}}
+        data |= {"materials": [vrm1_material_json(mtoon, index)], "extensions": {"VRMC_vrm": {"specVersion": "1.0"}}}
     else:
         raise ValueError(f"unknown VRM spec version {spec_version!r} (expected 0.x or 1.0)")
     return document_from_json(data, f"<VRM Add-on material {mtoon.name!r}>")
@@ -201,6 +225,15 @@ def export_document(mtoon: AddonMToon, spec_version: str) -> GltfDocument:
 
 def addon_material(mtoon: AddonMToon, spec_version: str) -> ImportedMaterial:
     """The Unity state UniVRM draws ``mtoon`` with, after the add-on's ``spec_version`` export;
-    ``main_tex`` is 0 when the material has a base colour texture (its image: ``mtoon.base_color_texture``)."""
+    ``main_tex`` / ``outline_width_tex`` index the textures of :func:`export_document` (their images:
+    :func:`texture_images`)."""
     document = export_document(mtoon, spec_version)
     return import_material(document, 0, spec_version)
+
+
+def texture_images(mtoon: AddonMToon, imported: ImportedMaterial) -> tuple[Any, Any]:
+    """(the ``_MainTex`` image, the outline-width image) of :func:`addon_material`'s result: the
+    images of ``mtoon``'s textures the imported material uses (None where it uses none)."""
+    base = mtoon.base_color_texture.image if imported.main_tex is not None else None
+    width = mtoon.outline_width_multiply_texture.image if imported.outline_width_tex is not None else None
+    return base, width

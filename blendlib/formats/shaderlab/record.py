@@ -61,6 +61,8 @@ def material_record(name: str, material: Material, warnings: Sequence[str] = (),
     material_fields = {"enabled": True} | {f.name: getattr(material, f.name) for f in fields(Material)
                                            if f.name not in ("name", "passes")}
     material_fields["main_tex"] = main_tex_file
+    width_tex = material.outline_width_tex  # pixels are not JSON: the texture by its name
+    material_fields["outline_width_tex"] = None if width_tex is None else width_tex.name
     if listed is None:
         listed = [(p, None) for p in material.passes]
     return {
