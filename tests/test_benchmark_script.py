@@ -362,10 +362,10 @@ def test_s5_s6_and_msaa_cases():
 def test_particle_scene_is_unitys_legacy_particles():
     """S6's scene: two draw calls of camera-facing quads with vertex colours, drawn as Unity's
     Particles/Alpha Blended (``Blend SrcAlpha OneMinusSrcAlpha``) and Particles/Additive
-    (``Blend SrcAlpha One``), both ``Cull Off ZWrite Off`` in the Transparent queue with
+    (``Blend SrcAlpha One``), both ``Cull Off Lighting Off ZWrite Off`` in the Transparent queue with
     ``2 * i.color * _TintColor * tex`` (the shaders' text); with ``msaa`` 4 the scene has 4 samples."""
     from blendlib import blender
-    from blendlib.core.vocabulary import BlendFactor, Cull, Queue, VertexColor
+    from blendlib.core.vocabulary import BlendFactor, Cull, Lighting, Queue, VertexColor
     from scripts.benchmark import scenes
 
     scene = scenes.build_case(dict(kind="particles", count=400, width=64, height=36, msaa=4))
@@ -375,6 +375,7 @@ def test_particle_scene_is_unitys_legacy_particles():
     for r in draw.renderers:
         m, (p,) = r.material, r.material.draw_passes
         assert m.queue == Queue.Transparent.value and m.vertex_color is VertexColor.Particle
+        assert m.lighting is Lighting.Unlit  # "Lighting Off" in both shaders' text
         assert p.cull is Cull.Off and not p.zwrite and p.blend and p.src_blend is BlendFactor.SrcAlpha
         additive = r.material.name.endswith("Additive")
         assert p.dst_blend is (BlendFactor.One if additive else BlendFactor.OneMinusSrcAlpha)
