@@ -25,9 +25,12 @@ the draw calls (queues, sort settings) or one renderer's passes (the prepass), s
 the original's step-1 buffers (everything up to queue 2500, kept by the analysis) with the
 draw calls from there on; only those are rendered, once per distinct draw list (a sort mode
 shared by several pairs is rendered once; a draw list equal to the original's is not rendered
-at all). The pairs' inversions are counted as that render goes (:class:`_PairWatch`), and the
-differing pixels against the original reference. The numbers equal those of a full analysis of
-the changed scene (tests/explain/test_advice.py checks it on random scenes).
+at all). Only the band of rows that the renderers it moves or alters and the advised pairs'
+renderers reached in the analysis is drawn (:meth:`_Measurer.band`; elsewhere every pixel sees the
+same fragments in the same order). The pairs' inversions are counted as that render goes
+(:class:`_PairWatch`), and the differing pixels against the original reference, computed again
+only where the colour changed. The numbers equal those of a full analysis of the changed scene
+(tests/explain/test_advice.py checks it on random scenes and on scenes in strips).
 
 Advice sits on top of the analysis (:mod:`.sorted_reference` knows nothing of it):
 :func:`analyze_and_advise` runs one and then the other, for the callers that want both
