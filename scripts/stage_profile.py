@@ -21,6 +21,13 @@ maps the cumulative time of the pipeline's stage functions to stages:
   ``merger/buffers.py``)
 - other: the rest (draw list, per-chunk bookkeeping in ``pipeline``, Python overhead)
 
+With ``--analysis`` it profiles the sorted reference instead (``workers=1``): ``analyze`` without
+advice split into its phases — the observed render that keeps the transparent fragments
+(``render``), step 2's sort and replay of the kept fragments (``step 2``: ``_Blocks.run``, its
+blocks on their threads), the sorted reference and the sort error (``reference``) and the rest —
+and the advice on top of it (``advise``, five pairs: the re-rendered fixes and the rest), each as a
+multiple of a plain one-thread render.
+
 cProfile adds a per-call cost, so shares of call-heavy stages read a little high. Run it from
 the repository root; it is not a test.
 """
@@ -76,11 +83,66 @@ def profile_draw(draw) -> tuple[float, dict[str, float]]:
     return stage_shares(pstats.Stats(prof))
 
 
+ANALYSIS_PHASES = {
+    "render": [("pipeline.py", "render_scene")],
+    "step 2": [("sorted_reference.py", "run")],
+    "reference": [("sorted_reference.py", "reference_from_codes"), ("sorted_reference.py", "sort_error")],
+}
+
+
+def profile_analysis(draw) -> dict[str, float]:
+    """Seconds of a one-thread plain render, of ``analyze`` (no advice) by phase and of ``advise``
+    (five pairs) split into its re-renders and the rest (module doc)."""
+    import time
+
+    from blendlib.core.pipeline import render_scene
+    from blendlib.explain.advice import advise
+    from blendlib.explain.sorted_reference import analyze
+
+    render_scene(draw, workers=1)
+    start = time.perf_counter()
+    render_scene(draw, workers=1)
+    out = {"plain": time.perf_counter() - start}
+    analyze(draw, workers=1)
+    prof = cProfile.Profile()
+    prof.enable()
+    analysis = analyze(draw, workers=1, keep_step1=True)
+    prof.disable()
+    cum = _cumulative(pstats.Stats(prof))
+    out["analyze"] = cum.get(("sorted_reference.py", "analyze"), 0.0)
+    for phase, keys in ANALYSIS_PHASES.items():
+        out[phase] = sum(cum.get(k, 0.0) for k in keys)
+    out["analyze other"] = max(out["analyze"] - sum(out[p] for p in ANALYSIS_PHASES), 0.0)
+    prof = cProfile.Profile()
+    prof.enable()
+    advise(draw, analysis, 5, workers=1)
+    prof.disable()
+    cum = _cumulative(pstats.Stats(prof))
+    out["advise"] = cum.get(("advice.py", "advise"), 0.0)
+    out["advise renders"] = cum.get(("pipeline.py", "render_scene"), 0.0)
+    out["advise other"] = max(out["advise"] - out["advise renders"], 0.0)
+    return out
+
+
+def _cumulative(stats: pstats.Stats) -> dict[tuple[str, str], float]:
+    cum: dict[tuple[str, str], float] = {}
+    for (file, _line, func), (_cc, _nc, _tt, ct, _callers) in stats.stats.items():
+        key = (Path(file).name, func)
+        cum[key] = max(cum.get(key, 0.0), ct)  # the outermost call (render_scene may recurse)
+    return cum
+
+
+ANALYSIS_COLUMNS = ("analyze", "render", "step 2", "reference", "analyze other", "advise", "advise renders",
+                    "advise other")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m scripts.stage_profile", description=__doc__.split("\n\n")[0])
     ap.add_argument("--scenes", default="S1,S2,S4", help="benchmark scene ids (default S1,S2,S4)")
     ap.add_argument("--quick", action="store_true", help="the benchmark's small sizes")
     ap.add_argument("--markdown", action="store_true", help="print a markdown table")
+    ap.add_argument("--analysis", action="store_true",
+                    help="profile analyze and its advice instead of a render (multiples of a plain render)")
     args = ap.parse_args(argv)
     from blendlib import blender
     from scripts.benchmark.cases import plan_cases
@@ -91,11 +153,24 @@ def main(argv=None) -> int:
         if case["group"].startswith("scale-"):  # the scaling series is S1's sphere again
             continue
         draw = blender.build_draw_scene(build_case(case))
+        if args.analysis:
+            times = profile_analysis(draw)
+            rows.append((case["id"], times))
+            print(f"{case['id']:>16} plain {times['plain']:.3f} s  "
+                  + "  ".join(f"{k} {times[k] / times['plain']:.2f}x" for k in ANALYSIS_COLUMNS), flush=True)
+            continue
         total, seconds = profile_draw(draw)
         rows.append((case["id"], total, seconds))
         print(f"{case['id']:>16} {total:7.3f} s  " + "  ".join(f"{k} {v / total:4.0%}" for k, v in seconds.items()),
               flush=True)
-    if args.markdown:
+    if args.markdown and args.analysis:
+        print()
+        print("| scene | plain s | " + " | ".join(ANALYSIS_COLUMNS) + " |")
+        print("|---|---|" + "---|" * len(ANALYSIS_COLUMNS))
+        for name, times in rows:
+            print(f"| {name} | {times['plain']:.3f} | "
+                  + " | ".join(f"{times[k] / times['plain']:.2f}x" for k in ANALYSIS_COLUMNS) + " |")
+    elif args.markdown:
         print()
         print("| scene | one-thread s | " + " | ".join(ORDER) + " |")
         print("|---|---|" + "---|" * len(ORDER))

@@ -44,7 +44,7 @@ def test_quick_run_prints_the_table(tmp_path):
     out = proc.stdout
     header = next(line for line in out.splitlines() if line.startswith("scene "))
     for column in ("scene", "tris", "size", "extract s", "render s", "project s", "OpenGL s", "EEVEE s",
-                   "Workbench s", "proj/GL", "proj/EEVEE", "peak MB", "CPU"):
+                   "Workbench s", "proj/GL", "proj/EEVEE", "spread proj/GL", "peak MB", "CPU"):
         assert column in header
     ids = ("S1", "S2", "S2p", "S3:alpha_blend", "S4")
     rows = {line.split()[0] for line in out.splitlines() if line.split()[:1] and line.split()[0] in ids}
@@ -77,10 +77,14 @@ def test_quick_run_prints_the_table(tmp_path):
     for r in (by_id["S1"], by_id["S2"], by_id["S2p"], by_id["S3:alpha_blend"]):
         e = r["explain"]
         assert e["size"] == [r["case"]["width"], r["case"]["height"]]
-        for key in ("plain_s", "drawlist_s", "pixel_s", "capture_s", "step_s", "analyze_s"):
+        for key in ("plain_s", "drawlist_s", "pixel_s", "capture_s", "step_s", "analyze_s", "advised_s"):
             assert e[key] > 0, key
-        for key in ("drawlist_ratio", "pixel_ratio", "capture_ratio", "step_ratio", "analyze_ratio"):
+        for key in ("drawlist_ratio", "pixel_ratio", "capture_ratio", "step_ratio", "analyze_ratio",
+                    "advised_ratio"):
             assert e[key] == pytest.approx(e[key.replace("_ratio", "_s")] / e["plain_s"])
+        assert e["advice_over_analyze"] == pytest.approx(e["advised_s"] / e["analyze_s"])
+        assert e["advice_items"] <= min(5, e["inversion_pairs"])
+        assert "forward_add" not in e  # none of these scenes has a ForwardAdd pass
         assert 0 < e["plain_peak_mb"] and e["capture_peak_mb"] >= e["snapshot_mb"] and e["analyze_peak_mb"] > 0
         # snapshots after every interval-th draw but the last (the final frame is kept anyway)
         assert e["interval"] >= 1 and e["snapshots"] == (e["draws"] - 1) // e["interval"]
@@ -237,6 +241,53 @@ def test_targets_of_the_frame_debugger_sorted_reference_and_viewport():
     assert not [m for m in tg if m.startswith(("S1", "S4", "render time vs")) or "EEVEE" in m]
 
 
+def test_targets_of_advice_forward_add_and_steadiness():
+    def result(sid, project, opengl, explain=None):
+        r = {"case": dict(id=sid, group="S3", width=1280, height=720), "setup": {"project": {}}, "median": {},
+             "ratio_gl": None, "ratio_eevee": None, "errors": {},
+             "runs": {"project": [{"render_s": v} for v in project], "opengl": [{"total_s": v} for v in opengl]}}
+        if explain:
+            r["explain"] = explain
+        return r
+
+    results = [
+        # project 0.9..1.1 around 1.0: spread 20 %; OpenGL 0.45..0.55 around 0.5: 20 % -> met (equal)
+        result("S3:a", [1.0, 0.9, 1.1], [0.5, 0.45, 0.55],
+               explain=dict(advice_over_analyze=1.5, inversion_pairs=2,
+                            forward_add=[dict(renderer="Glass[0]", base_s=0.010, add_s=0.012, ratio=1.2),
+                                         dict(renderer="Stone[0]", base_s=0.020, add_s=0.010, ratio=0.5)])),
+        # 30 % against OpenGL's 10 %: missed; its advice ratio does not count (no inversion pairs)
+        result("S3:b", [1.0, 0.85, 1.15], [0.5, 0.48, 0.53], explain=dict(advice_over_analyze=9.0, inversion_pairs=0)),
+        result("S3:c", [2.0], [1.0], explain=dict(advice_over_analyze=2.5, inversion_pairs=1)),  # one run: no spread
+    ]
+    tg = _by_measure(targets.targets(results))
+    assert tg["render time spread over the repeats ((max - min) / median) vs OpenGL's, per scene"] == (
+        "<= OpenGL's", "1 of 2 met; worst S3:b: 30% vs 10%", False)
+    assert tg["every explained scene with inversions: analyze with advice (5 pairs) / analyze without it"] == (
+        "<= 2x", "worst 2.5x (S3:c); range 1.5x–2.5x; 1 of 2 met", False)
+    assert tg["each ForwardAdd draw / its renderer's ForwardBase draw (one thread)"] == (
+        "<= 1x", "worst 1.2x (S3:a Glass[0]); range 0.50x–1.2x; 1 of 2 met", False)
+    assert tables.fmt_spreads(0.2, None) == "20%/-"
+
+
+def test_forward_add_prices_time_each_forwardadd_draw_against_its_base_pass():
+    import bpy
+
+    from blendlib import blender
+    from scripts.benchmark.workers import forward_add_prices
+
+    bpy.ops.wm.open_mainfile(filepath=str(REPO / "blend_files" / "lights.blend"), load_ui=False)
+    scene = bpy.data.scenes["Lights"]
+    scene.render.resolution_x, scene.render.resolution_y = 320, 180
+    draw = blender.build_draw_scene(scene)
+    prices = forward_add_prices(draw, 1)
+    # blend_files/lights.blend: three materials with a ForwardAdd pass on four objects (the floor and the
+    # wall share 'Stone'); each has a ForwardBase draw and one ForwardAdd draw per per-pixel light.
+    assert [p["renderer"] for p in prices] == ["Floor[0]", "Glass Sphere[0]", "Glow Torus[0]", "Wall[0]"]
+    for p in prices:
+        assert p["base_s"] > 0 and p["add_s"] > 0 and p["ratio"] == pytest.approx(p["add_s"] / p["base_s"])
+
+
 def test_write_doc_replaces_only_the_results_section(tmp_path):
     doc = tmp_path / "benchmark.md"
     doc.write_text(f"# B\n\nmethod\n\n{report.RESULTS_START}\nold\n{report.RESULTS_END}\n\nafter\n")
@@ -311,10 +362,10 @@ def test_s5_s6_and_msaa_cases():
 def test_particle_scene_is_unitys_legacy_particles():
     """S6's scene: two draw calls of camera-facing quads with vertex colours, drawn as Unity's
     Particles/Alpha Blended (``Blend SrcAlpha OneMinusSrcAlpha``) and Particles/Additive
-    (``Blend SrcAlpha One``), both ``Cull Off ZWrite Off`` in the Transparent queue with
+    (``Blend SrcAlpha One``), both ``Cull Off Lighting Off ZWrite Off`` in the Transparent queue with
     ``2 * i.color * _TintColor * tex`` (the shaders' text); with ``msaa`` 4 the scene has 4 samples."""
     from blendlib import blender
-    from blendlib.core.vocabulary import BlendFactor, Cull, Queue, VertexColor
+    from blendlib.core.vocabulary import BlendFactor, Cull, Lighting, Queue, VertexColor
     from scripts.benchmark import scenes
 
     scene = scenes.build_case(dict(kind="particles", count=400, width=64, height=36, msaa=4))
@@ -324,6 +375,7 @@ def test_particle_scene_is_unitys_legacy_particles():
     for r in draw.renderers:
         m, (p,) = r.material, r.material.draw_passes
         assert m.queue == Queue.Transparent.value and m.vertex_color is VertexColor.Particle
+        assert m.lighting is Lighting.Unlit  # "Lighting Off" in both shaders' text
         assert p.cull is Cull.Off and not p.zwrite and p.blend and p.src_blend is BlendFactor.SrcAlpha
         additive = r.material.name.endswith("Additive")
         assert p.dst_blend is (BlendFactor.One if additive else BlendFactor.OneMinusSrcAlpha)

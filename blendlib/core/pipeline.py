@@ -87,7 +87,8 @@ def render_scene(
     process's share of a frame split across processes, :mod:`blendlib.runtime.bandprocs`).
     An observer of a band render receives the band's fragments only, and buffers whose rows
     outside the band were never cleared (the sorted reference's later passes,
-    :mod:`blendlib.explain.sorted_reference`); a band render resumes nothing.
+    :mod:`blendlib.explain.sorted_reference`). With ``resume`` too, the band's rows continue
+    from the resumed buffers (the advice's re-measured fixes, :mod:`blendlib.explain.advice`).
     ``out``: (color, depth, stencil) arrays of the Frame's shapes and dtypes to write the
     result into (a band straight into its rows of a whole frame, or into shared memory).
     ``memo``: a :class:`~blendlib.core.scene.SceneMemo` shared by renders of scenes with the
@@ -108,8 +109,6 @@ def render_scene(
         band = (int(band[0]), int(band[1]))
         if not 0 <= band[0] < band[1] <= height:
             raise SceneError(f"band {band} is not a range of rows within 0..{height}")
-        if resume is not None:
-            raise SceneError("a band render resumes nothing")
     samples = int(scene.msaa)
     if samples > 1 and observer is not None and not observer.per_sample:
         raise SceneError(f"{type(observer).__name__} reads pixel fragments only (FrameObserver.per_sample), "
@@ -118,7 +117,7 @@ def render_scene(
     if resume is not None:
         if resume[0].samples != samples:
             raise SceneError(f"resume: buffers of {resume[0].samples} samples per pixel, the scene has {samples}")
-        buf, first = resume[0].copy(), int(resume[1])
+        buf, first = resume[0].copy(band), int(resume[1])
     else:
         clear = shade.gamma_color_to_shading(scene.clear_color[:3], cs) + (float(scene.clear_color[3]),)
         buf, first = FrameBuffers(width, height, scene.hdr, cs, clear, band, samples), 0

@@ -582,6 +582,10 @@ def interpolate_runs(weights: np.ndarray, corners: np.ndarray, counts: np.ndarra
     n = weights.shape[1]
     out = np.empty((corners.shape[2], n), dtype=np.float64)
     expand = run_expander(counts, n)
+    if flat.all():  # every triangle's corners equal (a particle's colour): each fragment takes them
+        for c in range(corners.shape[2]):
+            out[c] = expand(corners[:, 0, c])
+        return out if channels_first else np.ascontiguousarray(out.T)
     for c in range(corners.shape[2]):
         acc = out[c]
         np.multiply(weights[0], expand(corners[:, 0, c]), out=acc)

@@ -147,20 +147,26 @@ class Texels:
         (for byte images a transposed view of a channels-first array)."""
         if self.codes is None:
             return self.values[index].astype(np.float64, copy=False)
-        # Channels first (each channel's values contiguous), returned as an (N, 4) view: the
-        # shading reads one channel at a time.
+        return self.fetch_channels(index).T
+
+    def fetch_channels(self, index: np.ndarray) -> np.ndarray:
+        """:meth:`fetch` channels first: (4, N) float64, each channel's values contiguous for byte
+        images (a transposed view for the others)."""
+        if self.codes is None:
+            return self.values[index].astype(np.float64, copy=False).T
+        # Channels first (each channel's values contiguous): the shading reads one channel at a time.
         out = np.empty((4, len(index)), np.float64)
         planes = self._planes()
         if planes is not None:  # one gather per channel from the decoded texture
             for k in range(4):
                 np.take(planes[k], index, out=out[k])
-            return out.T
+            return out
         # Whole texels gathered as one uint32 each (fancy indexing of (N, 4) rows is slower),
         # then one table per channel.
         c = np.take(self.codes.view(np.uint32).reshape(-1), index).view(np.uint8).reshape(-1, 4)
         for k, lut in enumerate((self.lut_rgb, self.lut_rgb, self.lut_rgb, self.lut_alpha)):
             np.take(lut, c[:, k], out=out[k])
-        return out.T
+        return out
 
     #: Byte images of up to this many texels are also kept decoded, channels first (8 MB at most).
     PLANE_TEXELS = 1 << 18
@@ -235,7 +241,7 @@ def sample(texels: Texels, uv: np.ndarray, filt: TextureFilter, wrap: TextureWra
     if filt is TextureFilter.Point:
         return texels.fetch(point_texel_index(texels, uv, wrap))
     h, w = texels.shape[:2]
-    fetch = texels.fetch
+    fetch = texels.fetch_channels
     u, v = uv[:, 0], uv[:, 1]
     finite = np.isfinite(u) & np.isfinite(v)
     with np.errstate(invalid="ignore", over="ignore"):
@@ -243,13 +249,26 @@ def sample(texels: Texels, uv: np.ndarray, filt: TextureFilter, wrap: TextureWra
         fv = v * h - 0.5
         i0 = np.where(finite, np.floor(fu), 0.0)
         j0 = np.where(finite, np.floor(fv), 0.0)
-        au = np.where(finite, fu - i0, 0.0)[:, None]
-        av = np.where(finite, fv - j0, 0.0)[:, None]
+        au = np.where(finite, fu - i0, 0.0)
+        av = np.where(finite, fv - j0, 0.0)
     i1, j1 = _wrap(i0 + 1.0, w, wrap), _wrap(j0 + 1.0, h, wrap)
     i0, j0 = _wrap(i0, w, wrap), _wrap(j0, h, wrap)
-    lo = fetch(j0 * w + i0) * (1.0 - au) + fetch(j0 * w + i1) * au
-    hi = fetch(j1 * w + i0) * (1.0 - au) + fetch(j1 * w + i1) * au
-    return lo * (1.0 - av) + hi * av
+    j0 *= w
+    j1 *= w
+    # Channels first, one channel at a time on contiguous arrays: per element the same operations
+    # in the same order as lo = t00*(1-au) + t01*au, hi = t10*(1-au) + t11*au, lo*(1-av) + hi*av.
+    t00, t01, t10, t11 = (fetch(j + i) for j, i in ((j0, i0), (j0, i1), (j1, i0), (j1, i1)))
+    bu, bv = 1.0 - au, 1.0 - av
+    out = np.empty((4, u.size), np.float64)
+    scratch = np.empty(u.size, np.float64)
+    for k in range(4):
+        lo = np.multiply(t00[k], bu, out=out[k])
+        lo += np.multiply(t01[k], au, out=scratch)
+        hi = np.multiply(t10[k], bu, out=t10[k])
+        hi += np.multiply(t11[k], au, out=scratch)
+        lo *= bv
+        lo += np.multiply(hi, av, out=hi)
+    return out.T
 
 
 def texture_uv_of(material: Material, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

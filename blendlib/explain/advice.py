@@ -25,9 +25,12 @@ the draw calls (queues, sort settings) or one renderer's passes (the prepass), s
 the original's step-1 buffers (everything up to queue 2500, kept by the analysis) with the
 draw calls from there on; only those are rendered, once per distinct draw list (a sort mode
 shared by several pairs is rendered once; a draw list equal to the original's is not rendered
-at all). The pairs' inversions are counted as that render goes (:class:`_PairWatch`), and the
-differing pixels against the original reference. The numbers equal those of a full analysis of
-the changed scene (tests/explain/test_advice.py checks it on random scenes).
+at all). Only the band of rows that the renderers it moves or alters and the advised pairs'
+renderers reached in the analysis is drawn (:meth:`_Measurer.band`; elsewhere every pixel sees the
+same fragments in the same order). The pairs' inversions are counted as that render goes
+(:class:`_PairWatch`), and the differing pixels against the original reference, computed again
+only where the colour changed. The numbers equal those of a full analysis of the changed scene
+(tests/explain/test_advice.py checks it on random scenes and on scenes in strips).
 
 Advice sits on top of the analysis (:mod:`.sorted_reference` knows nothing of it):
 :func:`analyze_and_advise` runs one and then the other, for the callers that want both
@@ -49,10 +52,10 @@ from ..core.merger import FrameBuffers, Outcome
 from ..core.pipeline import render_scene
 from ..core.records import FrameObserver, RenderCancelled
 from ..core.scene import DrawScene, Renderer
-from ..core.vocabulary import LAST_OPAQUE_QUEUE, Material, SortMode, preset, queue_text
+from ..core.vocabulary import LAST_OPAQUE_QUEUE, Cull, Material, SortMode, preset, queue_text
 from .fragment_store import is_sorted_queue
 from .progress import Progress
-from .sorted_reference import Analysis, analyze, sort_error
+from .sorted_reference import ERROR_ROWS, Analysis, analyze, sort_error
 
 PREPASS_PRESET = "Alpha Blend ZWrite"
 #: Share of the progress bar the analysis takes in :func:`analyze_and_advise`, per advised pair
@@ -264,6 +267,41 @@ def _signature(scene: DrawScene, calls: list[DrawCall]) -> tuple:
                   c.renderer.material.cutoff, c.renderer.material.color) for c in calls)
 
 
+def _coverage_key(state) -> tuple:
+    """What of a pass decides which pixels its fragments reach: its cull and its outline program."""
+    return (state.cull, state.outline_mode, state.outline_width, state.outline_formula, state.outline_max_distance)
+
+
+def _covered_within(key: tuple, before: set) -> bool:
+    """Whether a pass with coverage ``key`` reaches only pixels that passes of coverage ``before``
+    reached: the same, or the same outline with Cull Off before (it reaches every side)."""
+    return key in before or (Cull.Off, *key[1:]) in before
+
+
+def _moved_places(old: tuple, new: tuple) -> set[int]:
+    """Renderer places whose calls differ between two draw-list signatures (:func:`_signature`) in
+    state or order: the renderers whose own calls differ, and then, one mismatch at a time, a
+    renderer drawn at another place in the order, until both lists without them are equal."""
+    def by_place(signature: tuple) -> dict[int, list]:
+        out: dict[int, list] = {}
+        for entry in signature:
+            out.setdefault(entry[0], []).append(entry[1:])
+        return out
+
+    a, b = by_place(old), by_place(new)
+    moved = {k for k in a.keys() | b.keys() if a.get(k) != b.get(k)}
+    while True:
+        x = [e for e in old if e[0] not in moved]
+        y = [e for e in new if e[0] not in moved]
+        if x == y:
+            return moved
+        i = next(k for k, (e, f) in enumerate(zip(x, y, strict=True)) if e != f)
+        for guess in ({x[i][0]}, {y[i][0]}):
+            if [e for e in x if e[0] not in guess] == [e for e in y if e[0] not in guess]:
+                return moved | guess
+        moved |= {x[i][0], y[i][0]}
+
+
 class _Measurer:
     """Measures changed scenes against an analysis (module doc): per distinct draw list, the
     inverted pixels of every pair advised and the pixels differing from the original reference."""
@@ -277,6 +315,19 @@ class _Measurer:
         self.opaque = self._opaque_prefix(self.signature, self.calls)
         self.cache: dict[tuple, tuple[dict, int]] = {}
         self._step1 = analysis.step1
+        # Per renderer place, the rows its calls' fragments reached and how they were covered.
+        place = {id(r): k for k, r in enumerate(scene.renderers)}
+        self.place_rows: dict[int, tuple[int, int]] = {}
+        self.place_coverage: dict[int, set] = {}
+        for c in self.calls:
+            k = place[id(c.renderer)]
+            self.place_coverage.setdefault(k, set()).add(_coverage_key(c.state))
+            rows = analysis.call_rows.get(c.index)
+            if rows is not None:
+                old = self.place_rows.get(k, rows)
+                self.place_rows[k] = (min(old[0], rows[0]), max(old[1], rows[1]))
+        of_key = {(r.name, r.slot): k for k, r in enumerate(scene.renderers)}
+        self.pair_places = {of_key[key] for pair in pairs for key in pair if key in of_key}
 
     @staticmethod
     def _opaque_prefix(signature: tuple, calls: list[DrawCall]) -> tuple:
@@ -303,18 +354,72 @@ class _Measurer:
         if signature in self.cache:
             return self.cache[signature]
         width, height = int(changed.camera.width), int(changed.camera.height)
+        band = self.band(signature, changed, calls, height)
+        if band is not None and band[0] >= band[1]:  # nothing it moves is drawn: the frame as analysed
+            result = {pair: self.analysis.pair_pixels(*pair) for pair in self.pairs}, self.analysis.differing
+            self.cache[signature] = result
+            return result
         watch = _PairWatch(self.pairs, calls, width * height, int(changed.msaa))
         resume = None
         if self._opaque_prefix(signature, calls) == self.opaque:
             last = max((c.index for c in calls if c.queue <= LAST_OPAQUE_QUEUE), default=0)
             resume = (self.step1(), last) if last else None
         frame = render_scene(changed, resume=resume, observer=watch, workers=self.workers,
-                             should_cancel=self.should_cancel, calls=calls)
-        original = self.analysis
-        error = sort_error(frame.color, original.reference, original.hdr)
-        result = watch.counts(), int(np.count_nonzero(error > original.step))
+                             should_cancel=self.should_cancel, calls=calls, band=band)
+        result = watch.counts(), self.differing(frame.color, 0 if band is None else height - band[1])
         self.cache[signature] = result
         return result
+
+    #: Bands of at least this share of the frame's rows are drawn whole (the band saves little).
+    WHOLE_SHARE = 0.9
+
+    def band(self, signature: tuple, changed: DrawScene, calls: list[DrawCall], height: int
+             ) -> tuple[int, int] | None:
+        """The buffer rows a changed scene's frame can differ in from the analysed one, with every
+        advised pair's inverted pixels: ``(y0, y1)`` (empty when y0 >= y1), or None for the whole
+        frame. A pixel's colour and each pair's inversion there depend only on the calls whose
+        fragments reach it, in their order: where no renderer that the change moves or alters
+        reaches (:func:`_moved_places`), nothing changes, and the advised pairs' pixels lie
+        where their renderers reach. None when a changed renderer may cover rows it did not
+        reach before (a cull or outline of its own it did not draw with)."""
+        moved = _moved_places(self.signature, signature)
+        place = {id(r): k for k, r in enumerate(changed.renderers)}
+        for c in calls:
+            k = place[id(c.renderer)]
+            if k in moved and not _covered_within(_coverage_key(c.state), self.place_coverage.get(k, set())):
+                return None
+        rows = [self.place_rows[k] for k in moved | self.pair_places if k in self.place_rows]
+        if not rows:
+            return (0, 0)
+        y0, y1 = min(r[0] for r in rows), max(r[1] for r in rows)
+        return None if (y1 - y0) >= self.WHOLE_SHARE * height else (y0, y1)
+
+    def differing(self, color: np.ndarray, top: int = 0) -> int:
+        """Pixels of a changed scene's frame whose sort error exceeds one step, given its rows
+        ``[top, top + h)`` (counted from the top) as ``color`` (h, W, 4) float32, the other rows
+        being the analysed frame's. A fix changes the frame only where its renderers draw: the
+        error is computed again only at pixels whose colour differs (by bits) from the analysed
+        frame, the others keep theirs."""
+        original = self.analysis
+        width = color.shape[1]
+        # A pixel's four float32 as two uint64: two comparisons a pixel instead of a reduction over four.
+        bits = np.ascontiguousarray(color).view(np.uint64)
+        analysed = np.ascontiguousarray(original.frame.color[top:top + color.shape[0]]).view(np.uint64)
+        changed = []
+        for y in range(0, color.shape[0], ERROR_ROWS):  # bounds the temporaries of a large frame
+            a, b = bits[y:y + ERROR_ROWS], analysed[y:y + ERROR_ROWS]
+            rows = a[..., 0] != b[..., 0]
+            rows |= a[..., 1] != b[..., 1]
+            changed.append(np.flatnonzero(rows) + y * width)
+        changed = np.concatenate(changed)
+        if changed.size == 0:
+            return original.differing
+        flat = (-1, 1, 4)
+        at = changed + top * width  # in the whole frame
+        now = sort_error(color.reshape(flat)[changed], original.reference.reshape(flat)[at], original.hdr)
+        before = original.error.reshape(-1)[at]
+        return (original.differing - int(np.count_nonzero(before > original.step))
+                + int(np.count_nonzero(now > original.step)))
 
 
 def _cleared(scene: DrawScene) -> FrameBuffers:

@@ -136,6 +136,9 @@ class FragmentCollector(FrameObserver):
         self.palette_size: dict[int, int] = {}
         self.palette_bytes = 0
         self.call_fragments: dict[int, int] = {}  # call → fragments kept (which blend tables pay)
+        #: call → (y0, y1): the buffer rows (from the bottom, y1 exclusive) its fragments reached,
+        #: rasterised ones before any test (with ``overdraw``; what a fix moving the call can change).
+        self.call_rows: dict[int, tuple[int, int]] = {}
         self.bytes = 0  # held now: pieces, their tables and the palettes
         self.peak_bytes = 0
         self.call_dtype = np.uint16 if max((c.index for c in calls), default=0) < 65535 else np.int32
@@ -160,6 +163,12 @@ class FragmentCollector(FrameObserver):
             self.final = buffers  # the frame's own buffers (its codes, for the sort error)
 
     def fragments(self, call: DrawCall, frags: ShadedFragments, outcome: np.ndarray) -> None:
+        if self.overdraw and frags.pix.size:
+            width = self.width // self.samples
+            lo, hi = int(frags.pix.min()) // width, int(frags.pix.max()) // width + 1
+            with self.lock:
+                old = self.call_rows.get(call.index)
+                self.call_rows[call.index] = (lo, hi) if old is None else (min(old[0], lo), max(old[1], hi))
         if frags.coverage is not None:
             self._pixel_fragments(call, frags, outcome)
             return

@@ -183,6 +183,9 @@ class Analysis:
     #: The buffers after the last draw call of queue ≤ 2500, kept for advice (``analyze(...,
     #: keep_step1=True)``), else None: a changed scene's frame resumes from them.
     step1: FrameBuffers | None = field(default=None, repr=False)
+    #: Per draw call index, the buffer rows ``(y0, y1)`` (from the bottom, y1 exclusive) its
+    #: rasterised fragments reached; calls that rasterised nothing are absent.
+    call_rows: dict[int, tuple[int, int]] = field(default_factory=dict, repr=False)
 
     @property
     def step(self) -> float:
@@ -364,6 +367,7 @@ def analyze(
         renderer_of_call[c.index] = rend_index[(c.renderer.name, c.renderer.slot)]
     samples = int(scene.msaa)
     collector = counts = FragmentCollector(calls, width, height, budget, samples=samples)
+    call_rows = collector.call_rows
     frame = render_scene(scene, observer=collector, workers=workers, progress=bar.part(0.0, 0.4),
                          should_cancel=should_cancel, calls=calls)
     inverted = np.zeros(width * height, dtype=np.uint16)
@@ -416,4 +420,4 @@ def analyze(
     bar(1.0)
     return Analysis(frame=frame, reference=reference, error=error, overdraw=overdraw,
                     inverted=inverted.reshape(height, width)[::-1].copy(), inversions=inversions,
-                    hdr=bool(scene.hdr), step1=step1)
+                    hdr=bool(scene.hdr), step1=step1, call_rows=call_rows)

@@ -191,7 +191,7 @@ def _particle_material(name: str, dst_blend: str, sprite):
     (``Blend SrcAlpha One``): ``Cull Off Lighting Off ZWrite Off``, Transparent queue,
     ``2 * i.color * _TintColor * tex`` (the shaders' text)."""
     mat = scenekit.unity_material(name, queue="Transparent", main_tex=sprite, vertex_color="Particle",
-                                  tint_color=(0.5, 0.5, 0.5, 0.5),
+                                  lighting="Unlit", tint_color=(0.5, 0.5, 0.5, 0.5),
                                   passes=[dict(blend=True, zwrite=False, cull="Off", src_blend="SrcAlpha",
                                                dst_blend=dst_blend)])
     mat.use_nodes = True

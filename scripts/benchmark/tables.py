@@ -4,6 +4,7 @@ and the viewport's; plain text for the terminal, Markdown for docs/benchmark.md.
 from __future__ import annotations
 
 from scripts.benchmark.cases import BACKENDS
+from scripts.benchmark.timing import spreads
 from scripts.benchmark.workers import VIEWPORT_TIMES
 
 
@@ -38,8 +39,13 @@ def fmt_n(v) -> str:
     return str(int(v))
 
 
+def fmt_spreads(mine, gl) -> str:
+    """The project's and OpenGL's spread over the repeats, e.g. "12%/5%"; "-" for a missing one."""
+    return "/".join("-" if v is None else f"{v:.0%}" for v in (mine, gl))
+
+
 COLUMNS = ("scene", "tris", "size", "covered", "extract s", "render s", "project s", "OpenGL s",
-           "EEVEE s", "Workbench s", "proj/GL", "proj/EEVEE", "peak MB", "CPU")
+           "EEVEE s", "Workbench s", "proj/GL", "proj/EEVEE", "spread proj/GL", "peak MB", "CPU")
 
 
 def table_rows(results: list[dict]) -> list[list[str]]:
@@ -55,7 +61,7 @@ def table_rows(results: list[dict]) -> list[list[str]]:
             fmt_n(ps.get("covered_px")),
             fmt_t(p and p["extract_s"]), fmt_t(p and p["render_s"]), fmt_t(p and p["total_s"]),
             fmt_t(g and g["total_s"]), fmt_t(e and e["total_s"]), fmt_t(wb and wb["total_s"]),
-            fmt_x(res["ratio_gl"]), fmt_x(res["ratio_eevee"]),
+            fmt_x(res["ratio_gl"]), fmt_x(res["ratio_eevee"]), fmt_spreads(*spreads(res)),
             "-" if not p else f"{p['peak_mb']:.0f}", "-" if not p else f"{p['cpu_ratio']:.2f}",
         ])
     return rows
@@ -76,7 +82,7 @@ def format_table(results: list[dict], markdown: bool = False, columns=COLUMNS, r
 
 
 EXPLAIN_COLUMNS = ("scene", "size", "draws", "fragments", "plain s", "draw list", "pixel", "capture",
-                   "step (to<-from)", "analyze", "plain MB", "capture MB", "analyze MB")
+                   "step (to<-from)", "analyze", "advice / analyze", "plain MB", "capture MB", "analyze MB")
 VIEWPORT_COLUMNS = ("scene", "size", "extract ms", "reduced ms", "full ms", "reduced (view) ms", "full (view) ms",
                     "full 1 proc. ms", "change->first ms", "render_view ms", "sched. first ms", "sched. full ms")
 
@@ -93,6 +99,7 @@ def explain_rows(results: list[dict]) -> list[list[str]]:
             res["case"]["id"], f"{e['size'][0]}x{e['size'][1]}", str(e["draws"]), fmt_n(e["fragments"]),
             fmt_t(e["plain_s"]), fmt_x(e["drawlist_ratio"]), fmt_x(e["pixel_ratio"]), fmt_x(e["capture_ratio"]),
             f"{fmt_x(e['step_ratio'])} ({e['step_to']}<-{e['step_from']})", fmt_x(e["analyze_ratio"]),
+            fmt_x(e.get("advice_over_analyze")),
             f"{e['plain_peak_mb']:.0f}", f"{e['capture_peak_mb']:.0f}", f"{e['analyze_peak_mb']:.0f}",
         ])
     return rows

@@ -12,7 +12,7 @@ import math
 from dataclasses import dataclass
 
 from scripts.benchmark.tables import fmt_n, fmt_x
-from scripts.benchmark.timing import median
+from scripts.benchmark.timing import median, spreads
 
 #: The project's render time over OpenGL's, per scene: at most this many times (issue 31).
 OPENGL_LIMITS = (("S1", 1.5), ("S2", 1.0), ("S2p", 1.0), ("S4", 1.5), ("S5", 1.5), ("S6", 1.5))
@@ -23,6 +23,10 @@ MSAA_LIMIT = 4.0
 #: ``analyze`` over a plain render: fill-heavy scenes (about 50 layers a pixel) and the others.
 ANALYZE_FILL_LIMIT, ANALYZE_LIMIT = 15.0, 3.0
 FILL_HEAVY = ("S2", "S2p")
+#: ``analyze`` with advice (5 pairs) over ``analyze`` without it.
+ADVICE_LIMIT = 2.0
+#: A ForwardAdd draw over its renderer's ForwardBase draw.
+FORWARD_ADD_LIMIT = 1.0
 #: The viewport at 960x540: full and reduced frame, seconds.
 VIEWPORT_FULL_S, VIEWPORT_REDUCED_S = 0.033, 0.010
 
@@ -81,7 +85,24 @@ def _ms(seconds: float) -> str:
 def targets(results: list[dict]) -> list[Target]:
     """Every target the run has figures for: speed against OpenGL and EEVEE, extraction, memory,
     scaling, CPU use, the frame debugger and ``analyze`` against a plain render, the viewport."""
-    return [*_speed(results), *_resources(results), *_explain(results), *_viewport(results)]
+    return [*_speed(results), *_steadiness(results), *_resources(results), *_explain(results),
+            *_viewport(results)]
+
+
+def _steadiness(results: list[dict]) -> list[Target]:
+    """The spread of each scene's render times over the repeats against llvmpipe's of the same scene."""
+    rows = []
+    for r in results:
+        mine, gl = spreads(r)
+        if mine is not None and gl is not None:
+            rows.append((r["case"]["id"], mine, gl))
+    if not rows:
+        return []
+    met = [name for name, mine, gl in rows if mine <= gl]
+    name, mine, gl = max(rows, key=lambda x: x[1] - x[2])
+    return [Target("render time spread over the repeats ((max - min) / median) vs OpenGL's, per scene",
+                   "<= OpenGL's", f"{len(met)} of {len(rows)} met; worst {name}: {mine:.0%} vs {gl:.0%}",
+                   len(met) == len(rows))]
 
 
 def _speed(results: list[dict]) -> list[Target]:
@@ -170,6 +191,16 @@ def _explain(results: list[dict]) -> list[Target]:
     if e:
         out.append(Target(f"S2 analyze peak memory at {w}x{h}", "< 2 GB", f"{e['analyze_peak_mb']:.0f} MB",
                           e["analyze_peak_mb"] < 2048))
+    rows = [(r["case"]["id"], r["explain"]["advice_over_analyze"]) for r in explained
+            if r["explain"].get("advice_over_analyze") is not None and r["explain"].get("inversion_pairs")]
+    if rows:
+        out.append(Target("every explained scene with inversions: analyze with advice (5 pairs) / analyze "
+                          "without it", f"<= {ADVICE_LIMIT:g}x", *_worst(rows, ADVICE_LIMIT)))
+    rows = [(f"{r['case']['id']} {p['renderer']}", p["ratio"]) for r in explained
+            for p in r["explain"].get("forward_add", []) if p["ratio"] is not None]
+    if rows:
+        out.append(Target("each ForwardAdd draw / its renderer's ForwardBase draw (one thread)",
+                          f"<= {FORWARD_ADD_LIMIT:g}x", *_worst(rows, FORWARD_ADD_LIMIT)))
     return out
 
 

@@ -73,3 +73,19 @@ def traced_peak_mb(call, *args) -> float:
     finally:
         tracemalloc.stop()
     return peak / 2**20
+
+
+def spread(values) -> float | None:
+    """(max − min) / median of a series of timed runs; None below two runs."""
+    values = [v for v in values if v is not None]
+    if len(values) < 2:
+        return None
+    mid = median(values)
+    return (max(values) - min(values)) / mid if mid > 0 else None
+
+
+def spreads(res: dict) -> tuple[float | None, float | None]:
+    """(the project's render spread, OpenGL's) over one case's repeats."""
+    runs = res.get("runs", {})
+    return (spread([r.get("render_s") for r in runs.get("project", [])]),
+            spread([r.get("total_s") for r in runs.get("opengl", [])]))

@@ -27,7 +27,9 @@ from scripts.benchmark.cases import REPO
 from scripts.benchmark.timing import Timer, median, proc_status, reset_peak, traced_peak_mb
 
 #: Timed series of ProjectWorker.explain (medians), in their alternation order.
-EXPLAIN_TIMES = ("plain_s", "drawlist_s", "pixel_s", "capture_s", "step_s", "analyze_s")
+EXPLAIN_TIMES = ("plain_s", "drawlist_s", "pixel_s", "capture_s", "step_s", "analyze_s", "advised_s")
+#: How many inversion pairs the timed ``analyze`` with advice advises (the CLI's default).
+ADVICE_PAIRS = 5
 #: Timed series of ProjectWorker.viewport (medians).
 VIEWPORT_TIMES = ("extract_s", "reduced_s", "full_s", "reduced_view_s", "full_view_s", "full_one_process_s",
                   "first_frame_s", "render_view_s", "scheduler_first_s", "scheduler_full_s")
@@ -46,6 +48,52 @@ def _turn_about_z(angle: float):
 
     c, s = np.cos(angle), np.sin(angle)
     return np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]], dtype=np.float64)
+
+
+def forward_add_prices(draw, repeats: int) -> list[dict]:
+    """Each renderer's ForwardAdd draws against its ForwardBase draw, in one-thread renders
+    timed draw by draw (an observer's ``draw_begin``/``draw_end``; medians over ``repeats``):
+    ``[{"renderer", "base_s", "add_s" (the dearest of its ForwardAdd draws), "ratio"}]``, empty
+    when the scene has no ForwardAdd draw."""
+    from blendlib.core.pipeline import render_scene
+    from blendlib.core.records import FrameObserver
+
+    class DrawClock(FrameObserver):
+        exact_boundaries = True  # one draw at a time, each between its own begin and end
+        per_sample = True
+
+        def __init__(self) -> None:
+            self.seconds: dict[int, float] = {}
+            self.calls: dict[int, object] = {}
+            self.started = 0.0
+
+        def draw_begin(self, call, buffers) -> None:
+            self.started = time.perf_counter()
+
+        def draw_end(self, call, buffers, triangles) -> None:
+            self.seconds[call.index] = time.perf_counter() - self.started
+            self.calls[call.index] = call
+
+    runs = []
+    for _ in range(max(1, repeats)):
+        clock = DrawClock()
+        render_scene(draw, workers=1, observer=clock)
+        runs.append(clock)
+    calls = runs[0].calls
+    if not any(c.light is not None for c in calls.values()):
+        return []
+    seconds = {k: median([r.seconds[k] for r in runs]) for k in calls}
+    base: dict[tuple, float] = {}
+    add: dict[tuple, float] = {}
+    for k, c in calls.items():
+        key = (c.renderer.name, c.renderer.slot)
+        if c.light is None and c.state.light_mode.name == "ForwardBase":
+            base[key] = base.get(key, 0.0) + seconds[k]
+        elif c.light is not None:
+            add[key] = max(add.get(key, 0.0), seconds[k])
+    return [{"renderer": f"{name}[{slot}]", "base_s": base[(name, slot)], "add_s": add[(name, slot)],
+             "ratio": add[(name, slot)] / base[(name, slot)] if base[(name, slot)] > 0 else None}
+            for name, slot in sorted(add) if (name, slot) in base]
 
 
 class ProjectWorker:
@@ -118,12 +166,15 @@ class ProjectWorker:
     def explain(self, repeats: int) -> dict:
         """The frame debugger and the sorted reference on this scene's
         DrawScene, each timed against a plain ``render_scene`` of the same DrawScene in
-        alternating runs (plain, draw list, pixel history, capture, step, analyze, plain, ...):
-        medians in seconds, ratios to the plain render's median, and the tracemalloc peaks
-        (MiB, one untimed call each) of a plain render, a capture and an analysis."""
+        alternating runs (plain, draw list, pixel history, capture, step, analyze, analyze with
+        advice, plain, ...): medians in seconds, ratios to the plain render's median (advice: also
+        to the analysis without it), the tracemalloc peaks (MiB, one untimed call each) of a plain
+        render, a capture and an analysis, and for scenes with ForwardAdd draws the price of each
+        (:func:`forward_add_prices`)."""
         from blendlib import blender
         from blendlib.core.pipeline import render_scene
         from blendlib.explain import framedebug as fd
+        from blendlib.explain.advice import analyze_and_advise
         from blendlib.explain.sorted_reference import analyze
 
         draw = blender.build_draw_scene(self.scene)
@@ -161,12 +212,21 @@ class ProjectWorker:
             runs["analyze_s"].append(t.wall)
             info.update(inversion_pairs=len(analysis.inversions), differing_px=int(analysis.differing))
             del analysis
+            with Timer() as t:
+                advised = analyze_and_advise(draw, max_advice=ADVICE_PAIRS, workers=workers)
+            runs["advised_s"].append(t.wall)
+            info.update(advice_items=len(advised.advice))
+            del advised
         info.update(fragments=sum(s.fragments for s in stats), written=sum(s.written for s in stats),
                     pixel=[x, y], pixel_fragments=len(history.fragments))
         out = {k: median(v) for k, v in runs.items()}
         plain = out["plain_s"]
         for k in EXPLAIN_TIMES[1:]:
             out[k.replace("_s", "_ratio")] = out[k] / plain if plain > 0 else None
+        out["advice_over_analyze"] = out["advised_s"] / out["analyze_s"] if out["analyze_s"] > 0 else None
+        prices = forward_add_prices(draw, repeats)
+        if prices:
+            out["forward_add"] = prices
         out["plain_peak_mb"] = traced_peak_mb(lambda d: render_scene(d, **kwargs), draw)
         out["capture_peak_mb"] = traced_peak_mb(lambda d: fd.FrameCapture.capture(d, workers=workers), draw)
         out["analyze_peak_mb"] = traced_peak_mb(lambda d: analyze(d, workers=workers), draw)

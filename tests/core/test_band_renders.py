@@ -12,6 +12,8 @@ import pytest
 
 from blendlib import SceneError, render_scene
 from blendlib.core import raster, vertex
+from blendlib.core.drawlist import draw_calls
+from blendlib.core.records import FrameObserver
 from blendlib.core.prepare import setup_input
 from tests.reference.random_scenes import seeded_scene
 
@@ -52,6 +54,36 @@ def test_coverage_rows_in_a_band_are_the_full_rows_there():
             assert getattr(part, name) is None, name
             continue
         np.testing.assert_array_equal(getattr(part, name), getattr(full, name)[keep])
+
+
+class _After(FrameObserver):
+    exact_boundaries = True
+    per_sample = True  # reads the buffers only
+
+    def __init__(self, k: int) -> None:
+        self.k, self.buffers = k, None
+
+    def draw_end(self, call, buffers, triangles) -> None:
+        if call.index == self.k:
+            self.buffers = buffers.copy()
+
+
+@pytest.mark.parametrize(("seed", "msaa"), [(1, 1), (4, 1), (7, 1), (4, 4)])
+def test_band_renders_resume_from_buffers(seed, msaa):
+    """A band with ``resume``: the band's rows of the full frame resumed from the same buffers
+    (with MSAA too: every sample plane's rows)."""
+    draw = dataclasses.replace(scene_at(seed), msaa=msaa)
+    calls = len(draw_calls(draw))
+    k = max(1, calls // 2)
+    after = _After(k)
+    render_scene(draw, workers=1, observer=after)
+    full = render_scene(draw, workers=1, resume=(after.buffers, k))
+    height = draw.camera.height
+    for y0, y1 in ((0, 17), (11, height), (5, 6)):
+        part = render_scene(draw, workers=2, resume=(after.buffers, k), band=(y0, y1))
+        np.testing.assert_array_equal(part.color, full.color[height - y1:height - y0])
+        np.testing.assert_array_equal(part.depth, full.depth[height - y1:height - y0])
+        np.testing.assert_array_equal(part.stencil, full.stencil[height - y1:height - y0])
 
 
 def test_bad_bands_are_one_line_errors():

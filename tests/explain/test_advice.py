@@ -125,6 +125,54 @@ def test_measurements_equal_a_full_analysis_of_each_changed_scene(keep_step1):
     assert checked > 40
 
 
+def _strips_scene(seed: int):
+    """Pairs of transparent quads in horizontal strips of the frame, each pair drawn in the wrong
+    order (the nearer first), some sharing a material, one writing depth in the Transparent queue,
+    over an opaque depth-writing quad across two strips and a Cull Front quad seen from behind:
+    fixes of one pair move renderers of a few strips only."""
+    rng = np.random.default_rng(seed)
+    cam = sc.screen_camera(40, 96)
+    zwrite = replace(BLEND, zwrite=True)
+    renderers = [sc.renderer(sc.quad(0, 14, 40, 46, z=-0.5), sc.unlit((0.2, 0.3, 0.4, 1), name="Floor"), name="Floor")]
+    shared = sc.unlit((0.8, 0.8, 0.2, 0.5), queue=Queue.Transparent, queue_offset=1, name="Shared", passes=[BLEND])
+    for k in range(4):
+        y0 = 4 + 22 * k
+        x = int(rng.integers(0, 12))
+        near = sc.unlit(tuple(rng.uniform(0.1, 0.9, 3)) + (0.5,), queue=Queue.Transparent, name=f"Near{k}",
+                        passes=[zwrite if k == 2 else BLEND])
+        far = shared if k % 2 else sc.unlit(tuple(rng.uniform(0.1, 0.9, 3)) + (0.6,), queue=Queue.Transparent,
+                                            queue_offset=1, name=f"Far{k}", passes=[BLEND])
+        renderers.append(sc.renderer(sc.quad(x, y0, x + 24, y0 + 12, z=1.0), near, name=f"Near{k}"))
+        renderers.append(sc.renderer(sc.quad(x + 6, y0 + 4, x + 30, y0 + 16, z=-1.0), far, name=f"Far{k}"))
+    back = sc.unlit((0.9, 0.2, 0.2, 0.5), queue=Queue.Transparent, queue_offset=-1, name="Back",
+                    passes=[replace(BLEND, cull=Cull.Front)])
+    renderers.append(sc.renderer(sc.quad(30, 80, 10, 92, z=0.5), back, name="Back"))  # clockwise: its back
+    return sc.scene(cam, *renderers)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_measurements_in_bands_equal_a_full_analysis(monkeypatch, seed):
+    """Fixes that move renderers of a few strips are measured in a band of the frame's rows; the
+    figures equal those of a full analysis of each changed scene."""
+    scene = _strips_scene(seed)
+    original = analyze(scene, keep_step1=True)
+    pairs = [(inv.front, inv.behind) for inv in original.inversions[:5]]
+    assert len(pairs) >= 3
+    measurer = advice._Measurer(scene, original, pairs[:1], None, None)
+    bands = []
+    band = advice._Measurer.band
+    monkeypatch.setattr(advice._Measurer, "band", lambda self, *a: bands.append(band(self, *a)) or bands[-1])
+    full = _full_measure(original, pairs[:1])
+    checked = 0
+    for inv in original.inversions[:5]:
+        for changed in _candidates(scene, inv):
+            assert measurer.measure(changed) == full(changed), inv
+            checked += 1
+    drawn = [b for b in bands if b is not None and b[0] < b[1]]
+    assert checked >= 6 and len(drawn) >= 3
+    assert sum(b[1] - b[0] <= 24 for b in drawn) >= 2  # a strip or two of the 96 rows
+
+
 @pytest.mark.parametrize("seed", [0, 2, 5])
 def test_advice_equals_advice_measured_by_full_analyses(monkeypatch, seed):
     scene = layered_scene(seed)

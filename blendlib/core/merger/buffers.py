@@ -228,13 +228,27 @@ class FrameBuffers:
             return self.color.view(_PIXEL16).reshape(-1)
         return self.color.view(_PIXEL4).reshape(-1)
 
-    def copy(self) -> FrameBuffers:
-        """An independent copy (a snapshot to resume from)."""
+    def copy(self, band: tuple[int, int] | None = None) -> FrameBuffers:
+        """An independent copy (a snapshot to resume from); with ``band`` (y0, y1) only those rows
+        are copied, the others left unset (what a band render resumed from it reads)."""
         other = object.__new__(FrameBuffers)
         other.__dict__.update(self.__dict__)
-        other.color, other.depth, other.stencil = self.color.copy(), self.depth.copy(), self.stencil.copy()
+        if band is None:
+            other.color, other.depth, other.stencil = self.color.copy(), self.depth.copy(), self.stencil.copy()
+            if self.uniform is not None:
+                other.uniform = self.uniform.copy()
+            return other
+        lo, hi = band[0] * self.width, band[1] * self.width
+
+        def rows(array: np.ndarray, planes: int) -> np.ndarray:
+            out = np.empty_like(array)
+            out.reshape(planes, self.plane, -1)[:, lo:hi] = array.reshape(planes, self.plane, -1)[:, lo:hi]
+            return out
+
+        other.color, other.depth, other.stencil = (rows(a, self.samples) for a in (self.color, self.depth,
+                                                                                    self.stencil))
         if self.uniform is not None:
-            other.uniform = self.uniform.copy()
+            other.uniform = rows(self.uniform, 1)
         return other
 
     def encode(self, rgba: np.ndarray) -> np.ndarray:
