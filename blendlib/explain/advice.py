@@ -267,9 +267,12 @@ def _signature(scene: DrawScene, calls: list[DrawCall]) -> tuple:
                   c.renderer.material.cutoff, c.renderer.material.color) for c in calls)
 
 
-def _coverage_key(state) -> tuple:
-    """What of a pass decides which pixels its fragments reach: its cull and its outline program."""
-    return (state.cull, state.outline_mode, state.outline_width, state.outline_formula, state.outline_max_distance)
+def _coverage_key(call: DrawCall) -> tuple:
+    """What of a draw call decides which pixels its fragments reach: its pass's cull and outline
+    program, and its material's outline-width texture (by identity: candidates keep it or not)."""
+    state, material = call.state, call.renderer.material
+    return (state.cull, state.outline_mode, state.outline_width, state.outline_formula, state.outline_max_distance,
+            id(material.outline_width_tex), material.outline_width_tex_filter, material.outline_width_tex_wrap)
 
 
 def _covered_within(key: tuple, before: set) -> bool:
@@ -321,7 +324,7 @@ class _Measurer:
         self.place_coverage: dict[int, set] = {}
         for c in self.calls:
             k = place[id(c.renderer)]
-            self.place_coverage.setdefault(k, set()).add(_coverage_key(c.state))
+            self.place_coverage.setdefault(k, set()).add(_coverage_key(c))
             rows = analysis.call_rows.get(c.index)
             if rows is not None:
                 old = self.place_rows.get(k, rows)
@@ -386,7 +389,7 @@ class _Measurer:
         place = {id(r): k for k, r in enumerate(changed.renderers)}
         for c in calls:
             k = place[id(c.renderer)]
-            if k in moved and not _covered_within(_coverage_key(c.state), self.place_coverage.get(k, set())):
+            if k in moved and not _covered_within(_coverage_key(c), self.place_coverage.get(k, set())):
                 return None
         rows = [self.place_rows[k] for k in moved | self.pair_places if k in self.place_rows]
         if not rows:

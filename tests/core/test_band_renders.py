@@ -13,8 +13,8 @@ import pytest
 from blendlib import SceneError, render_scene
 from blendlib.core import raster, vertex
 from blendlib.core.drawlist import draw_calls
-from blendlib.core.records import FrameObserver
 from blendlib.core.prepare import setup_input
+from blendlib.core.records import FrameObserver
 from tests.reference.random_scenes import seeded_scene
 
 
