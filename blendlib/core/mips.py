@@ -195,9 +195,27 @@ def quad_lod(setup: TriangleSetup, tri: np.ndarray, pix: np.ndarray, width: int,
     ``pix`` (N,) int64 (``y * width + x``, y up) of a texture whose level 0 is ``size`` = (h, w)
     texels (module docstring; λ = −inf where the coordinates do not change, NaN where they are not
     finite)."""
-    h, w = size
+    # Fragments of one triangle in one 2x2 quad share λ: a row's neighbours (x0, x0 + 1) come one
+    # after the other, so each run of equal (triangle, quad) is computed once and expanded.
     x, y = pix % width, pix // width
     x0, y0 = x & ~1, y & ~1
+    first = np.ones(tri.size, dtype=bool)
+    if tri.size > 1:
+        same = tri[1:] == tri[:-1]
+        same &= x0[1:] == x0[:-1]
+        same &= y0[1:] == y0[:-1]
+        first[1:] = ~same
+    if not first.all():
+        runs = np.cumsum(first) - 1
+        at = np.flatnonzero(first)
+        return _quad_lod_at(setup, tri[at], x0[at], y0[at], material, size)[runs]
+    return _quad_lod_at(setup, tri, x0, y0, material, size)
+
+
+def _quad_lod_at(setup: TriangleSetup, tri: np.ndarray, x0: np.ndarray, y0: np.ndarray, material: Material,
+                 size: tuple[int, int]) -> np.ndarray:
+    """:func:`quad_lod` of the quads whose lower-left pixels are ``(x0, y0)`` (N,) int64 (even)."""
+    h, w = size
     corners = setup.uvs_of(setup.src[tri])
     flat = raster.flat_corners(corners)
     u00, v00 = _texture_uv_at(setup, tri, corners, flat, material, x0, y0)
