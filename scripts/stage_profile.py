@@ -55,13 +55,8 @@ ORDER = ("setup", "coverage", "interpolation", "shading", "ordering", "merge", "
 
 def stage_shares(stats: pstats.Stats) -> tuple[float, dict[str, float]]:
     """(total render seconds, seconds per stage) from the stats of one ``render_scene`` call."""
-    cum: dict[tuple[str, str], float] = {}
-    total = 0.0
-    for (file, _line, func), (_cc, _nc, _tt, ct, _callers) in stats.stats.items():
-        key = (Path(file).name, func)
-        cum[key] = cum.get(key, 0.0) + ct
-        if func == "render_scene":
-            total = max(total, ct)
+    cum = _cumulative(stats)
+    total = max((ct for (_file, func), ct in cum.items() if func == "render_scene"), default=0.0)
     seconds = {stage: sum(cum.get(k, 0.0) for k in keys) for stage, keys in STAGES.items()}
     merge_total = cum.get(("ordering.py", "merge"), 0.0)
     seconds["ordering"] = max(merge_total - seconds["merge"] - seconds["tables"], 0.0)
@@ -125,10 +120,12 @@ def profile_analysis(draw) -> dict[str, float]:
 
 
 def _cumulative(stats: pstats.Stats) -> dict[tuple[str, str], float]:
+    """Cumulative seconds per (file name, function) of profile ``stats`` (pstats counts a
+    recursive function's time once)."""
     cum: dict[tuple[str, str], float] = {}
     for (file, _line, func), (_cc, _nc, _tt, ct, _callers) in stats.stats.items():
         key = (Path(file).name, func)
-        cum[key] = max(cum.get(key, 0.0), ct)  # the outermost call (render_scene may recurse)
+        cum[key] = cum.get(key, 0.0) + ct
     return cum
 
 

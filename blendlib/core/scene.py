@@ -355,12 +355,16 @@ def _validate_renderer(r: Renderer) -> list[str]:
 # ---------------------------------------------------------------------------------------------
 
 
+#: The :class:`Material` fields that hold a :class:`Texture`.
+_TEXTURE_FIELDS = ("main_tex", "outline_width_tex")
+
+
 def scene_parts(scene: DrawScene) -> list[object]:
     """The objects of ``scene`` that memos and the band helper key by, each once, parts before
     what holds them: per renderer its texture (if any), material, mesh, then the renderer."""
     parts: dict[int, object] = {}
     for r in scene.renderers:
-        for part in (r.material.main_tex, r.material.outline_width_tex, r.material, r.mesh, r):
+        for part in (*(getattr(r.material, name) for name in _TEXTURE_FIELDS), r.material, r.mesh, r):
             if part is not None:
                 parts.setdefault(id(part), part)
     return list(parts.values())
@@ -400,10 +404,6 @@ def _same_value(x, y) -> bool:
     if isinstance(x, float):
         return x == y and math.copysign(1.0, x) == math.copysign(1.0, y)
     return x == y
-
-
-#: The :class:`Material` fields that hold a :class:`Texture`.
-_TEXTURE_FIELDS = ("main_tex", "outline_width_tex")
 
 
 def _same_material(a: Material, b: Material) -> bool:

@@ -318,12 +318,11 @@ class _Measurer:
         self.opaque = self._opaque_prefix(self.signature, self.calls)
         self.cache: dict[tuple, tuple[dict, int]] = {}
         self._step1 = analysis.step1
-        # Per renderer place, the rows its calls' fragments reached and how they were covered.
-        place = {id(r): k for k, r in enumerate(scene.renderers)}
+        # Per renderer place (the signature's first field), the rows its calls' fragments reached
+        # and how they were covered.
         self.place_rows: dict[int, tuple[int, int]] = {}
         self.place_coverage: dict[int, set] = {}
-        for c in self.calls:
-            k = place[id(c.renderer)]
+        for (k, *_), c in zip(self.signature, self.calls, strict=True):
             self.place_coverage.setdefault(k, set()).add(_coverage_key(c))
             rows = analysis.call_rows.get(c.index)
             if rows is not None:
@@ -353,15 +352,14 @@ class _Measurer:
         calls = draw_calls(changed)
         signature = _signature(changed, calls)
         if signature == self.signature:
-            return {pair: self.analysis.pair_pixels(*pair) for pair in self.pairs}, self.analysis.differing
+            return self.as_analysed()
         if signature in self.cache:
             return self.cache[signature]
         width, height = int(changed.camera.width), int(changed.camera.height)
-        band = self.band(signature, changed, calls, height)
+        band = self.band(signature, calls, height)
         if band is not None and band[0] >= band[1]:  # nothing it moves is drawn: the frame as analysed
-            result = {pair: self.analysis.pair_pixels(*pair) for pair in self.pairs}, self.analysis.differing
-            self.cache[signature] = result
-            return result
+            self.cache[signature] = self.as_analysed()
+            return self.cache[signature]
         watch = _PairWatch(self.pairs, calls, width * height, int(changed.msaa))
         resume = None
         if self._opaque_prefix(signature, calls) == self.opaque:
@@ -373,11 +371,14 @@ class _Measurer:
         self.cache[signature] = result
         return result
 
+    def as_analysed(self) -> tuple[dict[tuple[Key, Key], int], int]:
+        """The measurement of a frame equal to the analysed one: the analysis's own figures."""
+        return {pair: self.analysis.pair_pixels(*pair) for pair in self.pairs}, self.analysis.differing
+
     #: Bands of at least this share of the frame's rows are drawn whole (the band saves little).
     WHOLE_SHARE = 0.9
 
-    def band(self, signature: tuple, changed: DrawScene, calls: list[DrawCall], height: int
-             ) -> tuple[int, int] | None:
+    def band(self, signature: tuple, calls: list[DrawCall], height: int) -> tuple[int, int] | None:
         """The buffer rows a changed scene's frame can differ in from the analysed one, with every
         advised pair's inverted pixels: ``(y0, y1)`` (empty when y0 >= y1), or None for the whole
         frame. A pixel's colour and each pair's inversion there depend only on the calls whose
@@ -386,9 +387,7 @@ class _Measurer:
         where their renderers reach. None when a changed renderer may cover rows it did not
         reach before (a cull or outline of its own it did not draw with)."""
         moved = _moved_places(self.signature, signature)
-        place = {id(r): k for k, r in enumerate(changed.renderers)}
-        for c in calls:
-            k = place[id(c.renderer)]
+        for (k, *_), c in zip(signature, calls, strict=True):
             if k in moved and not _covered_within(_coverage_key(c), self.place_coverage.get(k, set())):
                 return None
         rows = [self.place_rows[k] for k in moved | self.pair_places if k in self.place_rows]
