@@ -272,7 +272,7 @@ def merge_samples(buf: FrameBuffers, p: Pass, frags, tables=None, outcome: np.nd
         return
     lut = None if ids is None else find_table(buf, p, frags.palette, frags.count * n, tables)
     alike = depth is None and not p.stencil  # every covered sample passes: its result depends on its colour alone
-    for sel in primitive_layers(pix, frags.disjoint):
+    for sel in primitive_layers(pix, frags.disjoint, buf.peel_scratch()):
         if not alike:
             per_sample(sel)
             continue

@@ -9,6 +9,7 @@ fragment (the observers' record of :func:`.ordering.apply_layer`).
 from __future__ import annotations
 
 import functools
+import threading
 from enum import IntEnum
 
 import numpy as np
@@ -147,6 +148,10 @@ def resolve_planes(planes: np.ndarray, uniform: np.ndarray, samples: int, hdr: b
     return out
 
 
+#: A free entry of :meth:`FrameBuffers.peel_scratch` (greater than any fragment's index).
+PEEL_FREE = np.iinfo(np.int64).max
+
+
 class FrameBuffers:
     """Colour, depth and stencil of a frame, flat in window order (index ``y*W + x``, y up).
 
@@ -187,6 +192,19 @@ class FrameBuffers:
         self.stencil = np.empty(n, dtype=np.uint8)
         self.stencil.reshape(self.samples, pixels)[:, lo:hi] = 0
         self.uniform = None if self.samples == 1 else np.ones(pixels, dtype=bool)
+        self._peel = None
+        self._peel_lock = threading.Lock()
+
+    def peel_scratch(self) -> np.ndarray:
+        """(H*W,) int64, every entry :data:`PEEL_FREE`: the table in which the merger finds each
+        pixel's first remaining fragment (:func:`.ordering.primitive_layers`), made on first use
+        and kept for the buffers' life. Whoever uses it leaves it as it found it; screen-band
+        workers share it, as they share the buffers, because they touch disjoint pixels."""
+        if self._peel is None:
+            with self._peel_lock:
+                if self._peel is None:
+                    self._peel = np.full(self.plane, PEEL_FREE, dtype=np.int64)
+        return self._peel
 
     def spread(self, pixels: np.ndarray) -> None:
         """Write the colour of plane 0 into every sample of ``pixels`` (K,) int64 (uniform ones,
@@ -233,6 +251,8 @@ class FrameBuffers:
         are copied, the others left unset (what a band render resumed from it reads)."""
         other = object.__new__(FrameBuffers)
         other.__dict__.update(self.__dict__)
+        # Not shared: a copy may be drawn into at the same time as its original, at the same pixels.
+        other._peel, other._peel_lock = None, threading.Lock()
         if band is None:
             other.color, other.depth, other.stencil = self.color.copy(), self.depth.copy(), self.stencil.copy()
             if self.uniform is not None:

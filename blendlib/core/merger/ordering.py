@@ -6,8 +6,8 @@ drawn) and applied layer by layer: layer k holds the k-th fragment of every such
 so each layer touches distinct pixels and is one vectorised read-modify-write
 (:func:`apply_layer`). The result equals applying the fragments one by one in order, as a
 GPU does, with a loop over layers (the depth complexity of one draw call), never over
-fragments or pixels. Shallow chunks peel their layers; deeper ones rank every fragment
-with one stable sort (:func:`layers_by_rank`, which the sorted reference uses too).
+fragments or pixels. Layers are peeled while there are few; deeper ones are ranked with one
+stable sort (:func:`layers_by_rank`, which the sorted reference uses too).
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import numpy as np
 
 from ..vocabulary import CompareFunction, Pass
 from .blending import BlendTable, blend_fragments, find_table
-from .buffers import FrameBuffers, Outcome, compare, stencil_op
+from .buffers import PEEL_FREE, FrameBuffers, Outcome, compare, stencil_op
 
 _CHANNEL_INDEX = {"R": 0, "G": 1, "B": 2, "A": 3}
 #: ColorMask letters → the bits of their channel in a packed LDR pixel.
@@ -96,8 +96,8 @@ def apply_layer(
     packed[pix] = result
 
 
-#: Up to this many fragments per pixel, layers are peeled (one ``minimum.at`` per layer);
-#: deeper draw calls rank all fragments with one stable sort instead.
+#: At most this many layers of a chunk are peeled (one ``minimum.at`` each); the fragments
+#: of deeper pixels that remain after them are ranked with one stable sort.
 PEEL_LAYERS = 8
 
 
@@ -178,40 +178,51 @@ def merge(
             outcome[sel] = codes
 
     layers = 0
-    for sel in primitive_layers(pix, disjoint):
+    for sel in primitive_layers(pix, disjoint, buf.peel_scratch()):
         layer(sel)
         layers += 1
     return layers
 
 
-def primitive_layers(pix: np.ndarray, disjoint: bool = False) -> Iterator[np.ndarray | None]:
+def primitive_layers(pix: np.ndarray, disjoint: bool = False,
+                     scratch: np.ndarray | None = None) -> Iterator[np.ndarray | None]:
     """The layers of fragments at ``pix`` (N,) int64 (N > 0, in draw order) to apply one after
     another, each a set of distinct pixels in draw order: None for "all of them" when the pixels
     are distinct (``disjoint``: the caller knows), else index arrays — the first remaining
-    fragment of every pixel, peeled while there are at most :data:`PEEL_LAYERS`, else ranked by
-    :func:`layers_by_rank`. Applying the layers in order applies every pixel's fragments in order."""
+    fragment of every pixel, peeled while there are at most :data:`PEEL_LAYERS`, the rest then
+    ranked by :func:`layers_by_rank`. Applying the layers in order applies every pixel's
+    fragments in order.
+
+    ``scratch``: an int64 array longer than ``pix.max()``, every entry :data:`.buffers.PEEL_FREE`
+    (:meth:`.buffers.FrameBuffers.peel_scratch`), used and left so, even when the caller stops
+    early; without it one is made for the chunk's range of pixels. The peel touches only the
+    chunk's own pixels: no frame-sized count or table per chunk."""
     if disjoint:
         yield None
         return
-    n = pix.shape[0]
-    lo = int(pix.min())
-    local = pix - lo
-    counts = np.bincount(local, minlength=int(pix.max()) - lo + 1)
-    layers = int(counts.max())
-    if layers == 1:
-        yield None
-        return
-    if layers <= PEEL_LAYERS:
-        # Layer k = the first remaining fragment of each pixel, found with an unbuffered minimum.
-        first = np.full(counts.size, n, dtype=np.int64)
-        remaining = np.arange(n, dtype=np.int64)
-        while remaining.size:
-            where = local[remaining]
-            np.minimum.at(first, where, remaining)
-            is_first = first[where] == remaining
-            yield remaining[is_first]
-            first[where] = n
-            remaining = remaining[~is_first]
-        return
-    order = np.argsort(local, kind="stable")
-    yield from layers_by_rank(order, local[order])
+    if scratch is None:
+        lo = int(pix.min())
+        pix = pix - lo
+        scratch = np.full(int(pix.max()) + 1, PEEL_FREE, dtype=np.int64)
+    remaining = np.arange(pix.shape[0], dtype=np.int64)
+    where = pix
+    for peeled in range(PEEL_LAYERS):
+        # Layer k = the first remaining fragment of each pixel, found with an unbuffered minimum;
+        # its entries are freed before the layer is handed out, so the table is clean whenever
+        # the caller has it (an error in between frees them too).
+        try:
+            np.minimum.at(scratch, where, remaining)
+            is_first = scratch[where] == remaining
+        finally:
+            scratch[where] = PEEL_FREE
+        if peeled == 0 and is_first.all():
+            yield None
+            return
+        yield remaining[is_first]
+        remaining = remaining[~is_first]
+        if not remaining.size:
+            return
+        where = pix[remaining]
+    # Deeper than PEEL_LAYERS: rank what remains with one stable sort.
+    order = remaining[np.argsort(where, kind="stable")]
+    yield from layers_by_rank(order, pix[order])
