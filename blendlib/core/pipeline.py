@@ -4,9 +4,10 @@
 in batches: each batch is prepared at once (:func:`.prepare.prepare_batch`: vertex setup,
 coverage, derived state), fused where nothing observes the render (:mod:`.fuse`), and drawn
 in steps — the whole batch, or one draw call at a time for an observer that needs the
-buffers exactly between draw calls (snapshots). A step's rows are cut into horizontal screen
-bands of about equal fragment counts; one worker thread per band draws its rows of every call
-of the step in draw order, chunk by chunk (:mod:`.fragment` shading, then :mod:`.merger`).
+buffers exactly between draw calls (timing each call). A step's rows are cut into horizontal
+screen bands of about equal fragment counts; one worker thread per band draws its rows of every
+call of the step in draw order, chunk by chunk (:mod:`.fragment` shading, then :mod:`.merger`),
+and hands its rows to an observer's snapshots after the calls it names.
 Bands own disjoint pixels and each sees its calls in order, so the result does not depend on
 the split; numpy releases the GIL in its array loops, so both CPU cores work.
 """
@@ -177,7 +178,9 @@ def _draw_all(frame: FrameContext, todo: list[DrawCall], should_cancel: Callable
             if observer is not None:
                 for call in calls:
                     observer.draw_begin(call, frame.buf)
-            _draw_step(frame, step, floors, should_cancel, observer)
+            marks = () if observer is None else sorted(
+                s for s in observer.snapshot_after if calls[0].index <= s <= calls[-1].index)
+            _draw_step(frame, step, floors, should_cancel, observer, marks)
             if frame.stop_flag.is_set():
                 raise RenderCancelled("render cancelled")
             if observer is not None:
@@ -237,23 +240,25 @@ def _check(should_cancel: Callable[[], bool] | None) -> None:
 
 
 def _draw_step(frame: FrameContext, step: list[PreparedCall], floors: RowFloors,
-               should_cancel: Callable[[], bool] | None, observer: FrameObserver | None) -> None:
+               should_cancel: Callable[[], bool] | None, observer: FrameObserver | None,
+               marks: list[int] | tuple = ()) -> None:
     """Draw the prepared calls of a step: in one band here, or in screen bands cut at equal
     fragment counts of the whole step (:func:`_bands_pay`), one per worker, while this thread
-    polls ``should_cancel``."""
+    polls ``should_cancel``. ``marks``: the step's calls (indices, ascending) after which each
+    band hands its rows to ``observer.snapshot_rows``."""
     lo, hi = frame.band or (0, frame.height)  # the rows drawn (a band render's own)
     cuts = None
     if frame.pool is not None and _bands_pay(frame, step):
         cuts = raster.band_cuts([pr.rows for pr in step], frame.workers, frame.height)
     if cuts is None:
         _draw_band(frame, [(pr, pr.rows) for pr in step], lo, hi, floors, observer,
-                   lambda: _check(should_cancel))
+                   lambda: _check(should_cancel), marks)
         return
     splits = [pr.rows.split_at(cuts) for pr in step]
     edges = [lo, *(int(c) for c in cuts), hi]
     futures = [frame.pool.submit(_draw_band, frame, [(pr, split[k]) for pr, split in zip(step, splits, strict=True)],
                                  edges[k], min(max(edges[k + 1], edges[k]), frame.height), floors, observer,
-                                 _no_check)
+                                 _no_check, marks)
                for k in range(cuts.size + 1)]
     _wait(futures, should_cancel, frame.stop_flag)
 
@@ -347,14 +352,19 @@ class RowFloors:
 
 
 def _draw_band(frame: FrameContext, items: list[tuple[PreparedCall, raster.Rows]], y0: int, y1: int,
-               floors: RowFloors, observer: FrameObserver | None, check: Callable[[], None]) -> None:
+               floors: RowFloors, observer: FrameObserver | None, check: Callable[[], None],
+               marks: list[int] | tuple = ()) -> None:
     """Draw screen band ``[y0, y1)`` of a step: ``items`` (prepared call, its rows in the band)
     in draw order, each with the band's depth floors; ``check()`` runs before each call (a
-    cancellation check)."""
+    cancellation check). After the calls of ``marks`` (indices, ascending; a call without
+    triangles has no item) the band's rows go to ``observer.snapshot_rows``."""
+    pending = list(marks)
     for prepared, rows in items:
         check()
         if frame.stop_flag.is_set():
             return
+        while pending and pending[0] < prepared.call.index:
+            observer.snapshot_rows(pending.pop(0), frame.buf, y0, y1)
         state = prepared.state
         if rows.count:
             if state.zbound is not None:
@@ -365,6 +375,10 @@ def _draw_band(frame: FrameContext, items: list[tuple[PreparedCall, raster.Rows]
                 _draw_members(frame, prepared, rows, state)
         if state.pass_state.zwrite:
             floors.written(y0, y1)
+    if frame.stop_flag.is_set():
+        return
+    for index in pending:
+        observer.snapshot_rows(index, frame.buf, y0, y1)
 
 
 def _shaded_chunks(frame: FrameContext, prepared: PreparedCall, rows: raster.Rows,

@@ -215,7 +215,8 @@ class FrameObserver:
     """
 
     #: Whether :meth:`draw_begin` / :meth:`draw_end` must see the buffers exactly as they are
-    #: between two draw calls (snapshots). False lets the renderer draw calls in batches, as
+    #: between two draw calls (timing each call; snapshots need not: :attr:`snapshot_after`).
+    #: False lets the renderer draw calls in batches, as
     #: without an observer: ``draw_begin`` of a batch's calls comes before it is drawn and
     #: ``draw_end`` after (with the buffers after the whole batch); fragments keep their order.
     exact_boundaries = True
@@ -247,3 +248,13 @@ class FrameObserver:
     def draw_end(self, call: DrawCall, buffers: FrameBuffers, triangles: int) -> None:
         """After draw call ``call``; ``triangles``: the call's source triangles that reach the
         rasteriser (neither culled nor degenerate nor entirely clipped away)."""
+
+    #: Draw calls (indices) after which :meth:`snapshot_rows` is called: snapshots taken band by
+    #: band as the calls are drawn, without :attr:`exact_boundaries` (so in batches).
+    snapshot_after: frozenset[int] = frozenset()
+
+    def snapshot_rows(self, index: int, buffers: FrameBuffers, y0: int, y1: int) -> None:
+        """Rows ``[y0, y1)`` of ``buffers`` exactly as the draw calls up to ``index`` (one of
+        :attr:`snapshot_after`) left them, before any later call touched them. Called from the
+        worker that draws those rows (other workers are drawing other rows meanwhile: read only
+        these), once per screen band; the bands of one ``index`` cover every row drawn."""

@@ -37,14 +37,15 @@ from ..core.records import Frame, FrameObserver, ShadedFragments
 from ..core.scene import DrawScene, SceneError
 from ..core.vertex import DEPTH_MAX
 from ..core.vocabulary import pass_state_text
+from .snapshots import RowSnapshots
 
 #: ``result`` of a fragment in the pixel history, by :class:`Outcome` (``alpha_to_mask``: MSAA only).
 RESULT_NAMES = {Outcome.WRITTEN: "written", Outcome.ALPHA_TEST: "alpha_test", Outcome.STENCIL: "stencil",
                 Outcome.DEPTH: "depth", Outcome.ALPHA_TO_MASK: "alpha_to_mask"}
 
-#: Default memory bound of a capture's snapshots (bytes). One snapshot costs 13 bytes per pixel
-#: in LDR (colour 4, depth 8, stencil 1) and 25 in HDR: 27 MB / 52 MB at 1920x1080, so the
-#: default keeps at most 19 (LDR) or 10 (HDR) snapshots of a 1080p frame.
+#: Default memory bound of a capture's snapshots (bytes). A whole snapshot costs 9 bytes per
+#: pixel in LDR (colour 4, depth 4, stencil 1) and 21 in HDR: 19 MB / 44 MB at 1920x1080, so the
+#: default keeps at least 28 (LDR) or 12 (HDR) snapshots of a 1080p frame.
 SNAPSHOT_MEMORY = 512 * 1024 * 1024
 
 
@@ -112,22 +113,26 @@ class _StatsObserver(FrameObserver):
 
     per_sample = True
 
-    def __init__(self, snapshot_every: int = 0, last: int = 0, mark_draw: int | None = None, samples: int = 1):
+    #: Counting and snapshots need no exact draw boundaries: snapshots are taken band by band
+    #: (:meth:`snapshot_rows`) while calls are drawn in batches.
+    exact_boundaries = False
+
+    def __init__(self, snapshot_every: int = 0, last: int = 0, mark_draw: int | None = None, samples: int = 1,
+                 size: tuple[int, int] = (0, 0)):
         self.lock = threading.Lock()
         self.samples = samples
         self.rasterised: dict[int, int] = {}
         self.passed: dict[int, int] = {}
         self.samples_passed: dict[int, int] = {}
         self.triangles: dict[int, int] = {}
-        self.snapshot_every, self.last = snapshot_every, last
-        self.snapshots: dict[int, FrameBuffers] = {}
+        # After every snapshot_every-th call before the last, in the buffers' (width, height) ``size``.
+        marks = list(range(snapshot_every, last, snapshot_every) if snapshot_every else ())
+        self.snapshot_after = frozenset(marks)
+        self._previous = dict(zip(marks, [None, *marks[:-1]], strict=False))
+        self.width = int(size[0])
+        self.snapshots = RowSnapshots(int(size[1]))
         self.mark_draw = mark_draw
         self.mask: np.ndarray | None = None
-
-    @property
-    def exact_boundaries(self) -> bool:
-        """Snapshots need the buffers exactly between draw calls; counting does not."""
-        return bool(self.snapshot_every)
 
     def draw_begin(self, call, buffers):
         if call.index == self.mark_draw:
@@ -146,11 +151,14 @@ class _StatsObserver(FrameObserver):
             self.samples_passed[call.index] = self.samples_passed.get(call.index, 0) + samples
             if call.index == self.mark_draw:
                 self.mask[frags.pix] = True
+        if self.snapshot_after:
+            self.snapshots.touched(frags.pix, self.width)
 
     def draw_end(self, call, buffers, triangles):
         self.triangles[call.index] = triangles
-        if self.snapshot_every and call.index % self.snapshot_every == 0 and call.index < self.last:
-            self.snapshots[call.index] = buffers.copy()
+
+    def snapshot_rows(self, index, buffers, y0, y1):
+        self.snapshots.take(index, self._previous[index], buffers, y0, y1)
 
     def stats(self, calls: list[DrawCall]) -> list[DrawStats]:
         return [DrawStats(c, self.triangles.get(c.index, 0), self.rasterised.get(c.index, 0),
@@ -431,10 +439,11 @@ def pixel_history(scene: DrawScene, x: int, y: int, **kwargs) -> PixelHistory:
 
 
 def snapshot_bytes(width: int, height: int, hdr: bool, samples: int = 1) -> int:
-    """Memory of one buffer snapshot: colour (4 or 16 bytes), depth (8) and stencil (1) per pixel;
-    with MSAA per sample, depth 4 bytes, plus a uniform flag (1) per pixel."""
+    """Memory of one whole buffer snapshot (:mod:`.snapshots`): colour (4 or 16 bytes), depth (4:
+    24-bit codes) and stencil (1) per pixel; with MSAA per sample, plus a uniform flag (1) per
+    pixel. A snapshot that shares rows with the one before it holds less."""
     if samples == 1:
-        return int(width) * int(height) * ((16 if hdr else 4) + 8 + 1)
+        return int(width) * int(height) * ((16 if hdr else 4) + 4 + 1)
     return int(width) * int(height) * (samples * ((16 if hdr else 4) + 4 + 1) + 1)
 
 
@@ -450,7 +459,7 @@ class FrameCapture:
     scene: DrawScene
     stats: list[DrawStats]
     frame: Frame
-    snapshots: dict[int, FrameBuffers]
+    snapshots: RowSnapshots
     interval: int
 
     @property
@@ -460,8 +469,7 @@ class FrameCapture:
     @property
     def snapshot_memory(self) -> int:
         """Bytes held by the snapshots."""
-        return sum(b.color.nbytes + b.depth.nbytes + b.stencil.nbytes + (0 if b.uniform is None else b.uniform.nbytes)
-                   for b in self.snapshots.values())
+        return self.snapshots.nbytes
 
     @classmethod
     def capture(cls, scene: DrawScene, *, memory: int = SNAPSHOT_MEMORY,
@@ -473,7 +481,8 @@ class FrameCapture:
         per = snapshot_bytes(cam.width, cam.height, scene.hdr, int(scene.msaa))
         most = int(memory) // per if per else 0
         interval = 0 if most <= 0 or not calls else max(1, math.ceil(len(calls) / most))
-        observer = _StatsObserver(snapshot_every=interval, last=len(calls), samples=int(scene.msaa))
+        observer = _StatsObserver(snapshot_every=interval, last=len(calls), samples=int(scene.msaa),
+                                  size=(cam.width, cam.height))
         frame = render_scene(scene, progress=progress, should_cancel=should_cancel, workers=workers,
                              observer=observer, calls=calls)
         return cls(scene, observer.stats(calls), frame, observer.snapshots, interval)

@@ -193,11 +193,60 @@ def test_stepping_from_snapshots_equals_the_reference_stopped_after_k_draws(seed
         cap.frame_after(-1)
 
 
+def test_snapshots_taken_band_by_band_share_unchanged_rows(monkeypatch):
+    """A frame large enough for two screen bands: the capture draws its calls in batches and each
+    band hands its rows to the snapshot after the marked draws (no stop between draw calls).
+    Stepping to every draw equals a render stopped there (itself checked against the scalar
+    reference in tests/core/test_observer.py), and snapshots after draws that reach a few rows
+    copy only those rows."""
+    from blendlib.core import pipeline
+    from blendlib.explain import snapshots
+
+    taken = []
+    original_take = snapshots.RowSnapshots.take
+
+    def take(self, index, previous, buffers, y0, y1):
+        taken.append((index, y0, y1))
+        return original_take(self, index, previous, buffers, y0, y1)
+
+    monkeypatch.setattr(snapshots.RowSnapshots, "take", take)
+    exact_steps = []
+    original_steps = pipeline._steps
+    monkeypatch.setattr(pipeline, "_steps", lambda calls, prepared, exact: exact_steps.append(exact)
+                        or original_steps(calls, prepared, exact))
+    w, h = 1000, 640  # 640k pixels: drawn in bands (pipeline.BAND_PIXELS)
+    blend = Pass(cull=Cull.Off, zwrite=False, blend=True, src_blend=BlendFactor.SrcAlpha,
+                 dst_blend=BlendFactor.OneMinusSrcAlpha)
+    renderers = [sc.renderer(sc.quad(-9, -6, 9, 6, z=-2.0), sc.unlit((0.2, 0.3, 0.4, 1.0)), name="Back")]
+    for k in range(6):  # small spheres, each in a few rows of its own
+        mat = sc.Material(name=f"Glass{k}", queue=Queue.Transparent, color=(0.9, 0.2 * k, 0.5, 0.4), passes=(blend,))
+        renderers.append(sc.renderer(sc.uv_sphere(0.35, 12, 8), mat, name=f"Ball{k}",
+                                     matrix=sc.translate(-2.5 + k, -1.6 + 0.64 * k, 0.0)))
+    scene = sc.scene(sc.camera(w, h, eye=(0, 0, 6)), *renderers)
+    n = len(draw_calls(scene))
+    per = fd.snapshot_bytes(w, h, scene.hdr)
+    cap = fd.FrameCapture.capture(scene, workers=2)
+    assert cap.interval == 1 and len(cap.snapshots) == n - 1
+    assert exact_steps and not any(exact_steps)  # batches, not one call a step
+    assert any(0 < y1 - y0 < h for _, y0, y1 in taken)  # rows handed over band by band
+    for index in cap.snapshots:  # each snapshot's bands cover every row
+        bands = sorted((y0, y1) for i, y0, y1 in taken if i == index)
+        assert bands[0][0] == 0 and bands[-1][1] == h
+        assert all(a[1] == b[0] for a, b in zip(bands, bands[1:], strict=False))
+    # The first snapshot is whole; the spheres after it reach about 60 of the 640 rows each.
+    assert per <= cap.snapshot_memory < per + (n - 2) * per // 4
+    for k in range(n + 1):
+        stepped, _ = cap.frame_after(k)
+        stopped = render_scene(scene, until_draw=k, workers=1)
+        for name in ("color", "depth", "stencil"):
+            assert np.array_equal(getattr(stepped, name), getattr(stopped, name)), (k, name)
+
+
 def test_snapshot_bound_at_1080p():
     """The stated bound: S2 at 1080p keeps its snapshots within SNAPSHOT_MEMORY (well under 2 GB)."""
     per = fd.snapshot_bytes(1920, 1080, False)
-    assert per == 1920 * 1080 * 13 and fd.SNAPSHOT_MEMORY // per == 19
-    assert fd.SNAPSHOT_MEMORY // fd.snapshot_bytes(1920, 1080, True) == 10
+    assert per == 1920 * 1080 * 9 and fd.SNAPSHOT_MEMORY // per == 28
+    assert fd.SNAPSHOT_MEMORY // fd.snapshot_bytes(1920, 1080, True) == 12
 
 
 def test_colourless_prepass_is_shaded_only_where_a_history_reads_it(monkeypatch):

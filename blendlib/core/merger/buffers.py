@@ -249,27 +249,37 @@ class FrameBuffers:
     def copy(self, band: tuple[int, int] | None = None) -> FrameBuffers:
         """An independent copy (a snapshot to resume from); with ``band`` (y0, y1) only those rows
         are copied, the others left unset (what a band render resumed from it reads)."""
-        other = object.__new__(FrameBuffers)
-        other.__dict__.update(self.__dict__)
-        # Not shared: a copy may be drawn into at the same time as its original, at the same pixels.
-        other._peel, other._peel_lock = None, threading.Lock()
-        if band is None:
-            other.color, other.depth, other.stencil = self.color.copy(), self.depth.copy(), self.stencil.copy()
-            if self.uniform is not None:
-                other.uniform = self.uniform.copy()
-            return other
-        lo, hi = band[0] * self.width, band[1] * self.width
-
-        def rows(array: np.ndarray, planes: int) -> np.ndarray:
-            out = np.empty_like(array)
-            out.reshape(planes, self.plane, -1)[:, lo:hi] = array.reshape(planes, self.plane, -1)[:, lo:hi]
-            return out
-
-        other.color, other.depth, other.stencil = (rows(a, self.samples) for a in (self.color, self.depth,
-                                                                                    self.stencil))
-        if self.uniform is not None:
-            other.uniform = rows(self.uniform, 1)
+        other = self.blank()
+        self.copy_rows(other, *(band or (0, self.height)))
         return other
+
+    @property
+    def kind(self) -> tuple[int, int, bool, bool, int]:
+        """(width, height, hdr, linear, samples): what :meth:`unset` needs to make buffers like these."""
+        return self.width, self.height, self.hdr, self.linear, self.samples
+
+    @classmethod
+    def unset(cls, kind: tuple[int, int, bool, bool, int]) -> FrameBuffers:
+        """Buffers of :attr:`kind` ``kind``, every array unset (rows to be filled by :meth:`copy_rows`)."""
+        width, height, hdr, linear, samples = kind
+        return cls(width, height, hdr, ColorSpace.Linear if linear else ColorSpace.Gamma, (0.0, 0.0, 0.0, 0.0),
+                   band=(0, 0), samples=samples)
+
+    def blank(self) -> FrameBuffers:
+        """Buffers of the same size and kind, every array unset."""
+        return FrameBuffers.unset(self.kind)
+
+    def copy_rows(self, other: FrameBuffers, y0: int, y1: int) -> None:
+        """Copy rows ``[y0, y1)`` (every sample plane) of these buffers into ``other`` (same kind)."""
+        lo, hi = y0 * self.width, y1 * self.width
+
+        def rows(src: np.ndarray, dst: np.ndarray, planes: int) -> None:
+            dst.reshape(planes, self.plane, -1)[:, lo:hi] = src.reshape(planes, self.plane, -1)[:, lo:hi]
+
+        for src, dst in ((self.color, other.color), (self.depth, other.depth), (self.stencil, other.stencil)):
+            rows(src, dst, self.samples)
+        if self.uniform is not None:
+            rows(self.uniform, other.uniform, 1)
 
     def encode(self, rgba: np.ndarray) -> np.ndarray:
         """Shading-space values (N, 4) float64 → what the colour buffer stores."""
