@@ -10,9 +10,10 @@ maps the cumulative time of the pipeline's stage functions to stages:
 - coverage: ``raster.coverage_rows`` / ``coverage_rows_many`` / ``rasterize_rows`` / ``row_chunks`` /
   ``split_bands``
 - interpolation: ``raster.interpolate`` / ``interpolate_runs`` (depth, weights, attributes)
-- shading: ``shade.shade`` (texture sampling, lighting), ``shade.texel_palette``,
-  ``shade.texture_uv_of`` and ``shade.point_texel_index_of`` (Point-filtered textures shaded
-  once per texel, fragments given their texel)
+- shading: ``shade.shade`` (texture sampling, lighting), ``mips.quad_lod`` and
+  ``mips.sample_mipmapped`` (a mipmapped texture's LOD and trilinear sampling), ``shade.texel_palette``
+  and ``shade.point_texel_index_of`` (Point-filtered textures shaded once per texel, fragments given
+  their texel)
 - ordering: ``merger.merge`` minus the layers it applies and the tables it builds (counting
   fragments per pixel, peeling layers; ``merger/ordering.py``)
 - merge: ``merger.apply_layer`` and blend-table building (tests, blending, writes;
@@ -45,7 +46,7 @@ STAGES = {
                  ("raster.py", "row_chunks"), ("raster.py", "split_bands")],
     "interpolation": [("raster.py", "interpolate"), ("raster.py", "interpolate_runs")],
     "shading": [("shade.py", "shade"), ("shade.py", "texel_palette"), ("shade.py", "point_texel_index_of"),
-                ("shade.py", "texture_uv_of")],
+                ("mips.py", "quad_lod"), ("mips.py", "sample_mipmapped")],
     "merge": [("ordering.py", "apply_layer")],
     "tables": [("blending.py", "blend_lut"), ("blending.py", "__init__")],
     "output": [("buffers.py", "output"), ("buffers.py", "__init__")],
