@@ -402,9 +402,10 @@ def _draw_chunks(frame: FrameContext, prepared: PreparedCall, rows: raster.Rows,
     """Raster, shade and merge ``rows`` of one prepared call, chunk by chunk in draw order, with
     ``state`` (the call's, with the band's depth floors); the observer told of every fragment."""
     buf, p, tables = frame.buf, state.pass_state, prepared.tables
-    for _, _, shaded in _shaded_chunks(frame, prepared, rows, state):
+    watched = None if observer is None else observer.watched_rows
+    for a, b, shaded in _shaded_chunks(frame, prepared, rows, state):
         merged = shaded if shaded.alive is None else shaded.select(shaded.alive)
-        if observer is None:
+        if observer is None or (watched is not None and not watched[rows.y[a:b]].any()):
             _merge(buf, p, merged, tables)
             continue
         if shaded.coverage is not None and not shaded.coverage.all():  # observers see covering fragments only

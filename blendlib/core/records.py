@@ -249,6 +249,10 @@ class FrameObserver:
         """After draw call ``call``; ``triangles``: the call's source triangles that reach the
         rasteriser (neither culled nor degenerate nor entirely clipped away)."""
 
+    #: (H,) bool, the buffer rows (from the bottom) whose fragments :meth:`fragments` reads, or None
+    #: for all: chunks of fragments in no such row merge as if nothing observed them, unreported.
+    watched_rows: np.ndarray | None = None
+
     #: Draw calls (indices) after which :meth:`snapshot_rows` is called: snapshots taken band by
     #: band as the calls are drawn, without :attr:`exact_boundaries` (so in batches).
     snapshot_after: frozenset[int] = frozenset()

@@ -293,11 +293,13 @@ class _PixelObserver(FrameObserver):
     exact_boundaries = False  # only fragments are read
     per_sample = True
 
-    def __init__(self, targets: np.ndarray, size: int):
+    def __init__(self, targets: np.ndarray, width: int, height: int):
         self.lock = threading.Lock()
         self.single = int(targets[0]) if targets.size == 1 else None
-        self.wanted = np.zeros(size, dtype=bool)
+        self.wanted = np.zeros(width * height, dtype=bool)
         self.wanted[targets] = True
+        self.watched_rows = np.zeros(height, dtype=bool)  # chunks elsewhere are not reported
+        self.watched_rows[targets // width] = True
         self.records: list[tuple] = []
 
     def fragments(self, call, frags: ShadedFragments, outcome: np.ndarray) -> None:
@@ -413,7 +415,7 @@ def pixel_histories(scene: DrawScene, pixels: Iterable[tuple[int, int]], *,
     pixels = [_check_pixel(scene, x, y) for x, y in pixels]
     w, h = int(scene.camera.width), int(scene.camera.height)
     window = np.array([(h - 1 - y) * w + x for x, y in pixels], dtype=np.int64)
-    observer = _PixelObserver(window, w * h)
+    observer = _PixelObserver(window, w, h)
     frame = render_scene(scene, progress=progress, should_cancel=should_cancel, workers=workers,
                          observer=observer)
     per_pixel: dict[int, list[tuple]] = {int(p): [] for p in window}

@@ -3,6 +3,7 @@ replayed fragment by fragment, stepping through draws from snapshots."""
 
 from __future__ import annotations
 
+import functools
 import json
 from dataclasses import replace
 
@@ -150,6 +151,42 @@ def test_mesh_names_triangles_by_loop_triangle_and_polygon():
     scene = sc.scene(cam, sc.renderer(named, sc.unlit((1, 0, 0, 1)), name="Quad"))
     hist = fd.pixel_history(scene, 1, 1)
     assert [(f.triangle, f.polygon) for f in hist.fragments] in ([(10, 7)], [(11, 7)])
+
+
+def test_a_history_is_told_only_of_chunks_in_its_pixels_rows(monkeypatch):
+    """Chunks of fragments in rows without an asked pixel merge unobserved: the observer is told of
+    chunks in the pixels' rows only, and the histories equal those told of every chunk."""
+    seen_rows = []
+    original = fd._PixelObserver.fragments
+
+    def fragments(self, call, frags, outcome):
+        seen_rows.append(np.unique(frags.pix // 96))
+        return original(self, call, frags, outcome)
+
+    monkeypatch.setattr(fd._PixelObserver, "fragments", fragments)
+    monkeypatch.setattr(fd, "render_scene", functools.partial(render_scene, chunk_candidates=200))  # many chunks
+    mesh = sc.uv_sphere(radius=1.0, segments=24, rings=16)
+    p = Pass(cull=Cull.Off, zwrite=False, blend=True, src_blend=BlendFactor.SrcAlpha,
+             dst_blend=BlendFactor.OneMinusSrcAlpha)
+    scene = sc.scene(sc.camera(96, 64, eye=(0, 0, 3.2)),
+                     sc.renderer(mesh, sc.Material(color=(0.2, 0.6, 0.9, 0.4), queue=Queue.Transparent, passes=(p,))))
+    pixels = [(40, 20), (50, 41)]
+    histories, _ = fd.pixel_histories(scene, pixels)
+    rows = {64 - 1 - y for _, y in pixels}
+    assert seen_rows and all(rows & set(r.tolist()) for r in seen_rows)
+    told = len(seen_rows)
+
+    class TellEverything(fd._PixelObserver):
+        def __init__(self, *args):
+            super().__init__(*args)
+            self.watched_rows = None
+
+    monkeypatch.setattr(fd, "_PixelObserver", TellEverything)
+    seen_rows.clear()
+    every, _ = fd.pixel_histories(scene, pixels)
+    assert len(seen_rows) > told  # told of every chunk this time
+    assert [h.to_json() for h in histories] == [h.to_json() for h in every]
+    assert all(h.fragments for h in histories)
 
 
 def test_empty_history_and_bad_pixels():
