@@ -23,7 +23,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from . import mips, raster, shade
+from . import lights, mips, raster, shade
 from .merger import table_pays
 from .records import DrawState, ShadedFragments
 from .vertex import TriangleSetup
@@ -167,6 +167,7 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
     ids = None  # (N,) int32 palette entry of each fragment, -1 for those shaded one by one
     tabled_count = 0  # fragments with an id
     row_flat = flat[run_of_row]
+    dropped = None  # (N,) bool: fragments dropped unshaded (DrawState.dark_skip)
     constant = None if not any_varying else np.repeat(row_flat, length)
 
     def shade_at(uv: np.ndarray | None, normal: np.ndarray | None, color: np.ndarray | None,
@@ -238,8 +239,19 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
             lod = None
             if state.mips is not None and uv is not None:  # one LOD per 2x2 quad (§7, "Mipmaps")
                 lod = mips.quad_lod(setup, frags.tri[at], frags.pix[at], state.width, material, texels.shape[:2])
-            rgba[at] = shade_at(None if uv is None else uv.T, varying(normals, normal_flat),
-                                varying(colors, color_flat), varying(positions, position_flat), w.shape[1], lod)
+            inputs = [None if uv is None else uv.T, varying(normals, normal_flat), varying(colors, color_flat),
+                      varying(positions, position_flat), lod]
+            dark = _dark(state, inputs, frags.pix[at]) if state.dark_skip else None
+            if dark is None:
+                rgba[at] = shade_at(*inputs[:4], w.shape[1], inputs[4])
+            else:  # a ForwardAdd light's unreached fragments change nothing: dropped unshaded
+                places = np.arange(n)[at]
+                lit = np.flatnonzero(~dark)
+                rgba[places[dark]] = 0.0
+                rgba[places[lit]] = shade_at(*(None if v is None else v[lit] for v in inputs[:4]), lit.size,
+                                             None if lod is None else lod[lit])
+                dropped = np.zeros(n, dtype=bool)
+                dropped[places[dark]] = True
     palette = None
     if palettes:
         palette = palettes[0] if len(palettes) == 1 else np.concatenate(palettes)
@@ -256,6 +268,8 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
                 rgba[tabled_at] = np.take(palette, ids[tabled_at], axis=0)
             ids = palette = None
     alive = alpha_test(rgba, ids, palette, material.cutoff, p.alpha_test_comp) if p.alpha_test else None
+    if dropped is not None:
+        alive = ~dropped if alive is None else alive & ~dropped
     triangle_fn = None
     if state.observed:  # source triangles only when an observer reads them (and only those it reads)
         def triangle_fn(index: np.ndarray | None) -> np.ndarray:
@@ -279,6 +293,25 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
             sub_first = np.cumsum(sub.length) - sub.length
             return codes[sub_first[which.reshape(-1)] + (index - (ends - length)[row])]
     return ShadedFragments(frags.pix, depth, rgba, ids, palette, None, alive, disjoint, depth_fn, triangle_fn)
+
+
+def _dark(state: DrawState, inputs: list, pix: np.ndarray) -> np.ndarray | None:
+    """(M,) bool: which of M fragments (``inputs``: uv, normal, colour, position, LOD for each;
+    ``pix`` (M,) int64) a ForwardAdd light does not reach while their pass then changes nothing
+    (:attr:`DrawState.dark_skip`); None when none is, or when a normal or colour is not finite and
+    bounded (then their colour would not be exactly 0)."""
+    _, normal, color, position, _ = inputs
+    if position is None:
+        return None
+    dark = lights.dark_fragments(state.lights.add, position[:, 0], position[:, 1], position[:, 2])
+    if state.dark_alpha is not None:
+        dark &= np.take(state.dark_alpha, pix) == 255
+    if not dark.any():
+        return None
+    for values in (normal, color):
+        if values is not None and not bool(np.all(np.abs(values) <= lights.DARK_SKIP_PEAK)):
+            return None
+    return dark
 
 
 def shade_colourless_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedFragments | None:

@@ -198,6 +198,11 @@ def _shared(group: list[PreparedCall]) -> PreparedCall:
         ztest = CompareFunction.Less if any(p.ztest is CompareFunction.Less for p in passes) else ztest
     shading_pass = replace(passes[0], alpha_test=False, zwrite=any(p.zwrite for p in passes), ztest=ztest)
     first = group[0]
-    state = replace(first.state, call=replace(first.call, state=shading_pass), zbound=zbound)
+    # Fragments a ForwardAdd light does not reach are dropped only when they change nothing for
+    # every call (all may drop them; the stored alpha checked when any needs it).
+    dark_skip = all(pr.state.dark_skip for pr in group)
+    dark_alpha = next((pr.state.dark_alpha for pr in group if pr.state.dark_alpha is not None), None)
+    state = replace(first.state, call=replace(first.call, state=shading_pass), zbound=zbound,
+                    dark_skip=dark_skip, dark_alpha=dark_alpha if dark_skip else None)
     members = [Member(pr.state, pr.tables, int(f)) for pr, f in zip(group, firsts, strict=True)]
     return PreparedCall(first.call, setup, selected, rows, state, fragment.shade_chunk, members=members)

@@ -29,7 +29,7 @@ import numpy as np
 
 from . import colorspace
 from .scene import ForwardLight
-from .vocabulary import ColorSpace, LightType
+from .vocabulary import BlendFactor, BlendOp, ColorSpace, Lighting, LightType, Material, Pass
 
 #: Unity's built-in falloff: the quadratic term of ``1 / (1 + 25 r2)`` and where the linear fade to
 #: the range starts (80 % of the range: r2 = 0.64).
@@ -149,3 +149,59 @@ def light_terms(light: AddLight, px: np.ndarray, py: np.ndarray,
         z += np.multiply(dz, az)
         atten = np.multiply(spot_cone(light, z, d2), atten)
     return unit[0], unit[1], unit[2], atten
+
+
+#: Shading inputs (colours, texels, the light's colour) at most this large in magnitude give
+#: finite products, so a zero attenuation gives an exactly zero colour.
+DARK_SKIP_PEAK = 1e30
+
+
+def dark_skip_applies(p: Pass, material: Material, light: AddLight | None, texture_peak: float,
+                      hdr: bool, samples: int, observed: bool) -> tuple[bool, bool]:
+    """Whether the fragments of a point or spot light's ForwardAdd draw that the light does not
+    reach change nothing, and whether that needs the stored alpha to be 255: ``(applies,
+    needs_saturated_alpha)``.
+
+    Out of reach (:func:`dark_fragments`) the colour is ``((light × albedo) × ndl) × 0``, exactly
+    0 when every input is finite and bounded (``texture_peak``: the texture's largest magnitude,
+    0 without one). An 8-bit buffer blended with ``BlendOp Add`` and destination factor ``One``
+    then stores ``quantize(0 × src_factor + dst) = dst`` in colour. Alpha is kept when the pass
+    writes none; with an alpha ``Add`` and destination factor ``One``, when the source alpha factor
+    is ``Zero``, else only where the stored alpha is already 1 (a non-negative addition saturates). Not with stencil,
+    ZWrite, an outline colour, MSAA (per-sample coverage), an HDR buffer (no saturation) or an
+    observer (it is told of every fragment)."""
+    if (light is None or not light.positional or hdr or samples != 1 or observed or p.stencil or p.zwrite
+            or p.outline_color is not None or material.lighting is Lighting.Unlit or not p.blend
+            or p.blend_op is not BlendOp.Add or p.dst_blend is not BlendFactor.One):
+        return False, False
+    peaks = [texture_peak, *(abs(float(c)) for c in (*material.color, *material.tint_color, material.alpha_scale,
+                                                      *light.color))]
+    if not all(v <= DARK_SKIP_PEAK for v in peaks):  # NaN fails too
+        return False, False
+    if "A" not in p.color_mask:
+        return True, False
+    src_alpha, dst_alpha, alpha_op = p.alpha_factors
+    if alpha_op is not BlendOp.Add or dst_alpha is not BlendFactor.One:
+        return False, False
+    return True, src_alpha is not BlendFactor.Zero  # Zero: alpha_s × 0 + alpha_d = alpha_d anywhere
+
+
+def dark_fragments(light: AddLight, px: np.ndarray, py: np.ndarray, pz: np.ndarray) -> np.ndarray:
+    """(N,) bool: the fragments at world positions ``px, py, pz`` (N,) float64 whose attenuation
+    :func:`light_terms` computes as exactly 0 — at or beyond the light's range (``falloff`` of
+    ``r2 >= 1``), or for a spot where :func:`spot_cone` is 0 (behind the lamp or outside the cone;
+    0 times a finite falloff) — by the same operations on the same values."""
+    ox, oy, oz = light.position
+    dx, dy, dz = np.subtract(px, ox), np.subtract(py, oy), np.subtract(pz, oz)
+    d2 = np.multiply(dx, dx)
+    d2 += np.multiply(dy, dy)
+    d2 += np.multiply(dz, dz)
+    r2 = np.divide(d2, light.range2)
+    dark = r2 >= 1.0
+    if light.type is LightType.Spot:
+        ax, ay, az = light.spot_axis
+        z = np.multiply(dx, ax)
+        z += np.multiply(dy, ay)
+        z += np.multiply(dz, az)
+        dark |= (spot_cone(light, z, d2) == 0.0) & np.isfinite(r2)
+    return dark

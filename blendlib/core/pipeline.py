@@ -130,7 +130,8 @@ def render_scene(
         workers = 1 if width * height < SMALL_FRAME_PIXELS else min(2, os.cpu_count() or 1)
     pool = ThreadPoolExecutor(max_workers=workers) if workers > 1 else None
     frame = FrameContext(buf, cam, lights, cs, scene.hdr, chunk_candidates, pool, workers, threading.Event(),
-                         observed=observer is not None, band=band, memo=memo, keep_setups=keep_setups,
+                         observed=observer is not None and observer.reads_fragments, band=band, memo=memo,
+                         keep_setups=keep_setups,
                          reads_depth=None if observer is None else observer.reads_depth)
     try:
         _draw_all(frame, todo, should_cancel, progress, observer)
@@ -402,6 +403,8 @@ def _draw_chunks(frame: FrameContext, prepared: PreparedCall, rows: raster.Rows,
     """Raster, shade and merge ``rows`` of one prepared call, chunk by chunk in draw order, with
     ``state`` (the call's, with the band's depth floors); the observer told of every fragment."""
     buf, p, tables = frame.buf, state.pass_state, prepared.tables
+    if observer is not None and not observer.reads_fragments:
+        observer = None
     watched = None if observer is None else observer.watched_rows
     for a, b, shaded in _shaded_chunks(frame, prepared, rows, state):
         merged = shaded if shaded.alive is None else shaded.select(shaded.alive)

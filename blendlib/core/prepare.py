@@ -317,9 +317,14 @@ def _draw_state(frame: FrameContext, call: DrawCall, setup, inputs: CallInputs,
     if (not p.zwrite and p.ztest in (CompareFunction.Less, CompareFunction.LEqual)
             and not (frame.reads_depth is not None and frame.reads_depth(call))):
         zbound = raster.depth_upper_codes(setup, p.offset_factor, p.offset_units)
-    state = DrawState(call, call.renderer.material, inputs.texels, inputs.lights, frame.color_space, frame.hdr,
+    material = call.renderer.material
+    dark_skip, saturated = lights.dark_skip_applies(
+        p, material, inputs.lights.add, 0.0 if inputs.texels is None else inputs.texels.peak(), frame.hdr,
+        frame.samples, frame.observed)
+    state = DrawState(call, material, inputs.texels, inputs.lights, frame.color_space, frame.hdr,
                       frame.width, observed=frame.observed, zbound=zbound, mips=inputs.mips,
-                      samples=frame.samples)
+                      samples=frame.samples, dark_skip=dark_skip,
+                      dark_alpha=frame.buf.color[:, 3] if saturated else None)
     return state, vertex.cull_select(setup, p.cull) if selected is None else selected
 
 

@@ -74,6 +74,12 @@ class DrawState:
     #: MSAA samples per pixel (``DrawScene.msaa``): fragments carry coverage masks and a depth
     #: code per sample (docs/pipeline.md §10).
     samples: int = 1
+    #: A ForwardAdd draw whose fragments out of its light's reach (attenuation exactly 0) change
+    #: nothing, so they are dropped unshaded (:func:`.lights.dark_skip_applies`): everywhere when
+    #: ``dark_alpha`` is None, else where it — the colour buffer's (H*W,) uint8 alpha codes, read
+    #: as each chunk is shaded — holds 255 (its pass adds to a saturated alpha). Never observed.
+    dark_skip: bool = False
+    dark_alpha: np.ndarray | None = None
 
     @property
     def pass_state(self) -> Pass:
@@ -248,6 +254,10 @@ class FrameObserver:
     def draw_end(self, call: DrawCall, buffers: FrameBuffers, triangles: int) -> None:
         """After draw call ``call``; ``triangles``: the call's source triangles that reach the
         rasteriser (neither culled nor degenerate nor entirely clipped away)."""
+
+    #: Whether :meth:`fragments` is called at all. An observer of draw boundaries only (a clock)
+    #: says False: each call is then drawn as an unobserved render draws it, fragments unreported.
+    reads_fragments = True
 
     #: (H,) bool, the buffer rows (from the bottom) whose fragments :meth:`fragments` reads, or None
     #: for all: chunks of fragments in no such row merge as if nothing observed them, unreported.

@@ -128,6 +128,21 @@ class Texels:
         texels[..., :3] = convert(texels[..., :3])
         self.values = texels.reshape(h * w, 4)
 
+    def peak(self) -> float:
+        """The largest magnitude of any texel's values (inf when one is not finite), computed once."""
+        cached = getattr(self, "_peak", None)
+        if cached is None:
+            if self.codes is not None:
+                tables = np.concatenate([self.lut_rgb, self.lut_alpha])
+            else:
+                tables = self.values
+            with np.errstate(invalid="ignore"):
+                cached = float(np.max(np.abs(tables), initial=0.0))
+            if not np.isfinite(tables).all():
+                cached = math.inf
+            self._peak = cached
+        return cached
+
     def distinct(self) -> tuple[np.ndarray, np.ndarray]:
         """The texture's distinct texels: ``(first (D,) int64`` flat index of one texel of each
         distinct value, ``of_texel (h*w,) int32`` each texel's entry in ``first``). Computed once."""

@@ -60,6 +60,7 @@ def forward_add_prices(draw, repeats: int) -> list[dict]:
 
     class DrawClock(FrameObserver):
         exact_boundaries = True  # one draw at a time, each between its own begin and end
+        reads_fragments = False  # each draw as an unobserved render draws it
         per_sample = True
 
         def __init__(self) -> None:

@@ -234,3 +234,24 @@ def test_deferred_source_triangles_of_a_selection_equal_the_whole_chunks():
         assert whole.min() >= 0 and whole.max() < 7
         seen.update(np.unique(whole).tolist())
     assert seen == set(range(7))
+
+
+def test_an_observer_of_draw_boundaries_only_is_told_of_no_fragment():
+    """``reads_fragments = False`` (a clock): draw boundaries come call by call, with the buffers
+    exactly between calls, and no fragment is reported; the frame is the plain render's."""
+
+    class Clock(Recorder):
+        reads_fragments = False
+
+    scene = seeded_scene(11)
+    clock = Clock()
+    frame = render_scene(scene, observer=clock, workers=2)
+    assert clock.calls == [c.index for c in draw_calls(scene)] and not clock.outcomes
+    plain = render_scene(scene, workers=2)
+    assert _frame_equal(frame, plain)
+    for k in (1, len(clock.calls) // 2):
+        stopped = render_scene(scene, until_draw=k, workers=1)
+        snap = clock.snapshots[k]
+        color, depth, stencil = snap.output()
+        assert np.array_equal(color, stopped.color) and np.array_equal(depth, stopped.depth)
+        assert np.array_equal(stencil, stopped.stencil)

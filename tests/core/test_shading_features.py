@@ -117,6 +117,86 @@ def test_spot_cone_is_full_within_46_64_of_the_radius_and_zero_at_the_edge_and_b
     assert lights.spot_cone(light, np.array([-1.0, 0.0]), np.array([1.0, 0.0])).tolist() == [0.0, 0.0]
 
 
+def test_dark_fragments_are_exactly_those_the_light_terms_give_no_light():
+    """Every fragment :func:`lights.dark_fragments` names has attenuation exactly 0 in
+    :func:`lights.light_terms` (beyond the range, or outside a spot's cone or behind it), and it
+    names most of them: all beyond the range and every one where the cone is 0."""
+    rng = np.random.default_rng(5)
+    p = rng.uniform(-6, 6, size=(20000, 3))
+    for light in (lights.add_light(ForwardLight("P", LightType.Point, position=(0.5, -0.2, 0.3), range=3.0),
+                                   ColorSpace.Gamma),
+                  lights.add_light(ForwardLight("S", LightType.Spot, position=(0.2, 0.1, 1.0), axis=(0.2, -0.1, 1.0),
+                                                range=5.0, spot_angle=50.0), ColorSpace.Linear)):
+        dark = lights.dark_fragments(light, p[:, 0], p[:, 1], p[:, 2])
+        atten = lights.light_terms(light, p[:, 0], p[:, 1], p[:, 2])[3]
+        assert np.all(atten[dark] == 0.0) and 1000 < dark.sum()
+        d2 = ((p - np.array(light.position)) ** 2).sum(axis=1)
+        assert np.all(dark[d2 / light.range2 >= 1.0 + 1e-9])
+        assert np.all(atten[~dark] > 0.0) if light.type is LightType.Point else np.all(dark[atten == 0.0])
+
+
+def test_dark_fragments_are_skipped_only_where_they_change_nothing():
+    """Out of a ForwardAdd light's reach a fragment's colour is 0; with ``BlendOp Add`` and
+    destination factor ``One`` an 8-bit buffer keeps every stored code (checked for all 256 in
+    Gamma and Linear), and alpha too unless the pass adds a source alpha to an unsaturated one."""
+    from blendlib.core.merger import FrameBuffers, blend_fragments
+
+    for color_space in (ColorSpace.Gamma, ColorSpace.Linear):
+        buf = FrameBuffers(256, 1, False, color_space, (0, 0, 0, 1))
+        codes = np.repeat(np.arange(256, dtype=np.uint8)[:, None], 4, axis=1)
+        stored = codes.view(np.uint32).reshape(-1)
+        for src in (BlendFactor.One, BlendFactor.SrcAlpha, BlendFactor.DstColor, BlendFactor.OneMinusSrcAlpha):
+            p = Pass(blend=True, src_blend=src, dst_blend=BlendFactor.One, zwrite=False, color_mask=frozenset("RGB"))
+            out = blend_fragments(buf, p, stored, np.zeros((256, 4)))
+            assert np.array_equal(out, stored), (color_space, src)
+    point = lights.add_light(ForwardLight("P", LightType.Point, position=(0, 0, 1), range=2.0), ColorSpace.Gamma)
+    mat = Material(name="M")
+
+    def applies(p, material=mat, light=point, peak=1.0, hdr=False, samples=1, observed=False):
+        return lights.dark_skip_applies(p, material, light, peak, hdr, samples, observed)
+
+    add = ADD  # Blend One One: alpha added too
+    assert applies(add) == (True, True)  # where the stored alpha is 255 only
+    assert applies(replace(add, color_mask=frozenset("RGB"))) == (True, False)
+    assert applies(replace(add, separate_alpha=True, src_blend_alpha=BlendFactor.Zero,
+                           dst_blend_alpha=BlendFactor.One)) == (True, False)
+    never = [replace(add, dst_blend=BlendFactor.OneMinusSrcAlpha), replace(add, zwrite=True),
+             replace(add, stencil=True), replace(add, outline_color=(1.0, 0.0, 0.0)),
+             replace(add, separate_alpha=True, src_blend_alpha=BlendFactor.One, dst_blend_alpha=BlendFactor.Zero)]
+    assert all(applies(p) == (False, False) for p in never)
+    assert applies(add, hdr=True)[0] is False and applies(add, samples=4)[0] is False
+    assert applies(add, observed=True)[0] is False and applies(add, peak=math.inf)[0] is False
+    assert applies(add, material=replace(mat, color=(math.nan, 0, 0, 1)))[0] is False
+    assert applies(add, material=replace(mat, lighting=Lighting.Unlit))[0] is False
+    directional = lights.add_light(ForwardLight("D", LightType.Directional), ColorSpace.Gamma)
+    assert applies(add, light=directional)[0] is False
+
+
+@pytest.mark.parametrize("color_space", [ColorSpace.Gamma, ColorSpace.Linear])
+def test_light_sweeps_drop_unreached_fragments_and_equal_the_reference(color_space, monkeypatch):
+    """The light sweep (a floor and a sphere under point and spot lights whose ranges end on the
+    floor) drops fragments no light reaches — on the opaque floor, and on the transparent sphere
+    only where its stored alpha is saturated — and still equals the scalar reference bit for bit."""
+    from blendlib.core import fragment
+    from tests.reference.feature_sweeps import light_sweep
+
+    dropped: dict[str, int] = {}
+    original = fragment._dark
+
+    def dark(state, inputs, pix):
+        out = original(state, inputs, pix)
+        name = state.call.renderer.name
+        dropped[name] = dropped.get(name, 0) + (0 if out is None else int(out.sum()))
+        return out
+
+    monkeypatch.setattr(fragment, "_dark", dark)
+    _assert_equal_to_reference(light_sweep(color_space))
+    assert dropped["Floor"] > 500 and "Unlit" not in dropped
+    dropped.clear()
+    _core(light_sweep(color_space, hdr=True))
+    assert not dropped  # HDR: alpha does not saturate, nothing is dropped
+
+
 def _plane_scene(pass_list, light=None, lights_=(), lighting=Lighting.Lambert, color_space=ColorSpace.Gamma,
                  color=(0.5, 0.6, 0.7, 0.8), hdr=True):
     """A 4 x 4 quad facing a camera 4 units away (Gamma HDR: colours as authored, nothing clamped)."""
