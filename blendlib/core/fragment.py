@@ -239,16 +239,27 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
             lod = None
             if state.mips is not None and uv is not None:  # one LOD per 2x2 quad (§7, "Mipmaps")
                 lod = mips.quad_lod(setup, frags.tri[at], frags.pix[at], state.width, material, texels.shape[:2])
-            inputs = [None if uv is None else uv.T, varying(normals, normal_flat), varying(colors, color_flat),
-                      varying(positions, position_flat), lod]
-            dark = _dark(state, inputs, frags.pix[at]) if state.dark_skip else None
+            position = varying(positions, position_flat)
+            dark = None
+            if state.dark_skip and position is not None:
+                dark = _dark(state, position, frags.pix[at], [c[keep] for c in (normals, colors) if c is not None])
             if dark is None:
-                rgba[at] = shade_at(*inputs[:4], w.shape[1], inputs[4])
-            else:  # a ForwardAdd light's unreached fragments change nothing: dropped unshaded
+                rgba[at] = shade_at(None if uv is None else uv.T, varying(normals, normal_flat),
+                                    varying(colors, color_flat), position, w.shape[1], lod)
+            else:  # a ForwardAdd light's unreached fragments change nothing: dropped, never interpolated
                 places = np.arange(n)[at]
                 lit = np.flatnonzero(~dark)
+                run_counts = counts[keep]
+                lit_counts = np.add.reduceat((~dark).astype(np.int64), np.cumsum(run_counts) - run_counts)
+                w_lit = w[:, lit]  # runs keep their order: a triangle's lit fragments stay one run
+
+                def varying_lit(corners: np.ndarray | None, corner_flat: np.ndarray | None) -> np.ndarray | None:
+                    return None if corners is None else raster.interpolate_runs(
+                        w_lit, corners[keep], lit_counts, corner_flat[keep], channels_first=True).T
+
                 rgba[places[dark]] = 0.0
-                rgba[places[lit]] = shade_at(*(None if v is None else v[lit] for v in inputs[:4]), lit.size,
+                rgba[places[lit]] = shade_at(None if uv is None else uv[:, lit].T, varying_lit(normals, normal_flat),
+                                             varying_lit(colors, color_flat), position[lit], lit.size,
                                              None if lod is None else lod[lit])
                 dropped = np.zeros(n, dtype=bool)
                 dropped[places[dark]] = True
@@ -295,21 +306,19 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
     return ShadedFragments(frags.pix, depth, rgba, ids, palette, None, alive, disjoint, depth_fn, triangle_fn)
 
 
-def _dark(state: DrawState, inputs: list, pix: np.ndarray) -> np.ndarray | None:
-    """(M,) bool: which of M fragments (``inputs``: uv, normal, colour, position, LOD for each;
-    ``pix`` (M,) int64) a ForwardAdd light does not reach while their pass then changes nothing
-    (:attr:`DrawState.dark_skip`); None when none is, or when a normal or colour is not finite and
-    bounded (then their colour would not be exactly 0)."""
-    _, normal, color, position, _ = inputs
-    if position is None:
-        return None
+def _dark(state: DrawState, position: np.ndarray, pix: np.ndarray, corners: list[np.ndarray]) -> np.ndarray | None:
+    """(M,) bool: which of M fragments at world positions ``position`` (M, 3) float64 and pixels
+    ``pix`` (M,) int64 a ForwardAdd light does not reach while their pass then changes nothing
+    (:attr:`DrawState.dark_skip`); None when none is, or when a corner normal or colour of their
+    triangles (``corners``: (K, 3, C) arrays) is not finite and bounded (their interpolated
+    values, convex combinations of those, then might not give a colour of exactly 0)."""
     dark = lights.dark_fragments(state.lights.add, position[:, 0], position[:, 1], position[:, 2])
     if state.dark_alpha is not None:
         dark &= np.take(state.dark_alpha, pix) == 255
     if not dark.any():
         return None
-    for values in (normal, color):
-        if values is not None and not bool(np.all(np.abs(values) <= lights.DARK_SKIP_PEAK)):
+    for values in corners:
+        if not bool(np.all(np.abs(values) <= lights.DARK_SKIP_PEAK)):
             return None
     return dark
 

@@ -183,8 +183,8 @@ def test_light_sweeps_drop_unreached_fragments_and_equal_the_reference(color_spa
     dropped: dict[str, int] = {}
     original = fragment._dark
 
-    def dark(state, inputs, pix):
-        out = original(state, inputs, pix)
+    def dark(state, position, pix, corners):
+        out = original(state, position, pix, corners)
         name = state.call.renderer.name
         dropped[name] = dropped.get(name, 0) + (0 if out is None else int(out.sum()))
         return out
