@@ -122,6 +122,27 @@ def spot_cone(light: AddLight, z: np.ndarray, d2: np.ndarray) -> np.ndarray:
     return cone
 
 
+def _from_lamp(light: AddLight, px: np.ndarray, py: np.ndarray,
+               pz: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``d = p − lamp`` per fragment (three (N,) float64) and ``d2 = (dx·dx + dy·dy) + dz·dz``:
+    the one place both :func:`light_terms` and :func:`dark_fragments` compute them (the same bits)."""
+    ox, oy, oz = light.position
+    dx, dy, dz = np.subtract(px, ox), np.subtract(py, oy), np.subtract(pz, oz)
+    d2 = np.multiply(dx, dx)
+    d2 += np.multiply(dy, dy)
+    d2 += np.multiply(dz, dz)
+    return dx, dy, dz, d2
+
+
+def _spot_cone_at(light: AddLight, dx: np.ndarray, dy: np.ndarray, dz: np.ndarray, d2: np.ndarray) -> np.ndarray:
+    """:func:`spot_cone` of fragments at ``d`` from the lamp: ``z = (dx·ax + dy·ay) + dz·az``."""
+    ax, ay, az = light.spot_axis
+    z = np.multiply(dx, ax)
+    z += np.multiply(dy, ay)
+    z += np.multiply(dz, az)
+    return spot_cone(light, z, d2)
+
+
 def light_terms(light: AddLight, px: np.ndarray, py: np.ndarray,
                 pz: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Per fragment at world positions ``px, py, pz`` (N,) float64 of a point or spot light: the unit
@@ -129,11 +150,7 @@ def light_terms(light: AddLight, px: np.ndarray, py: np.ndarray,
     each (N,) float64. With ``d = p − lamp``: ``d2 = (dx·dx + dy·dy) + dz·dz``, ``l = −d / sqrt(d2)``,
     ``atten = falloff(d2 / range2)``, times :func:`spot_cone` for a spot
     (``z = (dx·ax + dy·ay) + dz·az`` along its axis)."""
-    ox, oy, oz = light.position
-    dx, dy, dz = np.subtract(px, ox), np.subtract(py, oy), np.subtract(pz, oz)
-    d2 = np.multiply(dx, dx)
-    d2 += np.multiply(dy, dy)
-    d2 += np.multiply(dz, dz)
+    dx, dy, dz, d2 = _from_lamp(light, px, py, pz)
     length = np.sqrt(d2)
     with np.errstate(divide="ignore", invalid="ignore"):
         unit = [np.divide(np.negative(v), length) for v in (dx, dy, dz)]
@@ -143,13 +160,8 @@ def light_terms(light: AddLight, px: np.ndarray, py: np.ndarray,
             v[at_lamp] = 0.0
     atten = falloff(np.divide(d2, light.range2))
     if light.type is LightType.Spot:
-        ax, ay, az = light.spot_axis
-        z = np.multiply(dx, ax)
-        z += np.multiply(dy, ay)
-        z += np.multiply(dz, az)
-        atten = np.multiply(spot_cone(light, z, d2), atten)
+        atten = np.multiply(_spot_cone_at(light, dx, dy, dz, d2), atten)
     return unit[0], unit[1], unit[2], atten
-
 
 #: Shading inputs (colours, texels, the light's colour) at most this large in magnitude give
 #: finite products, so a zero attenuation gives an exactly zero colour.
@@ -191,17 +203,9 @@ def dark_fragments(light: AddLight, px: np.ndarray, py: np.ndarray, pz: np.ndarr
     :func:`light_terms` computes as exactly 0 — at or beyond the light's range (``falloff`` of
     ``r2 >= 1``), or for a spot where :func:`spot_cone` is 0 (behind the lamp or outside the cone;
     0 times a finite falloff) — by the same operations on the same values."""
-    ox, oy, oz = light.position
-    dx, dy, dz = np.subtract(px, ox), np.subtract(py, oy), np.subtract(pz, oz)
-    d2 = np.multiply(dx, dx)
-    d2 += np.multiply(dy, dy)
-    d2 += np.multiply(dz, dz)
+    dx, dy, dz, d2 = _from_lamp(light, px, py, pz)
     r2 = np.divide(d2, light.range2)
     dark = r2 >= 1.0
     if light.type is LightType.Spot:
-        ax, ay, az = light.spot_axis
-        z = np.multiply(dx, ax)
-        z += np.multiply(dy, ay)
-        z += np.multiply(dz, az)
-        dark |= (spot_cone(light, z, d2) == 0.0) & np.isfinite(r2)
+        dark |= (_spot_cone_at(light, dx, dy, dz, d2) == 0.0) & np.isfinite(r2)
     return dark
