@@ -24,23 +24,15 @@ from ..core.merger import FrameBuffers
 
 @dataclass(frozen=True)
 class _Rows:
-    """Copies of rows ``y0 .. y0 + count - 1`` of every buffer, each (planes, count, W, ...):
-    ``color``, ``depth`` (int32: 24-bit codes), ``stencil``, and with MSAA ``uniform`` (1 plane)."""
+    """Copies of rows ``y0 .. y0 + count - 1`` of every buffer (:meth:`.merger.FrameBuffers.by_row`,
+    each (planes, count, W, ...); depth as int32: 24-bit codes)."""
 
     y0: int
-    color: np.ndarray
-    depth: np.ndarray
-    stencil: np.ndarray
-    uniform: np.ndarray | None
+    arrays: dict[str, np.ndarray]
 
     @property
     def nbytes(self) -> int:
-        return sum(a.nbytes for a in (self.color, self.depth, self.stencil, self.uniform) if a is not None)
-
-
-def _planes(buf: FrameBuffers, array: np.ndarray, planes: int) -> np.ndarray:
-    """``array`` as (planes, H, W, ...) (a view)."""
-    return array.reshape(planes, buf.height, buf.width, *array.shape[1:])
+        return sum(a.nbytes for a in self.arrays.values())
 
 
 class RowSnapshots:
@@ -82,11 +74,8 @@ class RowSnapshots:
         if not changed.size:
             return
         a, b = int(changed[0]), int(changed[-1]) + 1  # one copy of the changed rows' range
-        planes = buffers.samples
-        piece = _Rows(a, _planes(buffers, buffers.color, planes)[:, a:b].copy(),
-                      _planes(buffers, buffers.depth, planes)[:, a:b].astype(np.int32),
-                      _planes(buffers, buffers.stencil, planes)[:, a:b].copy(),
-                      None if buffers.uniform is None else _planes(buffers, buffers.uniform, 1)[:, a:b].copy())
+        piece = _Rows(a, {name: view[:, a:b].astype(np.int32 if name == "depth" else view.dtype)
+                          for name, view in buffers.by_row().items()})
         with self._lock:
             self._pieces.append(piece)
             number = len(self._pieces) - 1
@@ -110,16 +99,13 @@ class RowSnapshots:
     def buffers(self, index: int) -> FrameBuffers:
         """Snapshot ``index`` as whole buffers (new arrays: the snapshot stays as it is)."""
         out = FrameBuffers.unset(self._kind)
+        into = out.by_row()
         rows = self._rows[index]
         bounds = np.flatnonzero(np.diff(rows)) + 1
         for a, b in zip([0, *bounds.tolist()], [*bounds.tolist(), self.height], strict=True):
             piece = self._pieces[int(rows[a])]
-            r0, r1 = a - piece.y0, b - piece.y0
-            _planes(out, out.color, out.samples)[:, a:b] = piece.color[:, r0:r1]
-            _planes(out, out.depth, out.samples)[:, a:b] = piece.depth[:, r0:r1]
-            _planes(out, out.stencil, out.samples)[:, a:b] = piece.stencil[:, r0:r1]
-            if out.uniform is not None:
-                _planes(out, out.uniform, 1)[:, a:b] = piece.uniform[:, r0:r1]
+            for name, kept in piece.arrays.items():
+                into[name][:, a:b] = kept[:, a - piece.y0:b - piece.y0]
         return out
 
     def __getitem__(self, index: int) -> FrameBuffers:

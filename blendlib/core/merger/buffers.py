@@ -269,17 +269,21 @@ class FrameBuffers:
         """Buffers of the same size and kind, every array unset."""
         return FrameBuffers.unset(self.kind)
 
+    def by_row(self) -> dict[str, np.ndarray]:
+        """Every buffer as a (planes, H, W, ...) view, so rows are the second axis: ``color``,
+        ``depth`` and ``stencil`` with a plane per sample, and with MSAA ``uniform`` (one plane)."""
+        shape = (self.samples, self.height, self.width)
+        views = {name: array.reshape(*shape, *array.shape[1:])
+                 for name, array in (("color", self.color), ("depth", self.depth), ("stencil", self.stencil))}
+        if self.uniform is not None:
+            views["uniform"] = self.uniform.reshape(1, self.height, self.width)
+        return views
+
     def copy_rows(self, other: FrameBuffers, y0: int, y1: int) -> None:
         """Copy rows ``[y0, y1)`` (every sample plane) of these buffers into ``other`` (same kind)."""
-        lo, hi = y0 * self.width, y1 * self.width
-
-        def rows(src: np.ndarray, dst: np.ndarray, planes: int) -> None:
-            dst.reshape(planes, self.plane, -1)[:, lo:hi] = src.reshape(planes, self.plane, -1)[:, lo:hi]
-
-        for src, dst in ((self.color, other.color), (self.depth, other.depth), (self.stencil, other.stencil)):
-            rows(src, dst, self.samples)
-        if self.uniform is not None:
-            rows(self.uniform, other.uniform, 1)
+        into = other.by_row()
+        for name, rows in self.by_row().items():
+            into[name][:, y0:y1] = rows[:, y0:y1]
 
     def encode(self, rgba: np.ndarray) -> np.ndarray:
         """Shading-space values (N, 4) float64 → what the colour buffer stores."""
