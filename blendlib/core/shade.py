@@ -160,8 +160,6 @@ class Texels:
     def fetch(self, index: np.ndarray) -> np.ndarray:
         """Texels at flat indices ``index`` (N,) int64 (row * w + column) → (N, 4) float64
         (for byte images a transposed view of a channels-first array)."""
-        if self.codes is None:
-            return self.values[index].astype(np.float64, copy=False)
         return self.fetch_channels(index).T
 
     def fetch_channels(self, index: np.ndarray) -> np.ndarray:
