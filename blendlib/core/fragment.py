@@ -24,10 +24,10 @@ from collections.abc import Callable
 import numpy as np
 
 from . import lights, mips, raster, shade
-from .merger import table_pays
+from .merger import compare, table_pays
 from .records import DrawState, ShadedFragments
 from .vertex import TriangleSetup
-from .vocabulary import ColorSpace, CompareFunction, TextureFilter
+from .vocabulary import ColorSpace, CompareFunction, Pass, TextureFilter
 
 #: ``shade(setup, rows, start, stop, state)``: a chunk of a draw call's rows → its shaded fragments.
 ChunkShader = Callable[[TriangleSetup, raster.Rows, int, int, DrawState], ShadedFragments | None]
@@ -113,6 +113,33 @@ _ALPHA_COMPARISONS = {
 }
 
 
+#: Depth tests an early test may apply against the depth stored before a chunk: while the chunk's
+#: fragments are merged one by one, the stored depth only moves towards the passing side (nearer for
+#: Less/LEqual, farther for Greater/GEqual, unchanged for Equal or without ZWrite), so a fragment that
+#: fails against the earlier value fails against the later one too.
+_EARLY_TESTS = (CompareFunction.Less, CompareFunction.LEqual, CompareFunction.Greater, CompareFunction.GEqual,
+                CompareFunction.Equal)
+
+
+def early_depth_applies(p: Pass, samples: int, observed: bool) -> bool:
+    """Whether fragments of pass ``p`` that fail its depth test against the depth stored when their
+    chunk is shaded may be dropped before shading (an early depth test): they would fail when
+    merged too (:data:`_EARLY_TESTS`; ``NotEqual`` only without ZWrite) and a failed depth test
+    then changes nothing — not with stencil (its ZFail operation), MSAA (a depth per sample) or an
+    observer that reads fragments (it is told of every fragment and its outcome)."""
+    if samples != 1 or observed or p.stencil:
+        return False
+    return p.ztest in _EARLY_TESTS or (p.ztest is CompareFunction.NotEqual and not p.zwrite)
+
+
+def _segment_sums(values: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """(K,) int64: the sums of ``values`` (N,) over consecutive segments of ``counts`` (K,) int64
+    (sum N; zero-length segments sum to 0)."""
+    running = np.zeros(values.size + 1, dtype=np.int64)
+    np.cumsum(values, out=running[1:])
+    return np.diff(np.take(running, np.cumsum(counts)), prepend=0)
+
+
 def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedFragments | None:
     """Raster + interpolate + shade + alpha test of rows [start, stop), in draw order.
 
@@ -124,7 +151,7 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
     """
     p, material, texels, outline = state.pass_state, state.material, state.texels, state.outline
     length = rows.length[start:stop]
-    n = int(length.sum())
+    n = full = int(length.sum())
     if n == 0:
         return None
     # Rows come in triangle order: each source triangle's rows (so fragments) form one run.
@@ -145,7 +172,28 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
         if corners_flat is not None:
             flat &= corners_flat
     any_varying = not bool(np.all(flat))
-    counts = np.add.reduceat(length, np.flatnonzero(first))  # (K,) fragments per triangle
+    want_depth = state.depth_needed(rows, start, stop)
+    frags = raster.rasterize_rows(rows, start, stop, state.width, bary=want_depth or any_varying)
+    depth = weights = None
+    if frags.bary is not None:
+        depth, weights = raster.interpolate(setup, frags, p.offset_factor, p.offset_units,
+                                            weights=any_varying, depth=want_depth)
+    if state.early_depth is not None and depth is not None:
+        # Early depth test: what fails against the stored depth now fails when merged (see
+        # early_depth_applies) and is dropped here, before its attributes are interpolated and shaded.
+        passing = compare(p.ztest, depth, np.take(state.early_depth, frags.pix))
+        if not passing.all():
+            kept = np.flatnonzero(passing)
+            if kept.size == 0:
+                return None
+            length = _segment_sums(passing, length)  # rows keep their order; some hold none now
+            n = int(kept.size)
+            frags = raster.Fragments(pix=np.take(frags.pix, kept), tri=np.take(frags.tri, kept),
+                                     bary=np.take(frags.bary, kept, axis=1), row_tri=frags.row_tri,
+                                     row_length=length)
+            depth = np.take(depth, kept)
+            weights = None if weights is None else np.take(weights, kept, axis=1)
+    counts = np.add.reduceat(length, np.flatnonzero(first))  # (K,) fragments per triangle (some none)
     groups = None  # texel-palette groups (normals (G, 3), colours, group (K,)) and the triangles they serve
     if (any_varying and uvs is not None and material.main_tex_filter is TextureFilter.Point
             and state.mips is None and positions is None):
@@ -156,12 +204,6 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
         if np.any(candidates):
             groups = _texel_groups(state, candidates, normals, colors, counts)
             tabled = candidates
-    want_depth = state.depth_needed(rows, start, stop)
-    frags = raster.rasterize_rows(rows, start, stop, state.width, bary=want_depth or any_varying)
-    depth = weights = None
-    if frags.bary is not None:
-        depth, weights = raster.interpolate(setup, frags, p.offset_factor, p.offset_units,
-                                            weights=any_varying, depth=want_depth)
     rgba = np.empty((n, 4), dtype=np.float64)
     palettes: list[np.ndarray] = []  # colours fragments take by id: per flat triangle, per texel
     ids = None  # (N,) int32 palette entry of each fragment, -1 for those shaded one by one
@@ -250,7 +292,7 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
                 places = np.arange(n)[at]
                 lit = np.flatnonzero(~dark)
                 run_counts = counts[keep]
-                lit_counts = np.add.reduceat((~dark).astype(np.int64), np.cumsum(run_counts) - run_counts)
+                lit_counts = _segment_sums(~dark, run_counts)
                 w_lit = w[:, lit]  # runs keep their order: a triangle's lit fragments stay one run
 
                 def varying_lit(corners: np.ndarray | None, corner_flat: np.ndarray | None) -> np.ndarray | None:
@@ -303,7 +345,8 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
                                        p.offset_factor, p.offset_units, weights=False)[0]
             sub_first = np.cumsum(sub.length) - sub.length
             return codes[sub_first[which.reshape(-1)] + (index - (ends - length)[row])]
-    return ShadedFragments(frags.pix, depth, rgba, ids, palette, None, alive, disjoint, depth_fn, triangle_fn)
+    return ShadedFragments(frags.pix, depth, rgba, ids, palette, None, alive, disjoint, depth_fn, triangle_fn,
+                           row_counts=None if n == full else length)
 
 
 def _dark(state: DrawState, position: np.ndarray, pix: np.ndarray, corners: list[np.ndarray]) -> np.ndarray | None:

@@ -202,7 +202,12 @@ def _shared(group: list[PreparedCall]) -> PreparedCall:
     # every call (all may drop them; the stored alpha checked when any needs it).
     dark_skip = all(pr.state.dark_skip for pr in group)
     dark_alpha = next((pr.state.dark_alpha for pr in group if pr.state.dark_alpha is not None), None)
+    # An early depth test holds for the group when every call may take one with the same test,
+    # Less or LEqual (the shading pass's): each call's merge then only lowers the stored depth.
+    early = (all(pr.state.early_depth is not None for pr in group) and ztest in (CompareFunction.Less,
+             CompareFunction.LEqual) and all(p.ztest is ztest for p in passes))
     state = replace(first.state, call=replace(first.call, state=shading_pass), zbound=zbound,
-                    dark_skip=dark_skip, dark_alpha=dark_alpha if dark_skip else None)
+                    dark_skip=dark_skip, dark_alpha=dark_alpha if dark_skip else None,
+                    early_depth=first.state.early_depth if early else None)
     members = [Member(pr.state, pr.tables, int(f)) for pr, f in zip(group, firsts, strict=True)]
     return PreparedCall(first.call, setup, selected, rows, state, fragment.shade_chunk, members=members)

@@ -324,7 +324,9 @@ def _draw_state(frame: FrameContext, call: DrawCall, setup, inputs: CallInputs,
     state = DrawState(call, material, inputs.texels, inputs.lights, frame.color_space, frame.hdr,
                       frame.width, observed=frame.observed, zbound=zbound, mips=inputs.mips,
                       samples=frame.samples, dark_skip=dark_skip,
-                      dark_alpha=frame.buf.color[:, 3] if saturated else None)
+                      dark_alpha=frame.buf.color[:, 3] if saturated else None,
+                      early_depth=frame.buf.depth if fragment.early_depth_applies(p, frame.samples,
+                                                                                 frame.observed) else None)
     return state, vertex.cull_select(setup, p.cull) if selected is None else selected
 
 

@@ -80,6 +80,10 @@ class DrawState:
     #: as each chunk is shaded — holds 255 (its pass adds to a saturated alpha). Never observed.
     dark_skip: bool = False
     dark_alpha: np.ndarray | None = None
+    #: The depth buffer ((H*W,) int64, read as each chunk is shaded) when fragments that fail the
+    #: pass's depth test against it are dropped before they are shaded (an early depth test, as
+    #: GPUs run one: :func:`.fragment.early_depth_applies`, docs/pipeline.md §8); None: not applicable.
+    early_depth: np.ndarray | None = None
 
     @property
     def pass_state(self) -> Pass:
@@ -149,6 +153,9 @@ class ShadedFragments:
     #: (a pass that writes no colour, observed: colours only for the fragments an observer reads).
     colors_fn: Callable[[np.ndarray | None], np.ndarray] | None = None
     coverage: np.ndarray | None = None
+    #: (R,) int64 fragments left in each of the chunk's rows when an early depth test dropped some
+    #: (:attr:`DrawState.early_depth`); None: each row holds all its covered pixels.
+    row_counts: np.ndarray | None = None
 
     @property
     def triangle(self) -> np.ndarray | None:

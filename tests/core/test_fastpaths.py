@@ -831,3 +831,78 @@ def test_small_frames_use_bands_only_for_fragments_shaded_one_by_one(monkeypatch
     cuts.clear()
     render_scene(DrawScene(camera=camera, renderers=(sc.renderer(sc.uv_sphere(0.9, 24, 16), flat),)), workers=2)
     assert cuts
+
+
+def _early_scene(ztest: CompareFunction, zwrite: bool, stencil: bool = False, msaa: int = 1) -> DrawScene:
+    """A back plane (drawn first, ZWrite On), then one call under test whose single mesh holds, in
+    this order: a nearer quad over the middle, a quad at exactly the back plane's depth, and a
+    farther one — Lambert shaded (normals interpolated), so every fragment is shaded one by one."""
+    back = Material(name="Back", queue=Queue.Geometry, color=(0.2, 0.4, 0.9, 1.0), passes=(Pass(),))
+    p = Pass(ztest=ztest, zwrite=zwrite, stencil=stencil, stencil_comp=CompareFunction.Always,
+             stencil_ref=3)
+    tested = Material(name="Tested", queue=Queue.Geometry, queue_offset=1, color=(0.9, 0.5, 0.1, 1.0), passes=(p,))
+    parts = [sc.quad(-0.6, -0.6, 0.6, 0.6, z=0.5), sc.quad(-2, -2, 2, 2, z=0.0), sc.quad(-1.5, -1, 1.5, 1, z=-0.5)]
+    mesh = sc.make_mesh(np.concatenate([m.positions for m in parts]),
+                        np.concatenate([m.triangles + 4 * k for k, m in enumerate(parts)]))
+    return DrawScene(camera=sc.camera(W, H, eye=(0.0, 0.3, 4.0)), light=sc.Light(direction=(0.3, 0.5, 0.8)),
+                     msaa=msaa, renderers=(sc.renderer(sc.quad(-2, -2, 2, 2, z=0.0), back, name="Back"),
+                                           sc.renderer(mesh, tested, name="Tested")))
+
+
+@pytest.mark.parametrize("zwrite", [True, False])
+@pytest.mark.parametrize("ztest", [f for f in CompareFunction if f is not CompareFunction.Never])  # not ShaderLab's
+def test_early_depth_test_drops_failing_fragments_and_equals_reference(ztest, zwrite, monkeypatch):
+    """Fragments failing the depth test against the depth stored when their chunk is shaded are
+    dropped before shading where that cannot change the frame: every test but Always and (with
+    ZWrite) NotEqual — there a nearer fragment of the same call may write a depth that the
+    next one, equal to the old, then passes. The frame equals the scalar reference either way."""
+    from blendlib.core import fragment
+
+    dropped = []
+    original = fragment.compare
+
+    def counting(func, a, b):
+        out = original(func, a, b)
+        dropped.append(int(out.size - np.count_nonzero(out)))
+        return out
+
+    monkeypatch.setattr(fragment, "compare", counting)
+    scene = _early_scene(ztest, zwrite)
+    frame = render_scene(scene, workers=2)
+    color, depth, stencil = render_reference(scene)
+    np.testing.assert_array_equal(frame.color, color)
+    np.testing.assert_array_equal(frame.depth, depth)
+    early = ztest in (CompareFunction.Less, CompareFunction.LEqual, CompareFunction.Greater, CompareFunction.GEqual,
+                      CompareFunction.Equal) or (ztest is CompareFunction.NotEqual and not zwrite)
+    assert (sum(dropped) > 100) == early, (ztest, zwrite, dropped)
+    # Never where the merge must see every fragment: stencil (ZFail), MSAA, observers.
+    assert not fragment.early_depth_applies(Pass(ztest=ztest, zwrite=zwrite, stencil=True), 1, False)
+    assert not fragment.early_depth_applies(Pass(ztest=ztest, zwrite=zwrite), 4, False)
+    assert not fragment.early_depth_applies(Pass(ztest=ztest, zwrite=zwrite), 1, True)
+
+
+def test_early_depth_test_is_off_with_stencil_and_msaa(monkeypatch):
+    """With stencil (a failed depth test runs the ZFail operation) and MSAA the fragments reach the
+    merger; the frames equal the scalar reference."""
+    from blendlib.core import fragment
+
+    decided = []
+    original = fragment.early_depth_applies
+    monkeypatch.setattr(fragment, "early_depth_applies",
+                        lambda p, samples, observed: decided.append((p.stencil, samples,
+                                                                     original(p, samples, observed))) or decided[-1][2])
+    for scene in (_early_scene(CompareFunction.LEqual, True, stencil=True),
+                  _early_scene(CompareFunction.LEqual, True, msaa=4)):
+        frame = render_scene(scene, workers=1)
+        color, depth, stencil = render_reference(scene)
+        np.testing.assert_array_equal(frame.color, color)
+        np.testing.assert_array_equal(frame.stencil, stencil)
+    assert sorted(decided) == [(False, 1, True), (False, 4, False), (False, 4, False), (True, 1, False)]
+
+
+def test_segment_sums_count_empty_segments_as_zero():
+    from blendlib.core.fragment import _segment_sums
+
+    values = np.array([True, False, True, True, False, True])
+    counts = np.array([0, 2, 0, 3, 1, 0], dtype=np.int64)
+    np.testing.assert_array_equal(_segment_sums(values, counts), [0, 1, 0, 2, 1, 0])
