@@ -150,6 +150,7 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
     (runs, flatness, table ids) is done per row and expanded.
     """
     p, material, texels, outline = state.pass_state, state.material, state.texels, state.outline
+    start_rows, stop_rows = start, stop
     length = rows.length[start:stop]
     n = full = int(length.sum())
     if n == 0:
@@ -172,6 +173,23 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
         if corners_flat is not None:
             flat &= corners_flat
     any_varying = not bool(np.all(flat))
+    of_row = None  # (P,) int64: each row piece's row in the chunk, when rows were cut (below)
+    if state.dark_skip and positions is not None and n >= ROW_REACH_MIN_RUN * length.size:
+        # Pieces of rows whose every fragment is out of the ForwardAdd light's reach are dropped
+        # before they are rasterised (they are fragments _dark would drop).
+        pieces, of_row = raster.split_rows(rows, start, stop, REACH_PIECE)
+        unreached = _unreached_rows(setup, pieces, state, positions, run_of_row[of_row],
+                                    [c for c in (normals, colors) if c is not None])
+        if unreached is None:
+            of_row = None
+        else:
+            reached = np.flatnonzero(~unreached)
+            if reached.size == 0:
+                return None
+            rows, of_row = pieces.take_rows(reached), np.take(of_row, reached)
+            start, stop, run_of_row = 0, rows.count, np.take(run_of_row, of_row)
+            length = rows.length
+            n = int(length.sum())
     want_depth = state.depth_needed(rows, start, stop)
     frags = raster.rasterize_rows(rows, start, stop, state.width, bary=want_depth or any_varying)
     depth = weights = None
@@ -193,7 +211,9 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
                                      row_length=length)
             depth = np.take(depth, kept)
             weights = None if weights is None else np.take(weights, kept, axis=1)
-    counts = np.add.reduceat(length, np.flatnonzero(first))  # (K,) fragments per triangle (some none)
+    # (K,) fragments per triangle (some none): rows come in triangle order, each triangle's one run.
+    counts = (np.add.reduceat(length, np.flatnonzero(first)) if of_row is None
+              else np.bincount(run_of_row, weights=length, minlength=tris.size).astype(np.int64))
     groups = None  # texel-palette groups (normals (G, 3), colours, group (K,)) and the triangles they serve
     if (any_varying and uvs is not None and material.main_tex_filter is TextureFilter.Point
             and state.mips is None and positions is None):
@@ -345,8 +365,51 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
                                        p.offset_factor, p.offset_units, weights=False)[0]
             sub_first = np.cumsum(sub.length) - sub.length
             return codes[sub_first[which.reshape(-1)] + (index - (ends - length)[row])]
+    if of_row is not None:  # the counts of the chunk's rows, whose pieces these are
+        length = np.bincount(of_row, weights=length, minlength=stop_rows - start_rows).astype(np.int64)
     return ShadedFragments(frags.pix, depth, rgba, ids, palette, None, alive, disjoint, depth_fn, triangle_fn,
                            row_counts=None if n == full else length)
+
+
+#: Rows are tested against a ForwardAdd light's reach (:func:`_unreached_rows`, two interpolated
+#: positions per piece of at most REACH_PIECE pixels) when they hold at least ROW_REACH_MIN_RUN
+#: fragments on average: shorter ones cost about as much to test as to shade.
+ROW_REACH_MIN_RUN = 16
+REACH_PIECE = 32
+
+
+def _unreached_rows(setup, rows, state: DrawState, positions: np.ndarray, run_of_row: np.ndarray,
+                    corners: list[np.ndarray]) -> np.ndarray | None:
+    """(R,) bool: which of ``rows`` hold only fragments a ForwardAdd light does not reach and may
+    drop (:attr:`DrawState.dark_skip`; where ``dark_alpha`` is set, only rows whose stored alpha is
+    255 throughout); None when none. ``positions`` (K, 3, 3) float64: the world corners of the
+    chunk's source triangles, ``run_of_row`` (R,) int64 each row's among them; ``corners``: their
+    (K, 3, C) normals and colours, all finite and bounded or nothing is dropped (as :func:`_dark`).
+
+    Along a row the screen barycentrics are affine in x, so a fragment's perspective-correct world
+    position ``Σ b_i iw_i W_i / Σ b_i iw_i`` runs along the segment between the positions of the
+    row's first and last fragments: a row whose segment keeps out of the light's reach
+    (:func:`.lights.segments_out_of_reach`, with a margin far above the interpolation's rounding)
+    holds only fragments :func:`.lights.dark_fragments` calls dark."""
+    for values in corners:
+        if not bool(np.all(np.abs(values) <= lights.DARK_SKIP_PEAK)):
+            return None
+    length = rows.length
+    ends = raster.row_end_fragments(rows, 0, rows.count, state.width)
+    weights = raster.interpolate(setup, ends, weights=True, depth=False)[1]  # (3, 2R): first pixels, then last
+    count = length.size
+    world = np.take(positions, np.concatenate([run_of_row, run_of_row]), axis=0)  # (2R, 3 corners, 3)
+    at = (weights[0][:, None] * world[:, 0] + weights[1][:, None] * world[:, 1]) + weights[2][:, None] * world[:, 2]
+    scale = float(np.abs(positions).max(initial=0.0))
+    unreached = lights.segments_out_of_reach(state.lights.add, at[:count], at[count:], scale)
+    if state.dark_alpha is not None and unreached.any():
+        # Dropped rows keep their stored colour; their alpha too only where it is 255 already.
+        some = np.flatnonzero(unreached)
+        sub = rows.take_rows(some)
+        pix = raster.rasterize_rows(sub, 0, sub.count, state.width, bary=False).pix
+        short = _segment_sums(np.take(state.dark_alpha, pix) != 255, sub.length)
+        unreached[some[short > 0]] = False
+    return unreached if unreached.any() else None
 
 
 def _dark(state: DrawState, position: np.ndarray, pix: np.ndarray, corners: list[np.ndarray]) -> np.ndarray | None:

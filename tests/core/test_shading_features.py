@@ -197,6 +197,108 @@ def test_light_sweeps_drop_unreached_fragments_and_equal_the_reference(color_spa
     assert not dropped  # HDR: alpha does not saturate, nothing is dropped
 
 
+def test_segments_out_of_reach_hold_only_dark_points():
+    """A random sweep of segments under point lights and spots of several angles: wherever
+    ``segments_out_of_reach`` says a segment keeps out of the light's reach, every point along it
+    (interpolated as fragments' positions are) is one ``dark_fragments`` calls dark; and it says
+    so of many segments, among them ones inside the range sphere but off a spot's cone."""
+    rng = np.random.default_rng(12)
+    lamps = [lights.add_light(ForwardLight("P", LightType.Point, position=(0.5, -0.2, 1.0), range=1.5),
+                              ColorSpace.Gamma)]
+    lamps += [lights.add_light(ForwardLight("S", LightType.Spot, position=(-0.3, 0.4, 2.0), axis=(0.2, -0.3, 0.9),
+                                            range=4.0, spot_angle=angle), ColorSpace.Gamma)
+              for angle in (10.0, 45.0, 100.0, 170.0)]
+    t = np.linspace(0.0, 1.0, 257)
+    for light in lamps:
+        a = rng.uniform(-4, 4, size=(3000, 3))
+        b = a + rng.normal(0, 1.5, size=(3000, 3)) * rng.uniform(0, 1, size=(3000, 1)) ** 2
+        out = lights.segments_out_of_reach(light, a, b, 4.0)
+        assert out.sum() > 300, (light.type, light.tan_half, out.sum())
+        # Segments across the axis half the range out hold lit points: never out of reach.
+        mid = np.array(light.position) + 0.5 * math.sqrt(light.range2) * np.array(light.spot_axis)
+        across = rng.normal(0, 1.0, size=(50, 3))
+        assert not lights.segments_out_of_reach(light, mid - across, mid + across, 4.0).any()
+        points = a[out][:, None, :] + t[None, :, None] * (b[out] - a[out])[:, None, :]
+        flat = points.reshape(-1, 3)
+        assert lights.dark_fragments(light, flat[:, 0], flat[:, 1], flat[:, 2]).all()
+        if light.type is LightType.Spot and light.tan_half < 1.0:  # off the cone, within the range
+            d2 = ((a - np.array(light.position)) ** 2).sum(axis=1)
+            assert (out & (d2 < 0.5 * light.range2)).sum() > 50
+    # Not out of reach: a segment through the lamp, and one with a NaN or infinite end.
+    spot = lamps[1]
+    through = np.array([spot.position]) + np.array([[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
+    bad = np.array([[np.nan, 0.0, 0.0], [np.inf, 9.0, 9.0]])
+    assert not lights.segments_out_of_reach(spot, through[:1], through[1:], 4.0).any()
+    assert not lights.segments_out_of_reach(spot, bad, bad + 20.0, 4.0).any()
+
+
+def test_split_rows_cuts_each_row_into_pieces_covering_it_in_order():
+    from blendlib.core import raster, vertex
+
+    setup = vertex.setup_triangles(sc.quad(-1, -1, 1, 1), np.eye(4), sc.camera(64, 48, eye=(0.0, 0.0, 2.5)))
+    rows = raster.coverage_rows(setup, np.arange(setup.count), 64, 48)
+    pieces, of_row = raster.split_rows(rows, 3, rows.count - 2, 7)
+    assert pieces.length.max() == 7 and pieces.length.min() >= 1
+    whole = raster.rasterize_rows(rows, 3, rows.count - 2, 64)
+    cut = raster.rasterize_rows(pieces, 0, pieces.count, 64)
+    assert np.array_equal(whole.pix, cut.pix) and np.array_equal(whole.bary, cut.bary)
+    assert np.array_equal(np.bincount(of_row, weights=pieces.length).astype(np.int64), rows.length[3:rows.count - 2])
+
+
+def _reach_scene(color_space: ColorSpace) -> DrawScene:
+    """A floor and a wall of two triangles each (rows of many pixels), opaque, and a transparent
+    veil over part of them, under a point light and a narrow spot that light small parts of the
+    floor, and a spot turned away from everything."""
+    tex = Texture(np.random.default_rng(4).uniform(0.3, 1.0, (8, 8, 4)).astype(np.float32), name="tiles")
+    floor = Material(name="Floor", color=(0.9, 0.85, 0.8, 1.0), main_tex=tex, passes=(BASE, ADD))
+    wall = Material(name="Wall", color=(0.7, 0.8, 0.9, 1.0), passes=(BASE, ADD))
+    from tests.reference.feature_sweeps import BLEND_ADD, BLEND_BASE
+
+    veil = Material(name="Veil", queue=sc.Queue.Transparent, color=(0.6, 0.8, 1.0, 0.45),
+                    passes=(BLEND_BASE, BLEND_ADD))
+    rotate = np.array([[1, 0, 0, 0], [0, 0, -1, 2.0], [0, 1, 0, 0], [0, 0, 0, 1]], dtype=np.float64)
+    important = LightRenderMode.Important
+    lamps = (ForwardLight("Point", LightType.Point, position=(-1.0, -0.5, 0.4), color=(1.0, 0.6, 0.3),
+                          intensity=2.0, range=1.2, render_mode=important),
+             ForwardLight("Spot", LightType.Spot, position=(1.0, 0.5, 2.5), axis=(0.0, 0.0, 1.0), intensity=3.0,
+                          range=4.0, spot_angle=25.0, render_mode=important),
+             ForwardLight("Away", LightType.Spot, position=(0.0, -3.0, 1.0), axis=(0.0, 1.0, 0.0), intensity=3.0,
+                          range=6.0, spot_angle=40.0, render_mode=important))
+    renderers = (sc.renderer(sc.quad(-3, -3, 3, 3), floor, name="Floor"),
+                 sc.renderer(sc.quad(-3, 0, 3, 2), wall, name="Wall", matrix=rotate),
+                 sc.renderer(sc.quad(-2.5, -1.5, 0.5, 0.5, z=0.3), veil, name="Veil"))
+    return DrawScene(camera=sc.camera(160, 120, eye=(0.0, -4.5, 3.0), target=(0.0, 0.0, 0.3), fov=60.0),
+                     renderers=renderers, light=None, ambient=(0.1, 0.1, 0.1), color_space=color_space,
+                     lights=lamps, pixel_light_count=3, clear_color=(0.0, 0.0, 0.0, 0.0))
+
+
+@pytest.mark.parametrize("color_space", [ColorSpace.Gamma, ColorSpace.Linear])
+def test_row_pieces_out_of_a_lights_reach_are_dropped_and_equal_the_reference(color_space, monkeypatch):
+    """Pieces of long rows whose fragments a ForwardAdd light cannot reach are dropped before they
+    are rasterised — on the opaque floor and wall; on the veil, whose pass adds alpha, only where
+    the stored alpha is already 255 — and the frame equals the scalar reference."""
+    from blendlib.core import fragment
+
+    dropped: dict[str, int] = {}
+    kept_for_alpha: dict[str, int] = {}  # out of reach, but the stored alpha is not 255 throughout
+    original = fragment._unreached_rows
+
+    def counting(setup, rows, state, *args):
+        out = original(setup, rows, state, *args)
+        anywhere = original(setup, rows, replace(state, dark_alpha=None), *args)
+        name = state.call.renderer.name
+        dropped[name] = dropped.get(name, 0) + (0 if out is None else int(rows.length[out].sum()))
+        vetoed = 0 if anywhere is None else int(rows.length[anywhere & ~(False if out is None else out)].sum())
+        kept_for_alpha[name] = kept_for_alpha.get(name, 0) + vetoed
+        return out
+
+    monkeypatch.setattr(fragment, "_unreached_rows", counting)
+    scene = _reach_scene(color_space)
+    _assert_equal_to_reference(scene)
+    assert dropped["Floor"] > 10000 and dropped["Wall"] > 5000, dropped
+    assert kept_for_alpha["Veil"] > 1000 and kept_for_alpha["Wall"] == 0, kept_for_alpha
+
+
 def _plane_scene(pass_list, light=None, lights_=(), lighting=Lighting.Lambert, color_space=ColorSpace.Gamma,
                  color=(0.5, 0.6, 0.7, 0.8), hdr=True):
     """A 4 x 4 quad facing a camera 4 units away (Gamma HDR: colours as authored, nothing clamped)."""
