@@ -148,45 +148,58 @@ def level_of(chain: MipChain, index: int) -> np.ndarray:
     return texels.fetch(np.arange(h * w, dtype=np.int64)).reshape(h, w, 4)
 
 
-def _texture_uv_at(setup: TriangleSetup, tri: np.ndarray, corners: np.ndarray, flat: np.ndarray,
-                   material: Material, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Texture coordinates (u', v') (N,) float64 at pixel centres (x, y) (N,) int64 of setup
-    triangles ``tri`` (N,), covered or not: docs/pipeline.md §4's edge functions at the pixel
-    centre divided by the doubled area (the sign taken to the numerator, as for a clockwise
-    triangle's coverage order), §6's perspective-correct weights and interpolation (``flat``
-    triangles take their corner value), then ``_MainTex``'s tiling and offset."""
+def _texture_uvs_at(setup: TriangleSetup, tri: np.ndarray, corners: np.ndarray, flat: np.ndarray,
+                    material: Material, x: np.ndarray, y: np.ndarray,
+                    steps: tuple[tuple[int, int], ...]) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Texture coordinates (u', v') (N,) float64 of setup triangles ``tri`` (N,) at the pixel
+    centres ``(x + dx, y + dy)`` for each ``(dx, dy)`` of ``steps`` ((x, y) (N,) int64), covered or
+    not: docs/pipeline.md §4's edge functions at the pixel centre divided by the doubled area (the
+    sign taken to the numerator, as for a clockwise triangle's coverage order), §6's
+    perspective-correct weights and interpolation (``flat`` triangles take their corner value),
+    then ``_MainTex``'s tiling and offset. The edge functions of a step are the first point's plus
+    integer multiples of the edge's extent (exact), the rest is evaluated per point."""
     X, Y = setup.X[tri], setup.Y[tri]
     area = setup.area2[tri]
     sign = np.where(area < 0, -1, 1)
     farea = np.abs(area).astype(np.float64)
     px = x * SUBPIXEL + HALF
     py = y * SUBPIXEL + HALF
-    bary = []
-    for k in range(3):  # the edge opposite vertex k runs from vertex k+1 to vertex k+2
+    edges = []  # per edge k (opposite vertex k, from vertex k+1 to vertex k+2): E at (x, y), dx, dy
+    for k in range(3):
         p, q = (k + 1) % 3, (k + 2) % 3
-        e = (X[:, q] - X[:, p]) * (py - Y[:, p]) - (Y[:, q] - Y[:, p]) * (px - X[:, p])
-        bary.append(np.divide((e * sign).astype(np.float64), farea))
+        dx, dy = X[:, q] - X[:, p], Y[:, q] - Y[:, p]
+        edges.append((dx * (py - Y[:, p]) - dy * (px - X[:, p]), dx, dy))
     iw = setup.iw[tri]
-    t = [bary[k] * iw[:, k] for k in range(3)]
-    s = (t[0] + t[1]) + t[2]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        o = [np.divide(t[k], s) for k in range(3)]
+    clipped = None
     if setup.weights is not None:
         clipped = setup.clipped[tri]
-        if np.any(clipped):
-            wts = setup.weights[tri[clipped]]  # (M, 3 vertices, 3 source corners)
+        clipped = clipped if np.any(clipped) else None
+        wts = None if clipped is None else setup.weights[tri[clipped]]  # (M, 3 vertices, 3 source corners)
+    out = []
+    for step_x, step_y in steps:
+        bary = []
+        for e, dx, dy in edges:
+            # E(Px + S*step_x, Py + S*step_y) = E + dx*S*step_y - dy*S*step_x, in integers.
+            at = e if step_x == 0 and step_y == 0 else e + (dx * (SUBPIXEL * step_y) - dy * (SUBPIXEL * step_x))
+            bary.append(np.divide((at * sign).astype(np.float64), farea))
+        t = [bary[k] * iw[:, k] for k in range(3)]
+        s = (t[0] + t[1]) + t[2]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            o = [np.divide(t[k], s) for k in range(3)]
+        if clipped is not None:
             oc = [v[clipped] for v in o]
             mixed = (oc[0][:, None] * wts[:, 0] + oc[1][:, None] * wts[:, 1]) + oc[2][:, None] * wts[:, 2]
             for k in range(3):
                 o[k][clipped] = mixed[:, k]
-    uv = []
-    for c in range(2):
-        a = np.multiply(o[0], corners[:, 0, c])
-        a += o[1] * corners[:, 1, c]
-        a += o[2] * corners[:, 2, c]
-        a[flat] = corners[flat, 0, c]
-        uv.append(a)
-    return shade.texture_uv_of(material, uv[0], uv[1])
+        uv = []
+        for c in range(2):
+            a = np.multiply(o[0], corners[:, 0, c])
+            a += o[1] * corners[:, 1, c]
+            a += o[2] * corners[:, 2, c]
+            a[flat] = corners[flat, 0, c]
+            uv.append(a)
+        out.append(shade.texture_uv_of(material, uv[0], uv[1]))
+    return out
 
 
 def quad_lod(setup: TriangleSetup, tri: np.ndarray, pix: np.ndarray, width: int, material: Material,
@@ -218,9 +231,8 @@ def _quad_lod_at(setup: TriangleSetup, tri: np.ndarray, x0: np.ndarray, y0: np.n
     h, w = size
     corners = setup.uvs_of(setup.src[tri])
     flat = raster.flat_corners(corners)
-    u00, v00 = _texture_uv_at(setup, tri, corners, flat, material, x0, y0)
-    u10, v10 = _texture_uv_at(setup, tri, corners, flat, material, x0 + 1, y0)
-    u01, v01 = _texture_uv_at(setup, tri, corners, flat, material, x0, y0 + 1)
+    (u00, v00), (u10, v10), (u01, v01) = _texture_uvs_at(setup, tri, corners, flat, material, x0, y0,
+                                                         ((0, 0), (1, 0), (0, 1)))
     with np.errstate(invalid="ignore", over="ignore"):
         a = (u10 - u00) * w
         b = (v10 - v00) * h

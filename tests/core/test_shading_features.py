@@ -488,8 +488,12 @@ def test_quad_lod_evaluates_the_triangle_plane_which_gives_each_fragment_its_own
           for c in range(2)]
     expected = shade.texture_uv_of(r.material, uv[0], uv[1])
     x, y = frags.pix % 120, frags.pix // 120
-    got = mips._texture_uv_at(setup, frags.tri, corners, np.zeros(frags.count, bool), r.material, x, y)
-    assert np.array_equal(got[0], expected[0]) and np.array_equal(got[1], expected[1])
+    flat = np.zeros(frags.count, bool)
+    # At the pixel itself, and one step right of (above) the pixel to its left (below): the same bits.
+    for (u, v) in mips._texture_uvs_at(setup, frags.tri, corners, flat, r.material, x, y, ((0, 0),)) + [
+            mips._texture_uvs_at(setup, frags.tri, corners, flat, r.material, x - 1, y, ((1, 0),))[0],
+            mips._texture_uvs_at(setup, frags.tri, corners, flat, r.material, x, y - 1, ((0, 1),))[0]]:
+        assert np.array_equal(u, expected[0]) and np.array_equal(v, expected[1])
 
 
 def test_trilinear_blends_two_levels_by_the_lod_fraction():
