@@ -98,6 +98,11 @@ def alpha_test(rgba: np.ndarray | None, ids: np.ndarray | None, palette: np.ndar
         alpha = np.take(palette[:, 3], ids)
     else:
         alpha = np.where(ids >= 0, palette[np.maximum(ids, 0), 3], rgba[:, 3])
+    return alpha_passes(alpha, cutoff, comp)
+
+
+def alpha_passes(alpha: np.ndarray, cutoff: float, comp: CompareFunction = CompareFunction.GEqual) -> np.ndarray:
+    """(N,) bool: :func:`alpha_test` of the fragments' alphas (N,) float64."""
     cutoff = float(cutoff)
     if comp is CompareFunction.GEqual:
         return ~(alpha - cutoff < 0)
@@ -302,29 +307,44 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
             if state.mips is not None and uv is not None:  # one LOD per 2x2 quad (§7, "Mipmaps")
                 lod = mips.quad_lod(setup, frags.tri[at], frags.pix[at], state.width, material, texels.shape[:2])
             position = varying(positions, position_flat)
-            dark = None
+            skip = None  # (M,) bool: fragments dropped before they are shaded
             if state.dark_skip and position is not None:
-                dark = _dark(state, position, frags.pix[at], [c[keep] for c in (normals, colors) if c is not None])
-            if dark is None:
+                skip = _dark(state, position, frags.pix[at], [c[keep] for c in (normals, colors) if c is not None])
+            color = None  # the vertex colours, when interpolated for the alpha first
+            if p.alpha_test and not state.observed and uv is not None:
+                # Alpha first (it reads neither lighting nor the outline): fragments the alpha test
+                # discards are not shaded further; an observer would be told of their colours.
+                color = varying(colors, color_flat)
+                tex_uv = shade.texture_uv(material, uv.T)
+                filt, wrap = material.main_tex_filter, material.main_tex_wrap
+                tex_alpha = (shade.sample(texels, tex_uv, filt, wrap, (3,)) if lod is None
+                             else mips.sample_mipmapped(state.mips, tex_uv, lod, filt, wrap, (3,)))[:, 0]
+                alpha = shade.alpha_of(material, tex_alpha, None if color is None else color[:, 3], w.shape[1])
+                discarded = ~alpha_passes(alpha, material.cutoff, p.alpha_test_comp)
+                if discarded.any():
+                    skip = discarded if skip is None else skip | discarded
+            if skip is None:
                 rgba[at] = shade_at(None if uv is None else uv.T, varying(normals, normal_flat),
-                                    varying(colors, color_flat), position, w.shape[1], lod)
-            else:  # a ForwardAdd light's unreached fragments change nothing: dropped, never interpolated
+                                    varying(colors, color_flat) if color is None else color, position,
+                                    w.shape[1], lod)
+            else:  # unreached by a ForwardAdd light or discarded: dropped, never shaded
                 places = np.arange(n)[at]
-                lit = np.flatnonzero(~dark)
+                lit = np.flatnonzero(~skip)
                 run_counts = counts[keep]
-                lit_counts = _segment_sums(~dark, run_counts)
+                lit_counts = _segment_sums(~skip, run_counts)
                 w_lit = w[:, lit]  # runs keep their order: a triangle's lit fragments stay one run
 
                 def varying_lit(corners: np.ndarray | None, corner_flat: np.ndarray | None) -> np.ndarray | None:
                     return None if corners is None else raster.interpolate_runs(
                         w_lit, corners[keep], lit_counts, corner_flat[keep], channels_first=True).T
 
-                rgba[places[dark]] = 0.0
+                rgba[places[skip]] = 0.0
                 rgba[places[lit]] = shade_at(None if uv is None else uv[:, lit].T, varying_lit(normals, normal_flat),
-                                             varying_lit(colors, color_flat), position[lit], lit.size,
+                                             varying_lit(colors, color_flat) if color is None else color[lit],
+                                             None if position is None else position[lit], lit.size,
                                              None if lod is None else lod[lit])
                 dropped = np.zeros(n, dtype=bool)
-                dropped[places[dark]] = True
+                dropped[places[skip]] = True
     palette = None
     if palettes:
         palette = palettes[0] if len(palettes) == 1 else np.concatenate(palettes)

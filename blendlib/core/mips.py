@@ -246,20 +246,21 @@ def _quad_lod_at(setup: TriangleSetup, tri: np.ndarray, x0: np.ndarray, y0: np.n
 
 
 def _sample_levels(chain: MipChain, u: np.ndarray, v: np.ndarray, level: np.ndarray, filt: TextureFilter,
-                   wrap: TextureWrap) -> np.ndarray:
-    """Each fragment's texel sample (N, 4) float64 at (u, v) in its level ``level`` (N,) int64."""
-    out = np.empty((u.size, 4), dtype=np.float64)
+                   wrap: TextureWrap, channels: tuple[int, ...]) -> np.ndarray:
+    """Each fragment's texel sample (N, C) float64 of ``channels`` at (u, v) in its level ``level`` (N,) int64."""
+    out = np.empty((u.size, len(channels)), dtype=np.float64)
     for index in np.unique(level).tolist():
         at = np.flatnonzero(level == index)
         uv = np.stack([u[at], v[at]], axis=1)
-        out[at] = shade.sample(chain.levels[index], uv, filt, wrap)
+        out[at] = shade.sample(chain.levels[index], uv, filt, wrap, channels)
     return out
 
 
 def sample_mipmapped(chain: MipChain, uv: np.ndarray, lod: np.ndarray, filt: TextureFilter,
-                     wrap: TextureWrap) -> np.ndarray:
-    """Sample (N, 4) float64 at texture coordinates ``uv`` (N, 2) float64 (after tiling and offset)
-    with LOD ``lod`` (N,) float64 (GL 4.5 §8.14.3; a NaN LOD samples level 0):
+                     wrap: TextureWrap, channels: tuple[int, ...] = (0, 1, 2, 3)) -> np.ndarray:
+    """Sample (N, C) float64 of ``channels`` (default all four) at texture coordinates ``uv`` (N, 2)
+    float64 (after tiling and offset) with LOD ``lod`` (N,) float64 (GL 4.5 §8.14.3; a NaN LOD
+    samples level 0):
 
     - ``Point`` / ``Bilinear``: the nearest level ``d`` (0 unless λ > 0.5, then ``ceil(λ + 0.5) − 1``,
       at most the last), sampled with the nearest texel / bilinearly (§7);
@@ -273,14 +274,14 @@ def sample_mipmapped(chain: MipChain, uv: np.ndarray, lod: np.ndarray, filt: Tex
     if filt is not TextureFilter.Trilinear:
         far = np.flatnonzero(lod > 0.5)
         level[far] = np.minimum(np.ceil(lod[far] + 0.5) - 1.0, float(last)).astype(np.int64)
-        return _sample_levels(chain, u, v, level, filt, wrap)
+        return _sample_levels(chain, u, v, level, filt, wrap, channels)
     minified = np.flatnonzero(lod > 0.0)
     floor = np.floor(lod[minified])
     level[minified] = np.minimum(floor, float(last)).astype(np.int64)
-    out = _sample_levels(chain, u, v, level, filt, wrap)
+    out = _sample_levels(chain, u, v, level, filt, wrap, channels)
     mixed = minified[floor < last]
     if mixed.size:
         f = (lod[mixed] - floor[floor < last])[:, None]
-        upper = _sample_levels(chain, u[mixed], v[mixed], level[mixed] + 1, filt, wrap)
+        upper = _sample_levels(chain, u[mixed], v[mixed], level[mixed] + 1, filt, wrap, channels)
         out[mixed] = out[mixed] * (1.0 - f) + upper * f
     return out

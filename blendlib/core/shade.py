@@ -162,23 +162,25 @@ class Texels:
         (for byte images a transposed view of a channels-first array)."""
         return self.fetch_channels(index).T
 
-    def fetch_channels(self, index: np.ndarray) -> np.ndarray:
-        """:meth:`fetch` channels first: (4, N) float64, each channel's values contiguous for byte
-        images (a transposed view for the others)."""
+    def fetch_channels(self, index: np.ndarray, channels: tuple[int, ...] = (0, 1, 2, 3)) -> np.ndarray:
+        """:meth:`fetch` channels first: (C, N) float64 of ``channels`` (default all four), each
+        channel's values contiguous for byte images (a transposed view for the others)."""
         if self.codes is None:
-            return self.values[index].astype(np.float64, copy=False).T
+            values = self.values[index].astype(np.float64, copy=False).T
+            return values if len(channels) == 4 else values[list(channels)]
         # Channels first (each channel's values contiguous): the shading reads one channel at a time.
-        out = np.empty((4, len(index)), np.float64)
+        out = np.empty((len(channels), len(index)), np.float64)
         planes = self._planes()
         if planes is not None:  # one gather per channel from the decoded texture
-            for k in range(4):
-                np.take(planes[k], index, out=out[k])
+            for row, k in enumerate(channels):
+                np.take(planes[k], index, out=out[row])
             return out
         # Whole texels gathered as one uint32 each (fancy indexing of (N, 4) rows is slower),
         # then one table per channel.
         c = np.take(self.codes.view(np.uint32).reshape(-1), index).view(np.uint8).reshape(-1, 4)
-        for k, lut in enumerate((self.lut_rgb, self.lut_rgb, self.lut_rgb, self.lut_alpha)):
-            np.take(lut, c[:, k], out=out[k])
+        luts = (self.lut_rgb, self.lut_rgb, self.lut_rgb, self.lut_alpha)
+        for row, k in enumerate(channels):
+            np.take(luts[k], c[:, k], out=out[row])
         return out
 
     #: Byte images of up to this many texels are also kept decoded, channels first (8 MB at most).
@@ -249,12 +251,16 @@ def point_texel_index_of(texels: Texels, u: np.ndarray, v: np.ndarray, wrap: Tex
     return index
 
 
-def sample(texels: Texels, uv: np.ndarray, filt: TextureFilter, wrap: TextureWrap) -> np.ndarray:
-    """Sample texels at uv (N, 2) float64 → (N, 4) float64 (§7; non-finite uv → texel (0, 0))."""
+def sample(texels: Texels, uv: np.ndarray, filt: TextureFilter, wrap: TextureWrap,
+           channels: tuple[int, ...] = (0, 1, 2, 3)) -> np.ndarray:
+    """Sample texels at uv (N, 2) float64 → (N, C) float64 of ``channels`` (default all four; each
+    channel's values the same bits whichever others are asked for) (§7; non-finite uv → texel (0, 0))."""
     if filt is TextureFilter.Point:
-        return texels.fetch(point_texel_index(texels, uv, wrap))
+        return texels.fetch_channels(point_texel_index(texels, uv, wrap), channels).T
     h, w = texels.shape[:2]
-    fetch = texels.fetch_channels
+
+    def fetch(index: np.ndarray) -> np.ndarray:
+        return texels.fetch_channels(index, channels)
     u, v = uv[:, 0], uv[:, 1]
     finite = np.isfinite(u) & np.isfinite(v)
     with np.errstate(invalid="ignore", over="ignore"):
@@ -272,9 +278,9 @@ def sample(texels: Texels, uv: np.ndarray, filt: TextureFilter, wrap: TextureWra
     # in the same order as lo = t00*(1-au) + t01*au, hi = t10*(1-au) + t11*au, lo*(1-av) + hi*av.
     t00, t01, t10, t11 = (fetch(j + i) for j, i in ((j0, i0), (j0, i1), (j1, i0), (j1, i1)))
     bu, bv = 1.0 - au, 1.0 - av
-    out = np.empty((4, u.size), np.float64)
+    out = np.empty((len(channels), u.size), np.float64)
     scratch = np.empty(u.size, np.float64)
-    for k in range(4):
+    for k in range(len(channels)):
         lo = np.multiply(t00[k], bu, out=out[k])
         lo += np.multiply(t01[k], au, out=scratch)
         hi = np.multiply(t10[k], bu, out=t10[k])
@@ -405,6 +411,32 @@ def shade_texels(
     return out
 
 
+def alpha_of(material: Material, tex_alpha: np.ndarray | None, color_alpha: np.ndarray | None, n: int) -> np.ndarray:
+    """The fragments' alpha (n,) float64 (:func:`shade_texels`: it reads neither lighting nor the
+    outline): ``tex_alpha`` (n,) the sampled texels' alpha (None: no texture), ``color_alpha``
+    (n,) the interpolated vertex colours' (None: white). Particle: ``((2 * vc.a) * _TintColor.a) *
+    tex.a``; else ``(tex.a * _Color.a) * _AlphaScale``, times ``vc.a`` with ``Multiply``."""
+    if material.vertex_color is VertexColor.Particle:
+        tint = float(material.tint_color[3])
+        if color_alpha is None:
+            out = np.full(n, 2.0 * tint, dtype=np.float64)
+        else:
+            out = np.multiply(color_alpha, 2.0)
+            out *= tint
+        if tex_alpha is not None:
+            out *= tex_alpha
+        return out
+    if tex_alpha is None:
+        # tex = (1, 1, 1, 1): 1.0 * c == c exactly, so alpha is the material's.
+        out = np.full(n, float(material.color[3]) * float(material.alpha_scale), dtype=np.float64)
+    else:
+        out = np.multiply(tex_alpha, float(material.color[3]))
+        out *= float(material.alpha_scale)
+    if material.vertex_color is VertexColor.Multiply and color_alpha is not None:
+        out *= color_alpha
+    return out
+
+
 def _lit(
     material: Material, tex: np.ndarray | None, lights: Lights, color_space: ColorSpace, normal: np.ndarray,
     color: np.ndarray | None, position: np.ndarray | None,
@@ -413,6 +445,7 @@ def _lit(
     n = normal.shape[0]
     mode = material.vertex_color
     out = np.empty((n, 4), dtype=np.float64)
+    out[:, 3] = alpha_of(material, None if tex is None else tex[:, 3], None if color is None else color[:, 3], n)
     if mode is VertexColor.Particle:
         tint = gamma_color_to_shading(material.tint_color[:3], color_space) + (float(material.tint_color[3]),)
 
@@ -428,18 +461,9 @@ def _lit(
             if tex is not None:
                 v *= tex[:, c]
             return v
-
-        out[:, 3] = albedo(3)
     else:
         col = gamma_color_to_shading(material.color[:3], color_space) + (float(material.color[3]),)
-        if tex is None:
-            # tex = (1, 1, 1, 1): 1.0 * c == c exactly, so albedo and alpha are the material's.
-            out[:, 3] = col[3] * float(material.alpha_scale)
-        else:
-            out[:, 3] = (tex[:, 3] * col[3]) * float(material.alpha_scale)
         tinted = mode is VertexColor.Multiply and color is not None
-        if tinted:
-            out[:, 3] *= color[:, 3]
 
         def albedo(c: int) -> np.ndarray:
             v = np.full(n, col[c], dtype=np.float64) if tex is None else np.multiply(tex[:, c], col[c])

@@ -96,3 +96,58 @@ def test_fused_calls_each_test_their_own_comparison(monkeypatch):
                   CompareFunction.Equal: alpha == 0.5, CompareFunction.NotEqual: alpha != 0.5,
                   CompareFunction.Always: alpha == alpha, CompareFunction.Never: alpha != alpha}[comp]
         assert drawn == int(expect.sum()), comp
+
+
+def _cutout_scene(mode, mipmaps: bool) -> DrawScene:
+    """A lit quad with smooth per-corner normals and colours, a random texture with alpha in
+    [0, 1] (Bilinear, or Trilinear with mipmaps, tiled so several levels are sampled) and an alpha
+    test that discards about half of its fragments, over an opaque backdrop."""
+    from blendlib.core.scene import Light, Mesh
+    from blendlib.core.vocabulary import Queue, TextureWrap, VertexColor  # noqa: F401
+
+    rng = np.random.default_rng(9)
+    texture = Texture(rng.uniform(0, 1, (16, 16, 4)).astype(np.float32), name="leaves")
+    base = quad(0, 0, 48, 40, z=1.0)
+    normals = rng.uniform(-0.3, 0.3, size=(2, 3, 3)).astype(np.float32)
+    normals[..., 2] = 1.0
+    colors = rng.uniform(0.3, 1.0, size=(2, 3, 4)).astype(np.float32)
+    mesh = Mesh(base.positions, base.triangles, normals, base.uvs, colors=colors, color_encoding="sRGB")
+    cutout = Material(name="Cutout", queue=Queue.AlphaTest, color=(0.9, 0.8, 0.7, 0.95), main_tex=texture,
+                      main_tex_filter=TextureFilter.Trilinear if mipmaps else TextureFilter.Bilinear,
+                      main_tex_wrap=TextureWrap.Repeat, main_tex_tiling=(3.0, 2.0) if mipmaps else (1.0, 1.0),
+                      main_tex_mipmaps=mipmaps, lighting=Lighting.Lambert, vertex_color=mode, cutoff=0.45,
+                      tint_color=(0.6, 0.5, 0.4, 0.7), passes=(Pass(alpha_test=True),))
+    back = Material(name="Back", color=(0.2, 0.3, 0.4, 1.0), lighting=Lighting.Unlit)
+    return DrawScene(camera=screen_camera(48, 40), light=Light(direction=(0.3, 0.2, 0.9)), ambient=(0.2, 0.2, 0.2),
+                     renderers=(renderer(quad(0, 0, 48, 40, z=-1.0), back, name="Back"),
+                                renderer(mesh, cutout, name="Cutout")))
+
+
+@pytest.mark.parametrize("mipmaps", [False, True])
+@pytest.mark.parametrize("mode", ["Off", "Multiply", "Particle"])
+def test_alpha_is_tested_before_the_rest_is_shaded(mode, mipmaps, monkeypatch):
+    """The fragment's alpha reads neither lighting nor the outline, so a textured pass with an
+    alpha test samples the texture's alpha first and shades only the fragments that pass; the
+    frame equals the scalar reference. Observed, every fragment is shaded (the frame debugger
+    shows discarded fragments' colours)."""
+    from blendlib.core import pipeline, shade
+    from blendlib.core.vocabulary import VertexColor
+
+    scene = _cutout_scene(VertexColor[mode], mipmaps)
+    shaded = []
+    original = shade.shade_texels
+    monkeypatch.setattr(shade, "shade_texels", lambda material, tex, lights, space, normal, *args, **kw: shaded.append(
+        (material.name, normal.shape[0])) or original(material, tex, lights, space, normal, *args, **kw))
+    frame = render_scene(scene, workers=1)
+    color, depth, _ = render_reference(scene)
+    np.testing.assert_array_equal(frame.color, color)
+    np.testing.assert_array_equal(frame.depth, depth)
+    cut = sum(count for name, count in shaded if name == "Cutout")
+    assert 0.2 * 48 * 40 < cut < 0.8 * 48 * 40, cut  # the survivors only
+    # They are exactly the fragments that passed: the pixels where the quad changed the frame.
+    backdrop = render_scene(DrawScene(camera=scene.camera, light=scene.light, ambient=scene.ambient,
+                                      renderers=scene.renderers[:1]), workers=1)
+    assert cut == int(np.any(frame.color != backdrop.color, axis=-1).sum())
+    shaded.clear()
+    render_scene(scene, workers=1, observer=pipeline.FrameObserver())
+    assert sum(count for name, count in shaded if name == "Cutout") == 48 * 40
