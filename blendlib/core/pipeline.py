@@ -45,13 +45,18 @@ SMALL_FRAME_PIXELS = 1 << 18
 #: worker draws its screen band of the whole batch in draw order, with no wait between calls.
 BATCH_TRIANGLES = 1 << 18
 BATCH_DRAWS = 64
-#: Frames of at least this many pixels draw every step in screen bands, one per worker. In
-#: smaller frames (a 960x540 viewport) bands pay only for fragments shaded one by one: the
-#: cheap per-fragment work of palettes, constant colours and blend tables is mostly array calls
-#: holding the GIL, which two threads contend for (docs/benchmark.md).
-BAND_PIXELS = 600_000
-#: ... unless the step holds at least this many candidate fragments of per-fragment shading.
+#: Frames of at least this many pixels draw every step in screen bands, one per worker (tests
+#: lower it to draw every step in bands). Below it a step is drawn in bands only when its calls
+#: are large: short array calls hold the GIL, which two threads then contend for, so bands of
+#: many small calls or of cheap per-fragment work (palettes, constant colours, blend tables)
+#: take longer than one thread (docs/benchmark.md, "Round five").
+BAND_PIXELS = 1 << 23
+#: Bands pay for a step whose calls hold this many candidate fragments each on average ...
+BAND_CALL_FRAGMENTS = 1 << 18
+#: ... or that holds at least BAND_SHADED_FRAGMENTS candidate fragments of per-fragment shading,
+#: BAND_SHADED_CALL_FRAGMENTS on average in each call that shades per fragment.
 BAND_SHADED_FRAGMENTS = 1 << 17
+BAND_SHADED_CALL_FRAGMENTS = 1 << 15
 #: Lit meshes of more triangles count as smooth (shaded per fragment) for that decision without
 #: their normals being examined, which would cost a pass over them every frame.
 SMOOTH_TRIANGLES = 1 << 15
@@ -285,8 +290,11 @@ def _bands_pay(frame: FrameContext, step: list[PreparedCall]) -> bool:
     """Whether a step is drawn in screen bands on the pool (see :data:`BAND_PIXELS`)."""
     if frame.width * frame.height >= BAND_PIXELS:
         return True
-    shaded = sum(int(pr.rows.length.sum()) for pr in step if _shaded_per_fragment(pr))
-    return shaded >= BAND_SHADED_FRAGMENTS
+    counts = [int(pr.rows.length.sum()) for pr in step]
+    if sum(counts) >= BAND_CALL_FRAGMENTS * len(step):
+        return True
+    shaded = [count for pr, count in zip(step, counts, strict=True) if _shaded_per_fragment(pr)]
+    return sum(shaded) >= max(BAND_SHADED_FRAGMENTS, BAND_SHADED_CALL_FRAGMENTS * len(shaded))
 
 
 def _shaded_per_fragment(prepared: PreparedCall) -> bool:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -805,10 +806,11 @@ def test_small_frames_blend_through_tables_kept_from_larger_ones(monkeypatch):
 
 
 def test_small_frames_use_bands_only_for_fragments_shaded_one_by_one(monkeypatch):
-    """Below BAND_PIXELS, a batch is drawn in screen bands only when it holds enough fragments
-    shaded one by one (smooth Lambert, filtered textures): cheap per-fragment work (flat or
-    constant colours, texel palettes) runs faster in one thread than two contending for the GIL.
-    Either way the frame equals one thread's."""
+    """Below BAND_PIXELS, a batch is drawn in screen bands only when its calls are large: many
+    candidate fragments a call, or enough fragments shaded one by one (smooth Lambert, filtered
+    textures) with many in each call that shades so. Cheap per-fragment work (flat or constant
+    colours, texel palettes) and many small calls run faster in one thread than two contending
+    for the GIL. Either way the frame equals one thread's."""
     from blendlib.core import pipeline, raster
 
     monkeypatch.setattr(pipeline, "BAND_PIXELS", PRODUCTION_BAND_PIXELS)
@@ -827,6 +829,27 @@ def test_small_frames_use_bands_only_for_fragments_shaded_one_by_one(monkeypatch
         one = render_scene(scene, workers=1)
         np.testing.assert_array_equal(two.color, one.color)
         np.testing.assert_array_equal(two.depth, one.depth)
+    # Twenty small smooth balls of their own colours (not fused): as many fragments shaded one by
+    # one, but few in each call.
+    balls = tuple(sc.renderer(sc.uv_sphere(0.2, 24, 16), replace(smooth, name=f"Smooth{k}",
+                                                                 color=(0.8, 0.6, 0.02 * k, 1.0)),
+                              name=f"Ball{k}", matrix=sc.translate(-0.9 + 0.45 * (k % 5), -0.6 + 0.4 * (k // 5), 0.0))
+                  for k in range(20))
+    scene = DrawScene(camera=camera, light=sc.Light(direction=(0.2, 0.5, 0.8)), renderers=balls)
+    steps = []
+    original_step = pipeline._draw_step
+    monkeypatch.setattr(pipeline, "_draw_step", lambda frame, step, *args: steps.append(
+        [int(pr.rows.length.sum()) for pr in step]) or original_step(frame, step, *args))
+    cuts.clear()
+    render_scene(scene, workers=2)
+    shaded = sum(sum(counts) for counts in steps)
+    assert not cuts and shaded >= pipeline.BAND_SHADED_FRAGMENTS
+    assert shaded < pipeline.BAND_SHADED_CALL_FRAGMENTS * sum(len(counts) for counts in steps)
+    # A flat ball filling a larger frame: a call of many fragments, drawn in bands.
+    big = sc.camera(1000, 560, eye=(0.0, 0.0, 1.2))
+    cuts.clear()
+    render_scene(DrawScene(camera=big, renderers=(sc.renderer(sc.uv_sphere(0.9, 24, 16), flat),)), workers=2)
+    assert cuts and steps[-1][0] >= pipeline.BAND_CALL_FRAGMENTS
     monkeypatch.setattr(pipeline, "BAND_PIXELS", 600 * 400)  # a frame this large: bands whatever the work
     cuts.clear()
     render_scene(DrawScene(camera=camera, renderers=(sc.renderer(sc.uv_sphere(0.9, 24, 16), flat),)), workers=2)
