@@ -137,7 +137,8 @@ def render_scene(
     frame = FrameContext(buf, cam, lights, cs, scene.hdr, chunk_candidates, pool, workers, threading.Event(),
                          observed=observer is not None and observer.reads_fragments, band=band, memo=memo,
                          keep_setups=keep_setups,
-                         reads_depth=None if observer is None else observer.reads_depth)
+                         reads_depth=None if observer is None else observer.reads_depth,
+                         reads_call=None if observer is None else observer.reads_call)
     try:
         _draw_all(frame, todo, should_cancel, progress, observer)
         color, depth, stencil = buf.output(pool, workers, band, out)
@@ -411,7 +412,7 @@ def _draw_chunks(frame: FrameContext, prepared: PreparedCall, rows: raster.Rows,
     """Raster, shade and merge ``rows`` of one prepared call, chunk by chunk in draw order, with
     ``state`` (the call's, with the band's depth floors); the observer told of every fragment."""
     buf, p, tables = frame.buf, state.pass_state, prepared.tables
-    if observer is not None and not observer.reads_fragments:
+    if observer is not None and not state.observed:  # it reads no fragment, or none of this call's
         observer = None
     watched = None if observer is None else observer.watched_rows
     for a, b, shaded in _shaded_chunks(frame, prepared, rows, state):

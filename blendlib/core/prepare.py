@@ -48,6 +48,9 @@ class FrameContext:
     observed: bool = False
     #: ``reads_depth(call)`` of the observer (:meth:`.records.FrameObserver.reads_depth`), or None.
     reads_depth: Callable[[DrawCall], bool] | None = None
+    #: ``reads_call(call)`` of the observer (:meth:`.records.FrameObserver.reads_call`), or None:
+    #: with ``observed``, the calls whose fragments it is told of (the others drawn as unobserved).
+    reads_call: Callable[[DrawCall], bool] | None = None
     #: Buffer rows ``[y0, y1)`` (y from the bottom) this render draws, or None for all
     #: (:func:`.pipeline.render_scene`'s ``band``: one process's share of a frame).
     band: tuple[int, int] | None = None
@@ -318,15 +321,16 @@ def _draw_state(frame: FrameContext, call: DrawCall, setup, inputs: CallInputs,
             and not (frame.reads_depth is not None and frame.reads_depth(call))):
         zbound = raster.depth_upper_codes(setup, p.offset_factor, p.offset_units)
     material = call.renderer.material
+    observed = frame.observed and (frame.reads_call is None or frame.reads_call(call))
     dark_skip, saturated = lights.dark_skip_applies(
         p, material, inputs.lights.add, 0.0 if inputs.texels is None else inputs.texels.peak(), frame.hdr,
-        frame.samples, frame.observed)
+        frame.samples, observed)
     state = DrawState(call, material, inputs.texels, inputs.lights, frame.color_space, frame.hdr,
-                      frame.width, observed=frame.observed, zbound=zbound, mips=inputs.mips,
+                      frame.width, observed=observed, zbound=zbound, mips=inputs.mips,
                       samples=frame.samples, dark_skip=dark_skip,
                       dark_alpha=frame.buf.color[:, 3] if saturated else None,
                       early_depth=frame.buf.depth if fragment.early_depth_applies(p, frame.samples,
-                                                                                 frame.observed) else None)
+                                                                                 observed) else None)
     return state, vertex.cull_select(setup, p.cull) if selected is None else selected
 
 

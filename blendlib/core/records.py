@@ -266,6 +266,12 @@ class FrameObserver:
     #: says False: each call is then drawn as an unobserved render draws it, fragments unreported.
     reads_fragments = True
 
+    def reads_call(self, call: DrawCall) -> bool:
+        """Whether :meth:`fragments` reads the fragments of ``call`` (with :attr:`reads_fragments`):
+        a call it does not read is drawn as an unobserved render draws it (its shortcuts: early
+        depth test, alpha first, dropped unlit fragments), its fragments unreported."""
+        return True
+
     #: (H,) bool, the buffer rows (from the bottom) whose fragments :meth:`fragments` reads, or None
     #: for all: chunks of fragments in no such row merge as if nothing observed them, unreported.
     watched_rows: np.ndarray | None = None

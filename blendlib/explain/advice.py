@@ -197,6 +197,9 @@ class _PairWatch(FrameObserver):
     def reads_depth(self, call: DrawCall) -> bool:
         return call.index in self.watched
 
+    def reads_call(self, call: DrawCall) -> bool:
+        return call.index in self.watched
+
     def fragments(self, call, frags, outcome) -> None:
         key = self.watched.get(call.index)
         if key is None:

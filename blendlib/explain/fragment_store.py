@@ -154,6 +154,9 @@ class FragmentCollector(FrameObserver):
     def reads_depth(self, call: DrawCall) -> bool:
         return call.index in self.sorted_calls
 
+    def reads_call(self, call: DrawCall) -> bool:
+        return self.overdraw or call.index in self.sorted_calls
+
     def draw_begin(self, call, buffers) -> None:
         if call.index == self.first_after_opaque:
             self.step1 = buffers.copy()

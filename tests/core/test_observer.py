@@ -255,3 +255,35 @@ def test_an_observer_of_draw_boundaries_only_is_told_of_no_fragment():
         color, depth, stencil = snap.output()
         assert np.array_equal(color, stopped.color) and np.array_equal(depth, stopped.depth)
         assert np.array_equal(stencil, stopped.stencil)
+
+
+def test_an_observer_of_some_calls_is_told_of_theirs_alone_and_the_others_draw_as_unobserved(monkeypatch):
+    """``reads_call``: the fragments of the calls an observer reads are reported with the same
+    outcomes as when it reads every call; the others are not reported and draw as an unobserved
+    render draws them (an early depth test drops their hidden fragments before shading). The frame
+    is the plain render's."""
+    from blendlib.core import fragment
+
+    scene = seeded_scene(27)
+    calls = draw_calls(scene)
+    read = {c.index for c in calls[1::2]}
+
+    class Some(Recorder):
+        def reads_call(self, call):
+            return call.index in read
+
+    every, some = Recorder(), Some()
+    render_scene(scene, observer=every, workers=2)
+    plain = render_scene(scene, workers=2)
+    observed = []
+    original = fragment.shade_chunk
+    monkeypatch.setattr(fragment, "shade_chunk", lambda setup, rows, a, b, state: observed.append(
+        (state.call.index, state.observed, state.early_depth is not None)) or original(setup, rows, a, b, state))
+    frame = render_scene(scene, observer=some, workers=2)
+    assert _frame_equal(frame, plain)
+    assert set(some.outcomes) == read & set(every.outcomes) and read & set(every.outcomes)
+    for index in some.outcomes:
+        assert some.counts(index) == every.counts(index)
+    assert all(flag == (index in read) for index, flag, _ in observed)
+    assert any(early for index, _, early in observed if index not in read)
+    assert not any(early for index, _, early in observed if index in read)
