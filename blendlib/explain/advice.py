@@ -333,6 +333,20 @@ class _Measurer:
                 self.place_rows[k] = (min(old[0], rows[0]), max(old[1], rows[1]))
         of_key = {(r.name, r.slot): k for k, r in enumerate(scene.renderers)}
         self.pair_places = {of_key[key] for pair in pairs for key in pair if key in of_key}
+        #: Opaque prefixes other than the analysed one, by how many candidates draw each
+        #: (:meth:`expect`), and the buffers after those drawn by more than one.
+        self.prefix_counts: dict[tuple, int] = {}
+        self.prefix_step1: dict[tuple, FrameBuffers] = {}
+
+    def expect(self, scenes: list[DrawScene]) -> None:
+        """Note the changed scenes about to be measured: a reordered opaque queue that several of
+        them share (sort settings reorder it, SPEC: one distance for both) is drawn once, and each
+        of them resumes from its buffers."""
+        for changed in scenes:
+            calls = draw_calls(changed)
+            prefix = self._opaque_prefix(_signature(changed, calls), calls)
+            if prefix != self.opaque:
+                self.prefix_counts[prefix] = self.prefix_counts.get(prefix, 0) + 1
 
     @staticmethod
     def _opaque_prefix(signature: tuple, calls: list[DrawCall]) -> tuple:
@@ -365,9 +379,17 @@ class _Measurer:
             return self.cache[signature]
         watch = _PairWatch(self.pairs, calls, width * height, int(changed.msaa))
         resume = None
-        if self._opaque_prefix(signature, calls) == self.opaque:
-            last = max((c.index for c in calls if c.queue <= LAST_OPAQUE_QUEUE), default=0)
+        prefix = self._opaque_prefix(signature, calls)
+        last = max((c.index for c in calls if c.queue <= LAST_OPAQUE_QUEUE), default=0)
+        if prefix == self.opaque:
             resume = (self.step1(), last) if last else None
+        elif last and self.prefix_counts.get(prefix, 0) > 1:
+            if prefix not in self.prefix_step1:
+                snapshot = _Snapshot()
+                render_scene(changed, until_draw=last, observer=snapshot, workers=self.workers,
+                             should_cancel=self.should_cancel, calls=calls)
+                self.prefix_step1[prefix] = snapshot.buffers if snapshot.buffers is not None else _cleared(changed)
+            resume = (self.prefix_step1[prefix], last)
         frame = render_scene(changed, resume=resume, observer=watch, workers=self.workers,
                              should_cancel=self.should_cancel, calls=calls, band=band)
         result = watch.counts(), self.differing(frame.color, 0 if band is None else height - band[1])
@@ -455,6 +477,7 @@ def advise(scene: DrawScene, analysis: Analysis, limit: int = 5, workers: int | 
         else:
             plans.append((inv, _pair_candidates(scene, front, _renderer(scene, inv.behind), settings)))
     measurer = _Measurer(scene, analysis, [(inv.front, inv.behind) for inv in inversions], workers, should_cancel)
+    measurer.expect([changed for _, candidates in plans for _, changed, _ in candidates])
     total = max(1, sum(len(candidates) for _, candidates in plans))
     done = 0
     items = []
