@@ -160,7 +160,7 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
     (runs, flatness, table ids) is done per row and expanded.
     """
     p, material, texels, outline = state.pass_state, state.material, state.texels, state.outline
-    start_rows, stop_rows = start, stop
+    chunk_rows = stop - start  # rows of the chunk as the caller counts them (row_counts below)
     length = rows.length[start:stop]
     n = full = int(length.sum())
     if n == 0:
@@ -244,6 +244,15 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
     dropped = None  # (N,) bool: fragments dropped unshaded (DrawState.dark_skip)
     constant = None if not any_varying else np.repeat(row_flat, length)
 
+    def sample_at(uv: np.ndarray, lod: np.ndarray | None, channels: tuple[int, ...]) -> np.ndarray:
+        """The texture's ``channels`` (M, C) at mesh coordinates ``uv`` (M, 2), through the mip
+        chain with ``lod`` (M,) when given (as :func:`.shade.shade` samples without one)."""
+        tex_uv = shade.texture_uv(material, uv)
+        if lod is None:
+            return shade.sample(texels, tex_uv, material.main_tex_filter, material.main_tex_wrap, channels)
+        return mips.sample_mipmapped(state.mips, tex_uv, lod, material.main_tex_filter, material.main_tex_wrap,
+                                     channels)
+
     def shade_at(uv: np.ndarray | None, normal: np.ndarray | None, color: np.ndarray | None,
                  position: np.ndarray | None, count: int, lod: np.ndarray | None = None) -> np.ndarray:
         uv = np.zeros((count, 2), dtype=np.float64) if uv is None else uv
@@ -251,8 +260,7 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
         if lod is None:
             return shade.shade(material, texels, state.lights, state.color_space, uv, normal, color, position,
                                outline)
-        tex = mips.sample_mipmapped(state.mips, shade.texture_uv(material, uv), lod, material.main_tex_filter,
-                                    material.main_tex_wrap)
+        tex = sample_at(uv, lod, (0, 1, 2, 3))
         return shade.shade_texels(material, tex, state.lights, state.color_space, normal, color, position, outline)
 
     def first_corner(corners: np.ndarray | None, index: np.ndarray) -> np.ndarray | None:
@@ -322,10 +330,7 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
                 # Alpha first (it reads neither lighting nor the outline): fragments the alpha test
                 # discards are not shaded further; an observer would be told of their colours.
                 color = varying(colors, color_flat)
-                tex_uv = shade.texture_uv(material, uv.T)
-                filt, wrap = material.main_tex_filter, material.main_tex_wrap
-                tex_alpha = (shade.sample(texels, tex_uv, filt, wrap, (3,)) if lod is None
-                             else mips.sample_mipmapped(state.mips, tex_uv, lod, filt, wrap, (3,)))[:, 0]
+                tex_alpha = sample_at(uv.T, lod, (3,))[:, 0]
                 alpha = shade.alpha_of(material, tex_alpha, None if color is None else color[:, 3], w.shape[1])
                 discarded = ~alpha_passes(alpha, material.cutoff, p.alpha_test_comp)
                 if discarded.any():
@@ -393,7 +398,7 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
             sub_first = np.cumsum(sub.length) - sub.length
             return codes[sub_first[which.reshape(-1)] + (index - (ends - length)[row])]
     if of_row is not None:  # the counts of the chunk's rows, whose pieces these are
-        length = np.bincount(of_row, weights=length, minlength=stop_rows - start_rows).astype(np.int64)
+        length = np.bincount(of_row, weights=length, minlength=chunk_rows).astype(np.int64)
     return ShadedFragments(frags.pix, depth, rgba, ids, palette, None, alive, disjoint, depth_fn, triangle_fn,
                            row_counts=None if n == full else length)
 
@@ -418,15 +423,14 @@ def _unreached_rows(setup, rows, state: DrawState, positions: np.ndarray, run_of
     row's first and last fragments: a row whose segment keeps out of the light's reach
     (:func:`.lights.segments_out_of_reach`, with a margin far above the interpolation's rounding)
     holds only fragments :func:`.lights.dark_fragments` calls dark."""
-    for values in corners:
-        if not bool(np.all(np.abs(values) <= lights.DARK_SKIP_PEAK)):
-            return None
-    length = rows.length
+    if not _bounded(corners):
+        return None
     ends = raster.row_end_fragments(rows, 0, rows.count, state.width)
     weights = raster.interpolate(setup, ends, weights=True, depth=False)[1]  # (3, 2R): first pixels, then last
-    count = length.size
+    count = rows.count
     world = np.take(positions, np.concatenate([run_of_row, run_of_row]), axis=0)  # (2R, 3 corners, 3)
-    at = (weights[0][:, None] * world[:, 0] + weights[1][:, None] * world[:, 1]) + weights[2][:, None] * world[:, 2]
+    # Interpolated as the fragments' positions are: each end a run of one fragment.
+    at = raster.interpolate_runs(weights, world, np.ones(2 * count, dtype=np.int64), raster.flat_corners(world))
     scale = float(np.abs(positions).max(initial=0.0))
     unreached = lights.segments_out_of_reach(state.lights.add, at[:count], at[count:], scale)
     if state.dark_alpha is not None and unreached.any():
@@ -448,12 +452,15 @@ def _dark(state: DrawState, position: np.ndarray, pix: np.ndarray, corners: list
     dark = lights.dark_fragments(state.lights.add, position[:, 0], position[:, 1], position[:, 2])
     if state.dark_alpha is not None:
         dark &= np.take(state.dark_alpha, pix) == 255
-    if not dark.any():
+    if not dark.any() or not _bounded(corners):
         return None
-    for values in corners:
-        if not bool(np.all(np.abs(values) <= lights.DARK_SKIP_PEAK)):
-            return None
     return dark
+
+
+def _bounded(corners: list[np.ndarray]) -> bool:
+    """Whether every value of ``corners`` (normals, colours) is finite and at most
+    :data:`.lights.DARK_SKIP_PEAK` in magnitude (then so are values interpolated from them)."""
+    return all(bool(np.all(np.abs(values) <= lights.DARK_SKIP_PEAK)) for values in corners)
 
 
 def shade_colourless_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedFragments | None:

@@ -355,12 +355,16 @@ class _Measurer:
     def step1(self) -> FrameBuffers:
         """The buffers after the last draw call of queue ≤ 2500 (the analysis's, else rendered)."""
         if self._step1 is None:
-            last = max((c.index for c in self.calls if c.queue <= LAST_OPAQUE_QUEUE), default=0)
-            snapshot = _Snapshot()
-            render_scene(self.scene, until_draw=last, observer=snapshot, workers=self.workers,
-                         should_cancel=self.should_cancel, calls=self.calls)
-            self._step1 = snapshot.buffers if snapshot.buffers is not None else _cleared(self.scene)
+            self._step1 = self._opaque_drawn(self.scene, self.calls)
         return self._step1
+
+    def _opaque_drawn(self, scene: DrawScene, calls: list[DrawCall]) -> FrameBuffers:
+        """``scene``'s buffers after its last draw call of queue ≤ 2500 (``calls``: its draw list)."""
+        last = max((c.index for c in calls if c.queue <= LAST_OPAQUE_QUEUE), default=0)
+        snapshot = _Snapshot()
+        render_scene(scene, until_draw=last, observer=snapshot, workers=self.workers,
+                     should_cancel=self.should_cancel, calls=calls)
+        return snapshot.buffers if snapshot.buffers is not None else _cleared(scene)
 
     def measure(self, changed: DrawScene) -> tuple[dict[tuple[Key, Key], int], int]:
         """(inverted pixels per advised pair, pixels differing from the original reference)."""
@@ -385,10 +389,7 @@ class _Measurer:
             resume = (self.step1(), last) if last else None
         elif last and self.prefix_counts.get(prefix, 0) > 1:
             if prefix not in self.prefix_step1:
-                snapshot = _Snapshot()
-                render_scene(changed, until_draw=last, observer=snapshot, workers=self.workers,
-                             should_cancel=self.should_cancel, calls=calls)
-                self.prefix_step1[prefix] = snapshot.buffers if snapshot.buffers is not None else _cleared(changed)
+                self.prefix_step1[prefix] = self._opaque_drawn(changed, calls)
             resume = (self.prefix_step1[prefix], last)
         frame = render_scene(changed, resume=resume, observer=watch, workers=self.workers,
                              should_cancel=self.should_cancel, calls=calls, band=band)
