@@ -103,7 +103,7 @@ def _cutout_scene(mode, mipmaps: bool) -> DrawScene:
     [0, 1] (Bilinear, or Trilinear with mipmaps, tiled so several levels are sampled) and an alpha
     test that discards about half of its fragments, over an opaque backdrop."""
     from blendlib.core.scene import Light, Mesh
-    from blendlib.core.vocabulary import Queue, TextureWrap, VertexColor  # noqa: F401
+    from blendlib.core.vocabulary import Queue, TextureWrap
 
     rng = np.random.default_rng(9)
     texture = Texture(rng.uniform(0, 1, (16, 16, 4)).astype(np.float32), name="leaves")
