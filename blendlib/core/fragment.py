@@ -136,7 +136,8 @@ def early_depth_applies(p: Pass, samples: int, observed: bool) -> bool:
     chunk is shaded may be dropped before shading (an early depth test): they would fail when
     merged too (:data:`_EARLY_TESTS`; ``NotEqual`` only without ZWrite) and a failed depth test
     then changes nothing — not with stencil (its ZFail operation), MSAA (a depth per sample) or an
-    observer that reads fragments (it is told of every fragment and its outcome)."""
+    observer told of every fragment and its outcome (``observed``; one that reads written fragments
+    only, :meth:`.records.FrameObserver.reads_hidden`, is not)."""
     if samples != 1 or observed or p.stencil:
         return False
     return p.ztest in _EARLY_TESTS or (p.ztest is CompareFunction.NotEqual and not p.zwrite)

@@ -138,7 +138,8 @@ def render_scene(
                          observed=observer is not None and observer.reads_fragments, band=band, memo=memo,
                          keep_setups=keep_setups,
                          reads_depth=None if observer is None else observer.reads_depth,
-                         reads_call=None if observer is None else observer.reads_call)
+                         reads_call=None if observer is None else observer.reads_call,
+                         reads_hidden=None if observer is None else observer.reads_hidden)
     try:
         _draw_all(frame, todo, should_cancel, progress, observer)
         color, depth, stencil = buf.output(pool, workers, band, out)

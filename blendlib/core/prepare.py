@@ -51,6 +51,8 @@ class FrameContext:
     #: ``reads_call(call)`` of the observer (:meth:`.records.FrameObserver.reads_call`), or None:
     #: with ``observed``, the calls whose fragments it is told of (the others drawn as unobserved).
     reads_call: Callable[[DrawCall], bool] | None = None
+    #: ``reads_hidden(call)`` of the observer (:meth:`.records.FrameObserver.reads_hidden`), or None.
+    reads_hidden: Callable[[DrawCall], bool] | None = None
     #: Buffer rows ``[y0, y1)`` (y from the bottom) this render draws, or None for all
     #: (:func:`.pipeline.render_scene`'s ``band``: one process's share of a frame).
     band: tuple[int, int] | None = None
@@ -329,8 +331,9 @@ def _draw_state(frame: FrameContext, call: DrawCall, setup, inputs: CallInputs,
                       frame.width, observed=observed, zbound=zbound, mips=inputs.mips,
                       samples=frame.samples, dark_skip=dark_skip,
                       dark_alpha=frame.buf.color[:, 3] if saturated else None,
-                      early_depth=frame.buf.depth if fragment.early_depth_applies(p, frame.samples,
-                                                                                 observed) else None)
+                      early_depth=frame.buf.depth if fragment.early_depth_applies(
+                          p, frame.samples, observed and (frame.reads_hidden is None or frame.reads_hidden(call)))
+                      else None)
     return state, vertex.cull_select(setup, p.cull) if selected is None else selected
 
 

@@ -272,6 +272,12 @@ class FrameObserver:
         depth test, alpha first, dropped unlit fragments), its fragments unreported."""
         return True
 
+    def reads_hidden(self, call: DrawCall) -> bool:
+        """Whether :meth:`fragments` must be told of the fragments of ``call`` that fail the depth
+        test. An observer that reads written fragments only says False: such a call may drop
+        them before shading, unreported, as an unobserved render does (the early depth test)."""
+        return True
+
     #: (H,) bool, the buffer rows (from the bottom) whose fragments :meth:`fragments` reads, or None
     #: for all: chunks of fragments in no such row merge as if nothing observed them, unreported.
     watched_rows: np.ndarray | None = None

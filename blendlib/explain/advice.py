@@ -25,9 +25,12 @@ the draw calls (queues, sort settings) or one renderer's passes (the prepass), s
 the original's step-1 buffers (everything up to queue 2500, kept by the analysis) with the
 draw calls from there on; only those are rendered, once per distinct draw list (a sort mode
 shared by several pairs is rendered once; a draw list equal to the original's is not rendered
-at all). Only the band of rows that the renderers it moves or alters and the advised pairs'
-renderers reached in the analysis is drawn (:meth:`_Measurer.band`; elsewhere every pixel sees the
-same fragments in the same order). The pairs' inversions are counted as that render goes
+at all). A candidate that reorders the opaque queue resumes from them too when the analysis
+proved that queue's order free (:attr:`.sorted_reference.Analysis.opaque_order_free`); else the
+reordered queue is drawn (once for the candidates that share it). Only the band of rows that
+the renderers it moves or alters after the opaque queue and the advised pairs' renderers reached
+in the analysis is drawn (:meth:`_Measurer.band`; elsewhere every pixel sees the same fragments
+in the same order). The pairs' inversions are counted as that render goes
 (:class:`_PairWatch`), and the differing pixels against the original reference, computed again
 only where the colour changed. The numbers equal those of a full analysis of the changed scene
 (tests/explain/test_advice.py checks it on random scenes and on scenes in strips).
@@ -40,6 +43,7 @@ Advice sits on top of the analysis (:mod:`.sorted_reference` knows nothing of it
 from __future__ import annotations
 
 import threading
+from collections import Counter
 from collections.abc import Callable, Mapping
 from dataclasses import replace
 from typing import Any, Protocol
@@ -200,6 +204,9 @@ class _PairWatch(FrameObserver):
     def reads_call(self, call: DrawCall) -> bool:
         return call.index in self.watched
 
+    def reads_hidden(self, call: DrawCall) -> bool:
+        return False  # written fragments only
+
     def fragments(self, call, frags, outcome) -> None:
         key = self.watched.get(call.index)
         if key is None:
@@ -337,6 +344,7 @@ class _Measurer:
         #: (:meth:`expect`), and the buffers after those drawn by more than one.
         self.prefix_counts: dict[tuple, int] = {}
         self.prefix_step1: dict[tuple, FrameBuffers] = {}
+        self._opaque_counts: Counter | None = None
 
     def expect(self, scenes: list[DrawScene]) -> None:
         """Note the changed scenes about to be measured: a reordered opaque queue that several of
@@ -345,12 +353,24 @@ class _Measurer:
         for changed in scenes:
             calls = draw_calls(changed)
             prefix = self._opaque_prefix(_signature(changed, calls), calls)
-            if prefix != self.opaque:
+            if not self._opaque_kept(prefix):
                 self.prefix_counts[prefix] = self.prefix_counts.get(prefix, 0) + 1
 
     @staticmethod
     def _opaque_prefix(signature: tuple, calls: list[DrawCall]) -> tuple:
         return tuple(s for s, c in zip(signature, calls, strict=True) if c.queue <= LAST_OPAQUE_QUEUE)
+
+    def _opaque_kept(self, prefix: tuple) -> bool:
+        """Whether a changed scene's opaque queue (``prefix``, its signature) leaves the analysed
+        step-1 buffers: the same calls in the same order, or in another where the analysis proved
+        their order free (:attr:`.sorted_reference.Analysis.opaque_order_free`)."""
+        if prefix == self.opaque:
+            return True
+        if not self.analysis.opaque_order_free:
+            return False
+        if self._opaque_counts is None:
+            self._opaque_counts = Counter(self.opaque)
+        return Counter(prefix) == self._opaque_counts
 
     def step1(self) -> FrameBuffers:
         """The buffers after the last draw call of queue ≤ 2500 (the analysis's, else rendered)."""
@@ -377,15 +397,16 @@ class _Measurer:
         if signature in self.cache:
             return self.cache[signature]
         width, height = int(changed.camera.width), int(changed.camera.height)
-        band = self.band(signature, calls, height)
+        prefix = self._opaque_prefix(signature, calls)
+        kept = self._opaque_kept(prefix)
+        band = self.band(signature, calls, height, len(prefix) if kept else 0)
         if band is not None and band[0] >= band[1]:  # nothing it moves is drawn: the frame as analysed
             self.cache[signature] = self.as_analysed()
             return self.cache[signature]
         watch = _PairWatch(self.pairs, calls, width * height, int(changed.msaa))
         resume = None
-        prefix = self._opaque_prefix(signature, calls)
         last = max((c.index for c in calls if c.queue <= LAST_OPAQUE_QUEUE), default=0)
-        if prefix == self.opaque:
+        if kept:  # its opaque queue leaves the analysed step-1 buffers
             resume = (self.step1(), last) if last else None
         elif last and self.prefix_counts.get(prefix, 0) > 1:
             if prefix not in self.prefix_step1:
@@ -404,15 +425,17 @@ class _Measurer:
     #: Bands of at least this share of the frame's rows are drawn whole (the band saves little).
     WHOLE_SHARE = 0.9
 
-    def band(self, signature: tuple, calls: list[DrawCall], height: int) -> tuple[int, int] | None:
+    def band(self, signature: tuple, calls: list[DrawCall], height: int, kept: int = 0) -> tuple[int, int] | None:
         """The buffer rows a changed scene's frame can differ in from the analysed one, with every
         advised pair's inverted pixels: ``(y0, y1)`` (empty when y0 >= y1), or None for the whole
         frame. A pixel's colour and each pair's inversion there depend only on the calls whose
         fragments reach it, in their order: where no renderer that the change moves or alters
         reaches (:func:`_moved_places`), nothing changes, and the advised pairs' pixels lie
-        where their renderers reach. None when a changed renderer may cover rows it did not
-        reach before (a cull or outline of its own it did not draw with)."""
-        moved = _moved_places(self.signature, signature)
+        where their renderers reach. ``kept``: the length of the changed scene's opaque queue
+        when it leaves the analysed step-1 buffers (:meth:`_opaque_kept`; 0: not known to), so
+        only the calls after it can change a pixel. None when a changed renderer may cover rows
+        it did not reach before (a cull or outline of its own it did not draw with)."""
+        moved = _moved_places(self.signature[len(self.opaque):] if kept else self.signature, signature[kept:])
         for (k, *_), c in zip(signature, calls, strict=True):
             if k in moved and not _covered_within(_coverage_key(c), self.place_coverage.get(k, set())):
                 return None

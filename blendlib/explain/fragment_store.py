@@ -32,7 +32,7 @@ import numpy as np
 from ..core.drawlist import DrawCall
 from ..core.merger import FrameBuffers, Outcome
 from ..core.records import FrameObserver, ShadedFragments
-from ..core.vocabulary import LAST_OPAQUE_QUEUE, QUEUE_NUMBERS, Queue
+from ..core.vocabulary import LAST_OPAQUE_QUEUE, QUEUE_NUMBERS, BlendFactor, BlendOp, CompareFunction, Pass, Queue
 
 #: Queues sorted per fragment in step 2: from the first transparent queue up to Overlay − 1.
 FIRST_SORTED_QUEUE = LAST_OPAQUE_QUEUE + 1
@@ -52,6 +52,38 @@ DEPTH_MASK = np.uint32((1 << 24) - 1)
 def is_sorted_queue(queue: int) -> bool:
     """Whether a draw call of this queue is applied per fragment in step 2 (2501–3999)."""
     return FIRST_SORTED_QUEUE <= queue <= LAST_SORTED_QUEUE
+
+
+#: Depth keys of opaque fragments kept at most to prove the opaque queue's order free
+#: (:meth:`FragmentCollector.opaque_order_free`; 8 bytes each): past it the proof is given up.
+ORDER_KEYS = 1 << 23
+
+
+def writes_nearest(p: Pass, hdr: bool) -> bool:
+    """Whether a pass leaves at each pixel what its nearest fragment carries, whatever the
+    buffers held: ZWrite On, ZTest Less or LEqual, no stencil, and its colour the fragment's own —
+    Blend Off, or in 8-bit buffers ``Blend One Zero`` with ``BlendOp Add`` (``s·1 + d·0`` is ``s``
+    exactly for the finite ``d`` of a stored code; an HDR ``d`` may be infinite) — its alpha
+    the same, or ``Max``/``Min`` of the fragment's and the stored one (:func:`alpha_extreme`).
+    Opaque draw calls of such passes, with one ColorMask and one alpha operation, no two of which
+    put a fragment at one pixel with one depth code, leave the same buffers in any order of the
+    calls (:meth:`FragmentCollector.opaque_order_free`)."""
+    if p.stencil or not p.zwrite or p.ztest not in (CompareFunction.Less, CompareFunction.LEqual):
+        return False
+    if not p.blend:
+        return True
+    source = (BlendFactor.One, BlendFactor.Zero, BlendOp.Add)
+    return (not hdr and (p.src_blend, p.dst_blend, p.blend_op) == source
+            and (tuple(p.alpha_factors) == source or alpha_extreme(p) is not None))
+
+
+def alpha_extreme(p: Pass) -> BlendOp | None:
+    """``Max`` or ``Min`` when a pass blends alpha by that operation (the stored alpha becomes
+    the larger or smaller of the fragment's and its own, the factors unused), else None. Written
+    any number of times in any order by fragments of one alpha ``A`` it ends as ``op(A, clear)``
+    (in 8-bit codes too: a code read back and compared again gives itself)."""
+    op = p.alpha_factors[2] if p.blend else None
+    return op if op in (BlendOp.Max, BlendOp.Min) else None
 
 
 def block_rows(width: int) -> int:
@@ -110,7 +142,8 @@ class FragmentCollector(FrameObserver):
     per_sample = True
 
     def __init__(self, calls: list[DrawCall], width: int, height: int, budget: int, *,
-                 first_block: int = 0, overdraw: bool = True, samples: int = 1) -> None:
+                 first_block: int = 0, overdraw: bool = True, samples: int = 1,
+                 order_calls: frozenset[int] = frozenset()) -> None:
         self.samples = int(samples)
         self.width, self.height = int(width) * self.samples, int(height)  # width in samples
         self.rows_per_block = block_rows(self.width)
@@ -142,6 +175,17 @@ class FragmentCollector(FrameObserver):
         self.bytes = 0  # held now: pieces, their tables and the palettes
         self.peak_bytes = 0
         self.call_dtype = np.uint16 if max((c.index for c in calls), default=0) < 65535 else np.int32
+        #: ``order_calls``: opaque draw calls (of :func:`writes_nearest` passes, one sample a pixel)
+        #: whose fragments' (pixel, depth code) keys are kept, per call, for :meth:`opaque_order_free`
+        #: (None once more than :data:`ORDER_KEYS` arrived).
+        self.order_calls = order_calls if self.samples == 1 else frozenset()
+        self.order_keys: dict[int, list[np.ndarray]] | None = {} if self.order_calls else None
+        self.order_count = 0
+        #: The alpha values (clamped as the merger clamps them) the fragments of ``order_calls``
+        #: that blend alpha by Max or Min carried: (lowest, highest), NaN when one was NaN.
+        self.order_alpha: tuple[float, float] | None = None
+        self._extreme_calls = frozenset(c.index for c in calls if c.index in self.order_calls
+                                        and alpha_extreme(c.state) is not None)
 
     #: Draw calls are drawn in batches; only the step-1 snapshot needs the buffers exactly
     #: between two draw calls (:attr:`exact_before`).
@@ -152,7 +196,7 @@ class FragmentCollector(FrameObserver):
         return frozenset() if self.first_after_opaque is None else frozenset((self.first_after_opaque,))
 
     def reads_depth(self, call: DrawCall) -> bool:
-        return call.index in self.sorted_calls
+        return call.index in self.sorted_calls or call.index in self.order_calls
 
     def reads_call(self, call: DrawCall) -> bool:
         return self.overdraw or call.index in self.sorted_calls
@@ -175,6 +219,8 @@ class FragmentCollector(FrameObserver):
         if frags.coverage is not None:
             self._pixel_fragments(call, frags, outcome)
             return
+        if call.index in self.order_calls:
+            self._order_keys(call, frags, outcome)
         wrote = outcome == Outcome.WRITTEN
         all_written = bool(wrote.all())
         if self.overdraw:
@@ -185,6 +231,64 @@ class FragmentCollector(FrameObserver):
         if call.index not in self.sorted_calls:
             return
         self._keep(call, frags, wrote, all_written)
+
+    def _order_keys(self, call: DrawCall, frags: ShadedFragments, outcome: np.ndarray) -> None:
+        """Keep ``pixel << 24 | depth code`` of the fragments of an opaque call that passed the
+        alpha test (those discarded write nothing in any order)."""
+        if self.order_keys is None:
+            return
+        pix, depth = frags.pix, frags.depth
+        reached = outcome != Outcome.ALPHA_TEST
+        if not reached.all():
+            pix, depth = pix[reached], depth[reached]
+        keys = np.left_shift(pix, 24, dtype=np.int64)
+        keys |= depth
+        span = None
+        if call.index in self._extreme_calls and keys.size:
+            alpha = frags.colors()[:, 3]
+            alpha = np.clip(alpha if reached.all() else alpha[reached], 0.0, 1.0)
+            span = (float(alpha.min()), float(alpha.max())) if not np.isnan(alpha).any() else (np.nan, np.nan)
+        with self.lock:
+            if self.order_keys is None:
+                return
+            if span is not None:
+                old = self.order_alpha or span
+                self.order_alpha = (min(old[0], span[0]), max(old[1], span[1]))
+                if np.isnan(span[0]):
+                    self.order_alpha = (np.nan, np.nan)
+            self.order_count += keys.size
+            if self.order_count > ORDER_KEYS:
+                self.order_keys = None
+                return
+            self.order_keys.setdefault(call.index, []).append(keys)
+
+    def opaque_order_free(self) -> bool:
+        """Whether the opaque calls of ``order_calls`` leave the same buffers in any order: at no
+        pixel do two of them put a fragment that passed the alpha test at the nearest depth code
+        (the one ``step1`` holds: ZWrite On, Less or LEqual keep the nearest). Then that depth is
+        one call's; every pass of :func:`writes_nearest` lets that call's first fragment there
+        through and nothing of another call after it, whichever comes first, the call's own
+        fragments keep their order, and the pixels written are those where it passes, in any
+        order. Passes that blend alpha by Max or Min (:func:`alpha_extreme`) need one alpha value
+        over all their fragments. False when no keys were kept (none asked for, more than
+        :data:`ORDER_KEYS`) or there is no ``step1``. The keys are freed."""
+        kept, self.order_keys = self.order_keys, None
+        if kept is None or self.step1 is None:
+            return False
+        if self.order_alpha is not None and not self.order_alpha[0] == self.order_alpha[1]:  # NaN: not equal
+            return False
+        nearest = self.step1.depth
+        owner = np.full(nearest.size, -1, dtype=np.int32)  # per pixel: a call with a fragment at the nearest depth
+        for call, parts in kept.items():
+            keys = np.concatenate(parts)
+            pix = np.right_shift(keys, 24)
+            at_nearest = np.take(nearest, pix) == (keys & np.int64(DEPTH_MASK))
+            pix = pix[at_nearest]
+            before = np.take(owner, pix)
+            if np.any((before >= 0) & (before != call)):
+                return False
+            owner[pix] = call
+        return True
 
     def _pixel_fragments(self, call: DrawCall, frags: ShadedFragments, outcome: np.ndarray) -> None:
         """MSAA pixel fragments (``outcome`` (M, N) per sample): the overdraw counts per pixel

@@ -35,13 +35,16 @@ from ..core.merger import FrameBuffers
 from ..core.pipeline import render_scene
 from ..core.records import Frame, RenderCancelled
 from ..core.scene import DrawScene, SceneError, validate_scene
+from ..core.vocabulary import LAST_OPAQUE_QUEUE
 from . import layering
 from .fragment_store import (
     FIRST_SORTED_QUEUE,
     LAST_SORTED_QUEUE,
     FragmentCollector,
+    alpha_extreme,
     is_sorted_queue,
     pixel_ranges,
+    writes_nearest,
 )
 from .progress import Progress
 
@@ -186,6 +189,10 @@ class Analysis:
     #: Per draw call index, the buffer rows ``(y0, y1)`` (from the bottom, y1 exclusive) its
     #: rasterised fragments reached; calls that rasterised nothing are absent.
     call_rows: dict[int, tuple[int, int]] = field(default_factory=dict, repr=False)
+    #: With ``keep_step1``: whether the draw calls of queue ≤ 2500 leave ``step1`` in any order
+    #: (:meth:`.fragment_store.FragmentCollector.opaque_order_free`): advice then resumes a
+    #: reordered opaque queue from ``step1`` instead of drawing it. False when not proved.
+    opaque_order_free: bool = field(default=False, repr=False)
 
     @property
     def step(self) -> float:
@@ -366,10 +373,17 @@ def analyze(
     for c in calls:
         renderer_of_call[c.index] = rend_index[(c.renderer.name, c.renderer.slot)]
     samples = int(scene.msaa)
-    collector = counts = FragmentCollector(calls, width, height, budget, samples=samples)
+    opaque = [c for c in calls if c.queue <= LAST_OPAQUE_QUEUE]
+    order_calls = frozenset()
+    if (keep_step1 and samples == 1 and len(opaque) > 1
+            and len({(c.state.color_mask, alpha_extreme(c.state)) for c in opaque}) == 1
+            and all(writes_nearest(c.state, bool(scene.hdr)) for c in opaque)):
+        order_calls = frozenset(c.index for c in opaque)  # advice may reorder them: is their order free?
+    collector = counts = FragmentCollector(calls, width, height, budget, samples=samples, order_calls=order_calls)
     call_rows = collector.call_rows
     frame = render_scene(scene, observer=collector, workers=workers, progress=bar.part(0.0, 0.4),
                          should_cancel=should_cancel, calls=calls)
+    opaque_order_free = collector.opaque_order_free()
     inverted = np.zeros(width * height, dtype=np.uint16)
     pair_counts: dict[int, int] = {}
     step1 = error = None
@@ -420,4 +434,4 @@ def analyze(
     bar(1.0)
     return Analysis(frame=frame, reference=reference, error=error, overdraw=overdraw,
                     inverted=inverted.reshape(height, width)[::-1].copy(), inversions=inversions,
-                    hdr=bool(scene.hdr), step1=step1, call_rows=call_rows)
+                    hdr=bool(scene.hdr), step1=step1, call_rows=call_rows, opaque_order_free=opaque_order_free)

@@ -287,3 +287,39 @@ def test_an_observer_of_some_calls_is_told_of_theirs_alone_and_the_others_draw_a
     assert all(flag == (index in read) for index, flag, _ in observed)
     assert any(early for index, _, early in observed if index not in read)
     assert not any(early for index, _, early in observed if index in read)
+
+
+def _written_pixels(recorder, index):
+    pix = np.concatenate(recorder.pixels.get(index, [np.zeros(0, np.int64)]))
+    out = np.concatenate(recorder.outcomes.get(index, [np.zeros(0, np.int8)]))
+    return pix[out == Outcome.WRITTEN]
+
+
+def test_an_observer_of_written_fragments_lets_the_calls_it_reads_test_depth_early(monkeypatch):
+    """``reads_hidden`` False (it reads written fragments only): the calls it reads still drop the
+    fragments that fail the depth test against the depth stored when their chunk is shaded (the
+    early depth test), unreported; it is told of every written fragment, at the same pixels and in
+    the same order, as an observer of every fragment is. The frame is the plain render's."""
+    from blendlib.core import fragment
+
+    monkeypatch.setattr(fragment, "EARLY_DROP_SHARE", 1 << 30)  # drop whatever fails, however few
+    scene = seeded_scene(27)
+
+    class Written(Recorder):
+        def reads_hidden(self, call):
+            return False
+
+    every, written = Recorder(), Written()
+    plain = render_scene(scene, workers=2)
+    render_scene(scene, observer=every, workers=1)
+    frame = render_scene(scene, observer=written, workers=1)
+    assert _frame_equal(frame, plain)
+    dropped = 0
+    for index in every.outcomes:
+        e, w = every.counts(index), written.counts(index)
+        assert w[Outcome.WRITTEN] == e[Outcome.WRITTEN] and w[Outcome.STENCIL] == e[Outcome.STENCIL]
+        assert w[Outcome.DEPTH] <= e[Outcome.DEPTH] and w[Outcome.ALPHA_TEST] <= e[Outcome.ALPHA_TEST]
+        dropped += e[Outcome.DEPTH] - w[Outcome.DEPTH]
+
+        assert np.array_equal(_written_pixels(written, index), _written_pixels(every, index)), index
+    assert dropped > 0
