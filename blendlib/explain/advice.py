@@ -27,10 +27,11 @@ draw calls from there on; only those are rendered, once per distinct draw list (
 shared by several pairs is rendered once; a draw list equal to the original's is not rendered
 at all). A candidate that reorders the opaque queue resumes from them too when the analysis
 proved that queue's order free (:attr:`.sorted_reference.Analysis.opaque_order_free`); else the
-reordered queue is drawn (once for the candidates that share it). Only the band of rows that
-the renderers it moves or alters after the opaque queue and the advised pairs' renderers reached
-in the analysis is drawn (:meth:`_Measurer.band`; elsewhere every pixel sees the same fragments
-in the same order). The pairs' inversions are counted as that render goes
+reordered queue is drawn (once for the candidates that share it). Only the band of rows where a
+pixel can change is drawn (:meth:`_Measurer.band`): the boxes that the renderers it alters after
+the opaque queue reached in the analysis, where the boxes of two renderers it orders otherwise
+meet, and where those of each advised pair meet; elsewhere every pixel sees the same fragments
+in the same order. The pairs' inversions are counted as that render goes
 (:class:`_PairWatch`), and the differing pixels against the original reference, computed again
 only where the colour changed. The numbers equal those of a full analysis of the changed scene
 (tests/explain/test_advice.py checks it on random scenes and on scenes in strips).
@@ -172,9 +173,10 @@ class _PairWatch(FrameObserver):
     fragment of A applied before a farther written fragment of B (draw calls of queues 2501–3999
     that write colour, as the analysis counts them).
 
-    Per front renderer A: ``nearest[A]`` (H*W,) int32, the smallest depth code of A's written
-    fragments applied so far at each pixel (``NONE`` before any); per pair a (H*W,) bool image of
-    its inverted pixels. A fragment of B inverts the pair where ``nearest[A]`` is below its depth
+    Per front renderer A: ``nearest[A]`` (P,) int32, the smallest depth code of A's written
+    fragments applied so far at each watched pixel (``pixels`` P from window pixel ``first``: a
+    band's rows, or the frame; ``NONE`` before any); per pair a (P,) bool image of its inverted
+    pixels. A fragment of B inverts the pair where ``nearest[A]`` is below its depth
     (fragments of one chunk of A itself: those before it in the chunk count too). Screen bands
     own disjoint pixels, so threads never touch the same entries.
 
@@ -185,9 +187,11 @@ class _PairWatch(FrameObserver):
     per_sample = True
     NONE = np.int32(1 << 30)
 
-    def __init__(self, pairs: list[tuple[Key, Key]], calls: list[DrawCall], pixels: int, samples: int = 1) -> None:
+    def __init__(self, pairs: list[tuple[Key, Key]], calls: list[DrawCall], pixels: int, samples: int = 1,
+                 first: int = 0) -> None:
         self.pairs = pairs
         self.samples = int(samples)
+        self.first = int(first)  # the first window pixel watched: a band's images hold its rows alone
         pixels *= self.samples
         fronts = sorted({front for front, _ in pairs})
         self.nearest = {front: np.full(pixels, self.NONE, dtype=np.int32) for front in fronts}
@@ -216,10 +220,12 @@ class _PairWatch(FrameObserver):
             return
         if frags.coverage is not None:  # MSAA: each written sample at its sample index
             which, sample = np.nonzero(written)
-            pix = np.take(frags.pix, which) * self.samples + sample
+            pix = (np.take(frags.pix, which) - self.first) * self.samples + sample
             depth = frags.depth[which, sample].astype(np.int32)
         else:
             pix = frags.pix if written.all() else frags.pix[written]
+            if self.first:
+                pix = pix - self.first
             depth = (frags.depth if written.all() else frags.depth[written]).astype(np.int32)
         if frags.disjoint:
             before = None  # one fragment per pixel in this chunk
@@ -291,28 +297,33 @@ def _covered_within(key: tuple, before: set) -> bool:
     return key in before or (Cull.Off, *key[1:]) in before
 
 
-def _moved_places(old: tuple, new: tuple) -> set[int]:
-    """Renderer places whose calls differ between two draw-list signatures (:func:`_signature`) in
-    state or order: the renderers whose own calls differ, and then, one mismatch at a time, a
-    renderer drawn at another place in the order, until both lists without them are equal."""
-    def by_place(signature: tuple) -> dict[int, list]:
-        out: dict[int, list] = {}
-        for entry in signature:
-            out.setdefault(entry[0], []).append(entry[1:])
-        return out
+def _by_place(signature: tuple) -> dict[int, list]:
+    """A signature's entries (:func:`_signature`) per renderer place, in order."""
+    out: dict[int, list] = {}
+    for entry in signature:
+        out.setdefault(entry[0], []).append(entry[1:])
+    return out
 
-    a, b = by_place(old), by_place(new)
-    moved = {k for k in a.keys() | b.keys() if a.get(k) != b.get(k)}
-    while True:
-        x = [e for e in old if e[0] not in moved]
-        y = [e for e in new if e[0] not in moved]
-        if x == y:
-            return moved
-        i = next(k for k, (e, f) in enumerate(zip(x, y, strict=True)) if e != f)
-        for guess in ({x[i][0]}, {y[i][0]}):
-            if [e for e in x if e[0] not in guess] == [e for e in y if e[0] not in guess]:
-                return moved | guess
-        moved |= {x[i][0], y[i][0]}
+
+def _altered_places(old: tuple, new: tuple) -> set[int]:
+    """Renderer places whose own calls differ between two draw-list signatures: in state, light,
+    material values, number or order."""
+    a, b = _by_place(old), _by_place(new)
+    return {k for k in a.keys() | b.keys() if a.get(k) != b.get(k)}
+
+
+def _interleaving(signature: tuple, x: int, y: int) -> tuple[bool, ...]:
+    """The order of places ``x``'s and ``y``'s calls in a signature: True for each of ``x``'s."""
+    return tuple(entry[0] == x for entry in signature if entry[0] == x or entry[0] == y)
+
+
+def _overlap(a: tuple[int, int, int, int] | None, b: tuple[int, int, int, int] | None) -> tuple[int, int] | None:
+    """The rows ``(y0, y1)`` of the intersection of two boxes ``(y0, y1, x0, x1)``, None when it is
+    empty or either box is None."""
+    if a is None or b is None:
+        return None
+    y0, y1 = max(a[0], b[0]), min(a[1], b[1])
+    return (y0, y1) if y0 < y1 and max(a[2], b[2]) < min(a[3], b[3]) else None
 
 
 class _Measurer:
@@ -328,18 +339,20 @@ class _Measurer:
         self.opaque = self._opaque_prefix(self.signature, self.calls)
         self.cache: dict[tuple, tuple[dict, int]] = {}
         self._step1 = analysis.step1
-        # Per renderer place (the signature's first field), the rows its calls' fragments reached
-        # and how they were covered.
-        self.place_rows: dict[int, tuple[int, int]] = {}
+        # Per renderer place (the signature's first field), the box of rows and columns its
+        # calls' fragments reached and how they were covered.
+        self.place_boxes: dict[int, tuple[int, int, int, int]] = {}
         self.place_coverage: dict[int, set] = {}
         for (k, *_), c in zip(self.signature, self.calls, strict=True):
             self.place_coverage.setdefault(k, set()).add(_coverage_key(c))
-            rows = analysis.call_rows.get(c.index)
-            if rows is not None:
-                old = self.place_rows.get(k, rows)
-                self.place_rows[k] = (min(old[0], rows[0]), max(old[1], rows[1]))
+            box = analysis.call_boxes.get(c.index)
+            if box is not None:
+                old = self.place_boxes.get(k, box)
+                self.place_boxes[k] = (min(old[0], box[0]), max(old[1], box[1]), min(old[2], box[2]),
+                                       max(old[3], box[3]))
         of_key = {(r.name, r.slot): k for k, r in enumerate(scene.renderers)}
-        self.pair_places = {of_key[key] for pair in pairs for key in pair if key in of_key}
+        self.pair_places = [(of_key[front], of_key[behind]) for front, behind in pairs
+                            if front in of_key and behind in of_key]
         #: Opaque prefixes other than the analysed one, by how many candidates draw each
         #: (:meth:`expect`), and the buffers after those drawn by more than one.
         self.prefix_counts: dict[tuple, int] = {}
@@ -403,7 +416,8 @@ class _Measurer:
         if band is not None and band[0] >= band[1]:  # nothing it moves is drawn: the frame as analysed
             self.cache[signature] = self.as_analysed()
             return self.cache[signature]
-        watch = _PairWatch(self.pairs, calls, width * height, int(changed.msaa))
+        rows = (0, height) if band is None else band
+        watch = _PairWatch(self.pairs, calls, width * (rows[1] - rows[0]), int(changed.msaa), rows[0] * width)
         resume = None
         last = max((c.index for c in calls if c.queue <= LAST_OPAQUE_QUEUE), default=0)
         if kept:  # its opaque queue leaves the analysed step-1 buffers
@@ -429,17 +443,28 @@ class _Measurer:
         """The buffer rows a changed scene's frame can differ in from the analysed one, with every
         advised pair's inverted pixels: ``(y0, y1)`` (empty when y0 >= y1), or None for the whole
         frame. A pixel's colour and each pair's inversion there depend only on the calls whose
-        fragments reach it, in their order: where no renderer that the change moves or alters
-        reaches (:func:`_moved_places`), nothing changes, and the advised pairs' pixels lie
-        where their renderers reach. ``kept``: the length of the changed scene's opaque queue
-        when it leaves the analysed step-1 buffers (:meth:`_opaque_kept`; 0: not known to), so
-        only the calls after it can change a pixel. None when a changed renderer may cover rows
-        it did not reach before (a cull or outline of its own it did not draw with)."""
-        moved = _moved_places(self.signature[len(self.opaque):] if kept else self.signature, signature[kept:])
+        fragments reach it, in their order. So it can change only within the box of a renderer
+        whose own calls the change alters (:func:`_altered_places`), or where the boxes of two
+        renderers whose calls it orders otherwise meet (at a pixel only one of them reaches,
+        their order decides nothing); and an advised pair can be inverted only where the boxes of
+        its renderers meet. ``kept``: the length of the changed scene's opaque queue when it
+        leaves the analysed step-1 buffers (:meth:`_opaque_kept`; 0: not known to), so only the
+        calls after it can change a pixel. None when an altered renderer may cover pixels it did
+        not reach before (a cull or outline of its own it did not draw with)."""
+        old, new = (self.signature[len(self.opaque):] if kept else self.signature), signature[kept:]
+        altered = _altered_places(old, new)
         for (k, *_), c in zip(signature, calls, strict=True):
-            if k in moved and not _covered_within(_coverage_key(c), self.place_coverage.get(k, set())):
+            if k in altered and not _covered_within(_coverage_key(c), self.place_coverage.get(k, set())):
                 return None
-        rows = [self.place_rows[k] for k in moved | self.pair_places if k in self.place_rows]
+        boxes = self.place_boxes
+        rows = [boxes[k][:2] for k in altered if k in boxes]
+        rows += [r for a, b in self.pair_places if (r := _overlap(boxes.get(a), boxes.get(b))) is not None]
+        drawn = sorted({entry[0] for entry in new if entry[0] in boxes and entry[0] not in altered})
+        for i, x in enumerate(drawn):
+            for y in drawn[i + 1:]:
+                r = _overlap(boxes[x], boxes[y])
+                if r is not None and _interleaving(old, x, y) != _interleaving(new, x, y):
+                    rows.append(r)
         if not rows:
             return (0, 0)
         y0, y1 = min(r[0] for r in rows), max(r[1] for r in rows)

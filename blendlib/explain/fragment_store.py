@@ -169,9 +169,10 @@ class FragmentCollector(FrameObserver):
         self.palette_size: dict[int, int] = {}
         self.palette_bytes = 0
         self.call_fragments: dict[int, int] = {}  # call → fragments kept (which blend tables pay)
-        #: call → (y0, y1): the buffer rows (from the bottom, y1 exclusive) its fragments reached,
-        #: rasterised ones before any test (with ``overdraw``; what a fix moving the call can change).
-        self.call_rows: dict[int, tuple[int, int]] = {}
+        #: call → (y0, y1, x0, x1): the box of buffer rows (from the bottom) and columns, ends
+        #: exclusive, its fragments reached, rasterised ones before any test (with ``overdraw``;
+        #: what a fix moving the call can change).
+        self.call_boxes: dict[int, tuple[int, int, int, int]] = {}
         self.bytes = 0  # held now: pieces, their tables and the palettes
         self.peak_bytes = 0
         self.call_dtype = np.uint16 if max((c.index for c in calls), default=0) < 65535 else np.int32
@@ -212,10 +213,14 @@ class FragmentCollector(FrameObserver):
     def fragments(self, call: DrawCall, frags: ShadedFragments, outcome: np.ndarray) -> None:
         if self.overdraw and frags.pix.size:
             width = self.width // self.samples
-            lo, hi = int(frags.pix.min()) // width, int(frags.pix.max()) // width + 1
+            first, last = int(frags.pix.min()), int(frags.pix.max())
+            box = (first // width, last // width + 1, first % width, last % width + 1)
+            if box[1] - box[0] > 1:  # more than one row: the columns of every fragment
+                columns = np.remainder(frags.pix, width)
+                box = (box[0], box[1], int(columns.min()), int(columns.max()) + 1)
             with self.lock:
-                old = self.call_rows.get(call.index)
-                self.call_rows[call.index] = (lo, hi) if old is None else (min(old[0], lo), max(old[1], hi))
+                old = self.call_boxes.get(call.index)
+                self.call_boxes[call.index] = box if old is None else _union(old, box)
         if frags.coverage is not None:
             self._pixel_fragments(call, frags, outcome)
             return
@@ -502,6 +507,11 @@ def pixel_ranges(counts: np.ndarray, most: int) -> list[tuple[int, int]]:
         done = int(ends[p1 - 1])
         p0 = p1
     return out
+
+
+def _union(a: tuple[int, int, int, int], b: tuple[int, int, int, int]) -> tuple[int, int, int, int]:
+    """The box (y0, y1, x0, x1) holding boxes ``a`` and ``b``."""
+    return (min(a[0], b[0]), max(a[1], b[1]), min(a[2], b[2]), max(a[3], b[3]))
 
 
 def _count(counts: np.ndarray, pix: np.ndarray, disjoint: bool) -> None:

@@ -186,9 +186,9 @@ class Analysis:
     #: The buffers after the last draw call of queue ≤ 2500, kept for advice (``analyze(...,
     #: keep_step1=True)``), else None: a changed scene's frame resumes from them.
     step1: FrameBuffers | None = field(default=None, repr=False)
-    #: Per draw call index, the buffer rows ``(y0, y1)`` (from the bottom, y1 exclusive) its
-    #: rasterised fragments reached; calls that rasterised nothing are absent.
-    call_rows: dict[int, tuple[int, int]] = field(default_factory=dict, repr=False)
+    #: Per draw call index, the box of buffer rows (from the bottom) and columns ``(y0, y1, x0,
+    #: x1)``, ends exclusive, its rasterised fragments reached; calls that rasterised nothing are absent.
+    call_boxes: dict[int, tuple[int, int, int, int]] = field(default_factory=dict, repr=False)
     #: With ``keep_step1``: whether the draw calls of queue ≤ 2500 leave ``step1`` in any order
     #: (:meth:`.fragment_store.FragmentCollector.opaque_order_free`): advice then resumes a
     #: reordered opaque queue from ``step1`` instead of drawing it. False when not proved.
@@ -380,7 +380,7 @@ def analyze(
             and all(writes_nearest(c.state, bool(scene.hdr)) for c in opaque)):
         order_calls = frozenset(c.index for c in opaque)  # advice may reorder them: is their order free?
     collector = counts = FragmentCollector(calls, width, height, budget, samples=samples, order_calls=order_calls)
-    call_rows = collector.call_rows
+    call_boxes = collector.call_boxes
     frame = render_scene(scene, observer=collector, workers=workers, progress=bar.part(0.0, 0.4),
                          should_cancel=should_cancel, calls=calls)
     opaque_order_free = collector.opaque_order_free()
@@ -434,4 +434,4 @@ def analyze(
     bar(1.0)
     return Analysis(frame=frame, reference=reference, error=error, overdraw=overdraw,
                     inverted=inverted.reshape(height, width)[::-1].copy(), inversions=inversions,
-                    hdr=bool(scene.hdr), step1=step1, call_rows=call_rows, opaque_order_free=opaque_order_free)
+                    hdr=bool(scene.hdr), step1=step1, call_boxes=call_boxes, opaque_order_free=opaque_order_free)

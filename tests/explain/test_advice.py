@@ -205,3 +205,37 @@ def test_advice_equals_advice_measured_by_full_analyses(monkeypatch, seed):
     monkeypatch.setattr(advice._Measurer, "measure", full)
     slow = analyze_and_advise(scene)
     assert fast.advice == slow.advice
+
+
+def test_a_reordering_of_renderers_that_never_meet_is_not_drawn_again():
+    """A sort setting that fixes the pair (A, B) also swaps L and R, which share rows but never a
+    pixel (their boxes do not meet): the band drawn is the pair's rows alone, and every candidate
+    measures as a full analysis of its scene."""
+    cam = sc.screen_camera(40, 40)
+    shared = sc.unlit((0.5, 0.5, 0.9, 0.5), queue=Queue.Transparent, passes=[BLEND], name="Shared")
+
+    def quad(box, z, centre, name):
+        x0, y0, x1, y1 = box
+        return replace(sc.renderer(sc.quad(x0, y0, x1, y1, z=z), shared, name=name),
+                       bounds_center=np.array(centre, dtype=np.float64))
+
+    a = quad((0, 0, 20, 10), 1.0, (0, 0, -9), "A")  # in front, but its sort point is far: drawn first
+    b = quad((5, 0, 25, 10), -1.0, (0, 0, 9), "B")
+    left = quad((0, 20, 10, 30), 0.0, (0, 0, 0), "L")
+    right = quad((25, 20, 35, 30), 0.5, (0, 0, 5), "R")
+    scene = sc.scene(cam, a, b, left, right)
+    original = analyze(scene, keep_step1=True)
+    assert [(inv.front, inv.behind) for inv in original.inversions] == [(("A", 0), ("B", 0))]
+    pairs = [(("A", 0), ("B", 0))]
+    measurer = advice._Measurer(scene, original, pairs, None, None)
+    full = _full_measure(original, pairs)
+    names = lambda s: [c.renderer.name for c in draw_calls(s)]  # noqa: E731
+    swapped = 0
+    for changed in _candidates(scene, original.inversions[0]):
+        assert measurer.measure(changed) == full(changed)
+        order = names(changed)
+        if order.index("L") > order.index("R"):  # drawn L then R before: swapped
+            swapped += 1
+            calls = draw_calls(changed)
+            assert measurer.band(advice._signature(changed, calls), calls, 40) == (0, 10)
+    assert names(scene).index("L") < names(scene).index("R") and swapped >= 1
