@@ -58,7 +58,7 @@ from ..core.pipeline import render_scene
 from ..core.records import FrameObserver, RenderCancelled
 from ..core.scene import DrawScene, Renderer
 from ..core.vocabulary import LAST_OPAQUE_QUEUE, Cull, Material, SortMode, preset, queue_text
-from .fragment_store import is_sorted_queue
+from .fragment_store import is_sorted_queue, union_box
 from .progress import Progress
 from .sorted_reference import ERROR_ROWS, Analysis, analyze, sort_error
 
@@ -312,9 +312,17 @@ def _altered_places(old: tuple, new: tuple) -> set[int]:
     return {k for k in a.keys() | b.keys() if a.get(k) != b.get(k)}
 
 
-def _interleaving(signature: tuple, x: int, y: int) -> tuple[bool, ...]:
-    """The order of places ``x``'s and ``y``'s calls in a signature: True for each of ``x``'s."""
-    return tuple(entry[0] == x for entry in signature if entry[0] == x or entry[0] == y)
+def _positions(signature: tuple) -> dict[int, list[int]]:
+    """Per renderer place, the places of its calls in a signature's order."""
+    out: dict[int, list[int]] = {}
+    for at, entry in enumerate(signature):
+        out.setdefault(entry[0], []).append(at)
+    return out
+
+
+def _interleaving(xs: list[int], ys: list[int]) -> tuple[bool, ...]:
+    """The order of two renderers' calls at places ``xs`` and ``ys``: True for each of the first's."""
+    return tuple(first for _, first in sorted([(at, True) for at in xs] + [(at, False) for at in ys]))
 
 
 def _overlap(a: tuple[int, int, int, int] | None, b: tuple[int, int, int, int] | None) -> tuple[int, int] | None:
@@ -347,9 +355,7 @@ class _Measurer:
             self.place_coverage.setdefault(k, set()).add(_coverage_key(c))
             box = analysis.call_boxes.get(c.index)
             if box is not None:
-                old = self.place_boxes.get(k, box)
-                self.place_boxes[k] = (min(old[0], box[0]), max(old[1], box[1]), min(old[2], box[2]),
-                                       max(old[3], box[3]))
+                self.place_boxes[k] = union_box(self.place_boxes.get(k, box), box)
         of_key = {(r.name, r.slot): k for k, r in enumerate(scene.renderers)}
         self.pair_places = [(of_key[front], of_key[behind]) for front, behind in pairs
                             if front in of_key and behind in of_key]
@@ -438,6 +444,11 @@ class _Measurer:
 
     #: Bands of at least this share of the frame's rows are drawn whole (the band saves little).
     WHOLE_SHARE = 0.9
+    #: Renderers, and pairs of them whose boxes meet, that :meth:`band` checks pair by pair at most;
+    #: beyond, every renderer drawn at another place in the order counts whole (one of each
+    #: pair drawn in another order is).
+    BAND_PLACES = 1024
+    BAND_PAIRS = 4096
 
     def band(self, signature: tuple, calls: list[DrawCall], height: int, kept: int = 0) -> tuple[int, int] | None:
         """The buffer rows a changed scene's frame can differ in from the analysed one, with every
@@ -459,16 +470,29 @@ class _Measurer:
         boxes = self.place_boxes
         rows = [boxes[k][:2] for k in altered if k in boxes]
         rows += [r for a, b in self.pair_places if (r := _overlap(boxes.get(a), boxes.get(b))) is not None]
-        drawn = sorted({entry[0] for entry in new if entry[0] in boxes and entry[0] not in altered})
-        for i, x in enumerate(drawn):
-            for y in drawn[i + 1:]:
-                r = _overlap(boxes[x], boxes[y])
-                if r is not None and _interleaving(old, x, y) != _interleaving(new, x, y):
-                    rows.append(r)
+        rows += self._reordered_rows(old, new, altered)
         if not rows:
             return (0, 0)
         y0, y1 = min(r[0] for r in rows), max(r[1] for r in rows)
         return None if (y1 - y0) >= self.WHOLE_SHARE * height else (y0, y1)
+
+    def _reordered_rows(self, old: tuple, new: tuple, altered: set[int]) -> list[tuple[int, int]]:
+        """The rows where the boxes of two renderers (neither ``altered``) meet that the new
+        signature draws in another order than the old one."""
+        before, after = _positions(old), _positions(new)
+        drawn = sorted(k for k in after if k in self.place_boxes and k not in altered)
+        box = np.array([self.place_boxes[k] for k in drawn], dtype=np.int64).reshape(-1, 4)
+        if len(drawn) <= self.BAND_PLACES:
+            y0 = np.maximum(box[:, None, 0], box[None, :, 0])
+            y1 = np.minimum(box[:, None, 1], box[None, :, 1])
+            meet = np.triu((y0 < y1) & (np.maximum(box[:, None, 2], box[None, :, 2])
+                                         < np.minimum(box[:, None, 3], box[None, :, 3])), 1)
+            first, second = np.nonzero(meet)
+            if first.size <= self.BAND_PAIRS:
+                return [(int(y0[i, j]), int(y1[i, j])) for i, j in zip(first.tolist(), second.tolist(), strict=True)
+                        if _interleaving(before[drawn[i]], before[drawn[j]])
+                        != _interleaving(after[drawn[i]], after[drawn[j]])]
+        return [self.place_boxes[k][:2] for k in drawn if before.get(k) != after[k]]
 
     def differing(self, color: np.ndarray, top: int = 0) -> int:
         """Pixels of a changed scene's frame whose sort error exceeds one step, given its rows

@@ -220,7 +220,7 @@ class FragmentCollector(FrameObserver):
                 box = (box[0], box[1], int(columns.min()), int(columns.max()) + 1)
             with self.lock:
                 old = self.call_boxes.get(call.index)
-                self.call_boxes[call.index] = box if old is None else _union(old, box)
+                self.call_boxes[call.index] = box if old is None else union_box(old, box)
         if frags.coverage is not None:
             self._pixel_fragments(call, frags, outcome)
             return
@@ -509,7 +509,7 @@ def pixel_ranges(counts: np.ndarray, most: int) -> list[tuple[int, int]]:
     return out
 
 
-def _union(a: tuple[int, int, int, int], b: tuple[int, int, int, int]) -> tuple[int, int, int, int]:
+def union_box(a: tuple[int, int, int, int], b: tuple[int, int, int, int]) -> tuple[int, int, int, int]:
     """The box (y0, y1, x0, x1) holding boxes ``a`` and ``b``."""
     return (min(a[0], b[0]), max(a[1], b[1]), min(a[2], b[2]), max(a[3], b[3]))
 
