@@ -76,6 +76,7 @@ def render_scene(
     out: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
     memo: SceneMemo | None = None,
     calls: list[DrawCall] | None = None,
+    output: bool = True,
 ) -> Frame:
     """Render a draw scene exactly as Unity's built-in pipeline would (docs/pipeline.md).
 
@@ -102,6 +103,8 @@ def render_scene(
     ``calls``: the scene's draw list, when the caller already has it
     (:func:`~blendlib.core.drawlist.draw_calls` of this very scene; the tools that explain a
     frame need it too).
+    ``output=False``: the buffers are not converted into the Frame's arrays (its ``color``,
+    ``depth`` and ``stencil`` are None): for an observer that reads them at its last ``draw_end``.
     Raises :class:`blendlib.core.scene.SceneError` (one line) for input that cannot render.
     """
     keep_setups = memo is not None  # a memo of this render alone would only hold setups to its end
@@ -142,7 +145,7 @@ def render_scene(
                          reads_hidden=None if observer is None else observer.reads_hidden)
     try:
         _draw_all(frame, todo, should_cancel, progress, observer)
-        color, depth, stencil = buf.output(pool, workers, band, out)
+        color, depth, stencil = buf.output(pool, workers, band, out) if output else (None, None, None)
     finally:
         if pool is not None:
             pool.shutdown(wait=True, cancel_futures=True)

@@ -37,6 +37,9 @@ class Frame:
     - ``warnings``: one line each (skipped triangles, empty meshes, missing images).
     - ``encoded``: whether ``color``'s rgb is sRGB-encoded (Gamma mode, and Linear LDR);
       False only for Linear HDR, whose buffer holds linear values.
+
+    ``color``, ``depth`` and ``stencil`` are None from a render asked for no output
+    (:func:`.pipeline.render_scene`'s ``output=False``).
     """
 
     color: np.ndarray

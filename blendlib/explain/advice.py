@@ -192,6 +192,7 @@ class _PairWatch(FrameObserver):
         self.pairs = pairs
         self.samples = int(samples)
         self.first = int(first)  # the first window pixel watched: a band's images hold its rows alone
+        self.buffers: FrameBuffers | None = None
         pixels *= self.samples
         fronts = sorted({front for front, _ in pairs})
         self.nearest = {front: np.full(pixels, self.NONE, dtype=np.int32) for front in fronts}
@@ -254,6 +255,9 @@ class _PairWatch(FrameObserver):
             else:  # the chunk's nearest at each of its pixels
                 last = np.flatnonzero(np.append(start[1:], True))
                 near[pix[last]] = np.minimum(near[pix[last]], np.minimum(before[last], depth[last]))
+
+    def draw_end(self, call, buffers, triangles) -> None:
+        self.buffers = buffers  # after the last call: the changed frame's buffers
 
     def counts(self) -> dict[tuple[Key, Key], int]:
         return {pair: int(np.count_nonzero(hit)) for pair, hit in self.inverted.items()}
@@ -432,9 +436,16 @@ class _Measurer:
             if prefix not in self.prefix_step1:
                 self.prefix_step1[prefix] = self._opaque_drawn(changed, calls)
             resume = (self.prefix_step1[prefix], last)
+        codes = self.analysis.final_codes is not None  # the changed pixels found by their codes
         frame = render_scene(changed, resume=resume, observer=watch, workers=self.workers,
-                             should_cancel=self.should_cancel, calls=calls, band=band)
-        result = watch.counts(), self.differing(frame.color, 0 if band is None else height - band[1])
+                             should_cancel=self.should_cancel, calls=calls, band=band, output=not codes)
+        if codes and watch.buffers is not None:
+            differing = self.differing_codes(watch.buffers.color, rows)
+        else:
+            differing = self.differing(frame.color if frame.color is not None else render_scene(
+                changed, resume=resume, workers=self.workers, calls=calls, band=band).color,
+                0 if band is None else height - band[1])
+        result = watch.counts(), differing
         self.cache[signature] = result
         return result
 
@@ -494,6 +505,33 @@ class _Measurer:
                         != _interleaving(after[drawn[i]], after[drawn[j]])]
         return [self.place_boxes[k][:2] for k in drawn if before.get(k) != after[k]]
 
+    def differing_codes(self, codes: np.ndarray, rows: tuple[int, int]) -> int:
+        """:meth:`differing` of a changed 8-bit frame from its buffers' colour codes ``codes``
+        (H*W, 4) uint8 (buffer rows from the bottom; rows ``[y0, y1)`` drawn, the others the
+        analysed frame's): the pixels whose codes differ from the analysed frame's, their colours
+        made as the frame's are (code / 255 in float32)."""
+        original = self.analysis
+        width = original.frame.color.shape[1]
+        y0, y1 = rows
+        new = codes.view(np.uint32).reshape(-1)[y0 * width:y1 * width]
+        old = original.final_codes.view(np.uint32).reshape(-1)[y0 * width:y1 * width]
+        changed = np.flatnonzero(new != old) + y0 * width  # buffer pixels
+        if changed.size == 0:
+            return original.differing
+        color = np.divide(codes[changed], np.float32(255.0), dtype=np.float32)
+        height = original.frame.color.shape[0]
+        return self._differing_at(color, (height - 1 - changed // width) * width + changed % width)
+
+    def _differing_at(self, color: np.ndarray, at: np.ndarray) -> int:
+        """The differing pixels of the analysed frame with the colours ``color`` (K, 4) float32
+        at pixels ``at`` (K,) (top row first) instead of its own."""
+        original = self.analysis
+        flat = (-1, 1, 4)
+        now = sort_error(color.reshape(flat), original.reference.reshape(flat)[at], original.hdr)
+        before = original.error.reshape(-1)[at]
+        return (original.differing - int(np.count_nonzero(before > original.step))
+                + int(np.count_nonzero(now > original.step)))
+
     def differing(self, color: np.ndarray, top: int = 0) -> int:
         """Pixels of a changed scene's frame whose sort error exceeds one step, given its rows
         ``[top, top + h)`` (counted from the top) as ``color`` (h, W, 4) float32, the other rows
@@ -514,12 +552,7 @@ class _Measurer:
         changed = np.concatenate(changed)
         if changed.size == 0:
             return original.differing
-        flat = (-1, 1, 4)
-        at = changed + top * width  # in the whole frame
-        now = sort_error(color.reshape(flat)[changed], original.reference.reshape(flat)[at], original.hdr)
-        before = original.error.reshape(-1)[at]
-        return (original.differing - int(np.count_nonzero(before > original.step))
-                + int(np.count_nonzero(now > original.step)))
+        return self._differing_at(color.reshape(-1, 4)[changed], changed + top * width)
 
 
 def _cleared(scene: DrawScene) -> FrameBuffers:

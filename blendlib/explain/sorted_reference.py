@@ -68,7 +68,8 @@ WORK_FRAGMENTS = 1 << 19
 PIXEL_BYTES = 96
 PIXEL_BYTES_HDR = 128
 #: With advice: a pristine copy of the step-1 buffers, a changed frame, its buffers and error,
-#: and the pairs' images (:class:`blendlib.explain.advice._PairWatch`).
+#: and the pairs' images (:class:`blendlib.explain.advice._PairWatch`); in 8-bit buffers the
+#: analysed frame's codes (4) instead of a changed frame's arrays (21).
 ADVICE_PIXEL_BYTES = 96
 #: With MSAA, per pixel and sample beyond the first: the three sets of buffers above hold every
 #: sample (colour 4, HDR 16, depth 4 and stencil 1 bytes each; :class:`.merger.FrameBuffers`);
@@ -193,6 +194,9 @@ class Analysis:
     #: (:meth:`.fragment_store.FragmentCollector.opaque_order_free`): advice then resumes a
     #: reordered opaque queue from ``step1`` instead of drawing it. False when not proved.
     opaque_order_free: bool = field(default=False, repr=False)
+    #: With ``keep_step1``, 8-bit buffers and one sample: the frame's stored colour codes (H*W, 4)
+    #: uint8 (buffer rows from the bottom): advice finds a changed frame's changed pixels by them.
+    final_codes: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def step(self) -> float:
@@ -421,6 +425,9 @@ def analyze(
         else:
             reference, error = reference_from_codes(frame.color, counts.final, buf)
         del buf
+    final_codes = None
+    if keep_step1 and not scene.hdr and samples == 1 and counts.final is not None:
+        final_codes = counts.final.color  # the frame's own buffers: not written again
     overdraw = np.empty((height, width, 2), dtype=np.uint32)
     overdraw[..., 0] = counts.rasterised.reshape(height, width)[::-1]
     np.subtract(counts.rasterised, counts.unwritten, out=counts.unwritten)
@@ -434,4 +441,5 @@ def analyze(
     bar(1.0)
     return Analysis(frame=frame, reference=reference, error=error, overdraw=overdraw,
                     inverted=inverted.reshape(height, width)[::-1].copy(), inversions=inversions,
-                    hdr=bool(scene.hdr), step1=step1, call_boxes=call_boxes, opaque_order_free=opaque_order_free)
+                    hdr=bool(scene.hdr), step1=step1, call_boxes=call_boxes, opaque_order_free=opaque_order_free,
+                    final_codes=final_codes)
