@@ -323,3 +323,24 @@ def test_an_observer_of_written_fragments_lets_the_calls_it_reads_test_depth_ear
 
         assert np.array_equal(_written_pixels(written, index), _written_pixels(every, index)), index
     assert dropped > 0
+
+
+def test_a_render_without_output_leaves_the_buffers_to_the_observer():
+    """``output=False``: the Frame's arrays are not made; the buffers the observer is handed after
+    the last draw call hold the frame a plain render outputs."""
+    scene = seeded_scene(5)
+
+    class Last(FrameObserver):
+        per_sample = True
+        buffers = None
+
+        def draw_end(self, call, buffers, triangles):
+            self.buffers = buffers
+
+    last = Last()
+    frame = render_scene(scene, observer=last, output=False)
+    assert frame.color is None and frame.depth is None and frame.stencil is None
+    plain = render_scene(scene)
+    color, depth, stencil = last.buffers.output()
+    assert np.array_equal(color, plain.color) and np.array_equal(depth, plain.depth)
+    assert np.array_equal(stencil, plain.stencil)
