@@ -368,16 +368,25 @@ class _Measurer:
         self.prefix_counts: dict[tuple, int] = {}
         self.prefix_step1: dict[tuple, FrameBuffers] = {}
         self._opaque_counts: Counter | None = None
+        self._draw_lists: dict[int, tuple[DrawScene, list[DrawCall], tuple]] = {}
 
     def expect(self, scenes: list[DrawScene]) -> None:
         """Note the changed scenes about to be measured: a reordered opaque queue that several of
         them share (sort settings reorder it, SPEC: one distance for both) is drawn once, and each
         of them resumes from its buffers."""
         for changed in scenes:
-            calls = draw_calls(changed)
-            prefix = self._opaque_prefix(_signature(changed, calls), calls)
+            calls, signature = self._draw_list(changed)
+            prefix = self._opaque_prefix(signature, calls)
             if not self._opaque_kept(prefix):
                 self.prefix_counts[prefix] = self.prefix_counts.get(prefix, 0) + 1
+
+    def _draw_list(self, changed: DrawScene) -> tuple[list[DrawCall], tuple]:
+        """A changed scene's draw calls and their signature, made once per scene object."""
+        hit = self._draw_lists.get(id(changed))
+        if hit is None or hit[0] is not changed:
+            calls = draw_calls(changed)
+            hit = self._draw_lists[id(changed)] = (changed, calls, _signature(changed, calls))  # keeps it alive
+        return hit[1], hit[2]
 
     @staticmethod
     def _opaque_prefix(signature: tuple, calls: list[DrawCall]) -> tuple:
@@ -413,8 +422,7 @@ class _Measurer:
         """(inverted pixels per advised pair, pixels differing from the original reference)."""
         if self.should_cancel is not None and self.should_cancel():
             raise RenderCancelled("render cancelled")
-        calls = draw_calls(changed)
-        signature = _signature(changed, calls)
+        calls, signature = self._draw_list(changed)
         if signature == self.signature:
             return self.as_analysed()
         if signature in self.cache:
