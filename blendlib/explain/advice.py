@@ -412,9 +412,8 @@ class _Measurer:
 
     def _opaque_drawn(self, scene: DrawScene, calls: list[DrawCall]) -> FrameBuffers:
         """``scene``'s buffers after its last draw call of queue ≤ 2500 (``calls``: its draw list)."""
-        last = max((c.index for c in calls if c.queue <= LAST_OPAQUE_QUEUE), default=0)
         snapshot = _Snapshot()
-        render_scene(scene, until_draw=last, observer=snapshot, workers=self.workers,
+        render_scene(scene, until_draw=_last_opaque(calls), observer=snapshot, workers=self.workers,
                      should_cancel=self.should_cancel, calls=calls)
         return snapshot.buffers if snapshot.buffers is not None else _cleared(scene)
 
@@ -437,7 +436,7 @@ class _Measurer:
         rows = (0, height) if band is None else band
         watch = _PairWatch(self.pairs, calls, width * (rows[1] - rows[0]), int(changed.msaa), rows[0] * width)
         resume = None
-        last = max((c.index for c in calls if c.queue <= LAST_OPAQUE_QUEUE), default=0)
+        last = _last_opaque(calls)
         if kept:  # its opaque queue leaves the analysed step-1 buffers
             resume = (self.step1(), last) if last else None
         elif last and self.prefix_counts.get(prefix, 0) > 1:
@@ -447,12 +446,11 @@ class _Measurer:
         codes = self.analysis.final_codes is not None  # the changed pixels found by their codes
         frame = render_scene(changed, resume=resume, observer=watch, workers=self.workers,
                              should_cancel=self.should_cancel, calls=calls, band=band, output=not codes)
-        if codes and watch.buffers is not None:
-            differing = self.differing_codes(watch.buffers.color, rows)
+        if codes:  # with no draw call after the resumed ones, the frame is the resumed buffers
+            buffers = watch.buffers if watch.buffers is not None else resume[0]
+            differing = self.differing_codes(buffers.color, rows)
         else:
-            differing = self.differing(frame.color if frame.color is not None else render_scene(
-                changed, resume=resume, workers=self.workers, calls=calls, band=band).color,
-                0 if band is None else height - band[1])
+            differing = self.differing(frame.color, 0 if band is None else height - band[1])
         result = watch.counts(), differing
         self.cache[signature] = result
         return result
@@ -561,6 +559,11 @@ class _Measurer:
         if changed.size == 0:
             return original.differing
         return self._differing_at(color.reshape(-1, 4)[changed], changed + top * width)
+
+
+def _last_opaque(calls: list[DrawCall]) -> int:
+    """The index of the last draw call of queue ≤ 2500 (0: none)."""
+    return max((c.index for c in calls if c.queue <= LAST_OPAQUE_QUEUE), default=0)
 
 
 def _cleared(scene: DrawScene) -> FrameBuffers:

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from blendlib.core.drawlist import draw_calls
-from blendlib.core.vocabulary import Cull, Queue
+from blendlib.core.vocabulary import Cull, Pass, Queue
 from blendlib.explain import advice
 from blendlib.explain.advice import analyze_and_advise, with_prepass, with_queue_offset
 from blendlib.explain.sorted_reference import analyze, sort_error
@@ -244,3 +244,20 @@ def test_a_reordering_of_renderers_that_never_meet_is_not_drawn_again(monkeypatc
             expected = (0, 10) if pairs_checked else (0, 30)
             assert measurer.band(advice._signature(changed, calls), calls, 40) == expected
     assert names(scene).index("L") < names(scene).index("R") and swapped >= 1
+
+
+def test_a_change_that_leaves_nothing_after_the_opaque_queue_measures_as_a_full_analysis():
+    """A change that makes both renderers of the pair opaque (a VRM Cutout, say), expected twice:
+    its opaque queue is drawn once and resumed from, with no draw call after it, so the frame
+    is those buffers; the measurement equals a full analysis of the changed scene."""
+    scene = _named(_two_quads(False))
+    original = analyze(scene, keep_step1=True)
+    pairs = [(inv.front, inv.behind) for inv in original.inversions]
+    assert pairs == [(("Red", 0), ("Blue", 0))]
+    opaque = replace(scene, renderers=tuple(replace(r, material=replace(r.material, queue=Queue.Geometry,
+                                                                          passes=(Pass(),)))
+                                            for r in scene.renderers))
+    measurer = advice._Measurer(scene, original, pairs, None, None)
+    measurer.expect([opaque, opaque])
+    assert measurer.measure(opaque) == _full_measure(original, pairs)(opaque)
+    assert measurer.prefix_step1  # drawn once, resumed from
