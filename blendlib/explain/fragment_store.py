@@ -86,6 +86,17 @@ def alpha_extreme(p: Pass) -> BlendOp | None:
     return op if op in (BlendOp.Max, BlendOp.Min) else None
 
 
+def opaque_order_calls(calls: list[DrawCall], hdr: bool, samples: int) -> frozenset[int]:
+    """The opaque draw calls (queue ≤ 2500) whose order :meth:`FragmentCollector.opaque_order_free`
+    may prove free: all of them when there are two or more, one sample a pixel, every pass
+    :func:`writes_nearest` and all share one ColorMask and one alpha operation; else none."""
+    opaque = [c for c in calls if c.queue <= LAST_OPAQUE_QUEUE]
+    if (samples != 1 or len(opaque) < 2 or len({(c.state.color_mask, alpha_extreme(c.state)) for c in opaque}) > 1
+            or not all(writes_nearest(c.state, hdr) for c in opaque)):
+        return frozenset()
+    return frozenset(c.index for c in opaque)
+
+
 def block_rows(width: int) -> int:
     """Rows per block for frames ``width`` pixels wide (at least one)."""
     return max(1, BLOCK_PIXELS // max(1, int(width)))
@@ -176,10 +187,10 @@ class FragmentCollector(FrameObserver):
         self.bytes = 0  # held now: pieces, their tables and the palettes
         self.peak_bytes = 0
         self.call_dtype = np.uint16 if max((c.index for c in calls), default=0) < 65535 else np.int32
-        #: ``order_calls``: opaque draw calls (of :func:`writes_nearest` passes, one sample a pixel)
-        #: whose fragments' (pixel, depth code) keys are kept, per call, for :meth:`opaque_order_free`
-        #: (None once more than :data:`ORDER_KEYS` arrived).
-        self.order_calls = order_calls if self.samples == 1 else frozenset()
+        #: ``order_calls``: opaque draw calls (:func:`opaque_order_calls`) whose fragments' (pixel,
+        #: depth code) keys are kept, per call, for :meth:`opaque_order_free` (None once more than
+        #: :data:`ORDER_KEYS` arrived).
+        self.order_calls = order_calls
         self.order_keys: dict[int, list[np.ndarray]] | None = {} if self.order_calls else None
         self.order_count = 0
         #: The alpha values (clamped as the merger clamps them) the fragments of ``order_calls``
@@ -244,23 +255,22 @@ class FragmentCollector(FrameObserver):
             return
         pix, depth = frags.pix, frags.depth
         reached = outcome != Outcome.ALPHA_TEST
-        if not reached.all():
+        every = bool(reached.all())
+        if not every:
             pix, depth = pix[reached], depth[reached]
         keys = np.left_shift(pix, 24, dtype=np.int64)
         keys |= depth
         span = None
         if call.index in self._extreme_calls and keys.size:
             alpha = frags.colors()[:, 3]
-            alpha = np.clip(alpha if reached.all() else alpha[reached], 0.0, 1.0)
-            span = (float(alpha.min()), float(alpha.max())) if not np.isnan(alpha).any() else (np.nan, np.nan)
+            alpha = np.clip(alpha if every else alpha[reached], 0.0, 1.0)
+            span = (alpha.min(), alpha.max())  # NaN when one is NaN
         with self.lock:
             if self.order_keys is None:
                 return
-            if span is not None:
+            if span is not None:  # np.minimum / np.maximum keep a NaN
                 old = self.order_alpha or span
-                self.order_alpha = (min(old[0], span[0]), max(old[1], span[1]))
-                if np.isnan(span[0]):
-                    self.order_alpha = (np.nan, np.nan)
+                self.order_alpha = (float(np.minimum(old[0], span[0])), float(np.maximum(old[1], span[1])))
             self.order_count += keys.size
             if self.order_count > ORDER_KEYS:
                 self.order_keys = None

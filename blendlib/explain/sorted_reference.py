@@ -35,16 +35,14 @@ from ..core.merger import FrameBuffers
 from ..core.pipeline import render_scene
 from ..core.records import Frame, RenderCancelled
 from ..core.scene import DrawScene, SceneError, validate_scene
-from ..core.vocabulary import LAST_OPAQUE_QUEUE
 from . import layering
 from .fragment_store import (
     FIRST_SORTED_QUEUE,
     LAST_SORTED_QUEUE,
     FragmentCollector,
-    alpha_extreme,
     is_sorted_queue,
+    opaque_order_calls,
     pixel_ranges,
-    writes_nearest,
 )
 from .progress import Progress
 
@@ -377,12 +375,8 @@ def analyze(
     for c in calls:
         renderer_of_call[c.index] = rend_index[(c.renderer.name, c.renderer.slot)]
     samples = int(scene.msaa)
-    opaque = [c for c in calls if c.queue <= LAST_OPAQUE_QUEUE]
-    order_calls = frozenset()
-    if (keep_step1 and samples == 1 and len(opaque) > 1
-            and len({(c.state.color_mask, alpha_extreme(c.state)) for c in opaque}) == 1
-            and all(writes_nearest(c.state, bool(scene.hdr)) for c in opaque)):
-        order_calls = frozenset(c.index for c in opaque)  # advice may reorder them: is their order free?
+    # Advice may reorder the opaque calls: is their order free?
+    order_calls = opaque_order_calls(calls, bool(scene.hdr), samples) if keep_step1 else frozenset()
     collector = counts = FragmentCollector(calls, width, height, budget, samples=samples, order_calls=order_calls)
     call_boxes = collector.call_boxes
     frame = render_scene(scene, observer=collector, workers=workers, progress=bar.part(0.0, 0.4),
