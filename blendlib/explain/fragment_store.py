@@ -40,6 +40,8 @@ LAST_SORTED_QUEUE = QUEUE_NUMBERS[Queue.Overlay] - 1
 #: Pixels per storage block at most (whole rows; one row when a row is wider): a pixel's place in
 #: its block fits 16 bits, and a block is the unit of storage, of eviction and of processing.
 BLOCK_PIXELS = 1 << 15
+#: Pixels of the blocks processed together as one unit at most (:meth:`FragmentCollector.units`).
+UNIT_PIXELS = 1 << 20
 #: Bytes kept per fragment (local pixel 2, depth and written 4, draw call 2, colour key 4).
 FRAGMENT_BYTES = 12
 #: Bytes of a colour (RGBA float64) in a palette or a colour table.
@@ -107,7 +109,8 @@ class Block:
     """The kept fragments of one block (the arrays as stored, module doc), in the order the frame
     applied them at each pixel.
 
-    ``local`` (N,) uint16; ``depth_written`` (N,) uint32 (:data:`DEPTH_MASK`, :data:`WRITTEN_BIT`);
+    ``local`` (N,) uint16 (int32 in a unit of more than 65536 pixels); ``depth_written`` (N,)
+    uint32 (:data:`DEPTH_MASK`, :data:`WRITTEN_BIT`);
     ``call`` (N,) uint16 or int32; ``key`` (N,) int32 colour keys, table rows renumbered into
     ``table`` (K, 4) float64 (row ``-1 - key`` for ``key < 0``). ``start``: the block's first
     window pixel (``pixel = start + local``)."""
@@ -420,10 +423,10 @@ class FragmentCollector(FrameObserver):
 
     def units(self, most: int) -> list[list[int]]:
         """The blocks this pass completed that hold fragments, in order, as units processed
-        together: consecutive blocks of at most 65536 pixels in all (a pixel of the unit still
-        fits 16 bits) holding at most ``most`` fragments (so many shallow blocks cost as few
-        rounds of the per-pixel work as deep ones)."""
-        per_unit = max(1, 65536 // self.block_pixels)
+        together: consecutive blocks of at most :data:`UNIT_PIXELS` pixels in all holding at most
+        ``most`` fragments (so many shallow blocks cost as few rounds of the per-unit work as
+        deep ones)."""
+        per_unit = max(1, UNIT_PIXELS // self.block_pixels)
         out: list[list[int]] = []
         total = 0
         for b in range(self.first_block, self.limit):
@@ -444,10 +447,15 @@ class FragmentCollector(FrameObserver):
         pixel alone may hold more): the working memory of a block stays bounded however deep
         its pixels are. A unit's pixels are numbered from its first block's first pixel."""
         pieces = []
+        # A pixel of the unit in 16 bits while they suffice (a radix sort groups them), else 32.
+        dtype = np.uint16 if len(unit) * self.block_pixels <= 65536 else np.int32
         with self.lock:
             for k, b in enumerate(unit):
-                shift = k * self.block_pixels
-                pieces += self.blocks[b] if not shift else [(p[0] + np.uint16(shift), *p[1:]) for p in self.blocks[b]]
+                if k == 0 and dtype is np.uint16:
+                    pieces += self.blocks[b]
+                else:
+                    shift = dtype(k * self.block_pixels)
+                    pieces += [(p[0].astype(dtype) + shift, *p[1:]) for p in self.blocks[b]]
                 self.blocks[b] = []
                 self.bytes -= int(self.block_bytes[b])
                 self.block_bytes[b] = 0

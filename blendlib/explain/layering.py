@@ -1,9 +1,12 @@
 """Per-pixel order of a block's kept fragments (:mod:`.fragment_store`): the far-to-near layers
 of the sorted reference (step 2) and the renderer pairs the frame applied out of order.
 
-A block's fragments come in the order the frame applied them at each pixel. One stable
-16-bit radix sort by pixel (:func:`group_by_pixel`) groups them, each pixel's still in that
-order. Then, for pixels of bounded fragment totals at a time (:func:`pixel_ranges`):
+A block's fragments come in the order the frame applied them at each pixel. Where the
+frame allows it, the fragments alone at their pixel leave first (the frame's colour is the
+reference's there). One stable sort by pixel (:func:`group_by_pixel`; a radix sort of 16-bit
+pixels) groups the rest, each pixel's still in that order, and every per-pixel array that
+follows is over the pixels holding them only. Then, for pixels of bounded fragment totals at
+a time (:func:`pixel_ranges`):
 
 - :func:`far_to_near_layers`: pixels with the same number of fragments ``c`` form one (n, c)
   matrix, sorted row by row by (depth code descending, applied order) — small sorts, no sort of
@@ -41,17 +44,39 @@ TALLY_FLUSH = 1 << 20
 PRUNE_OFFSETS = 4
 
 
-def group_by_pixel(block: Block, pixels: int) -> tuple[np.ndarray, np.ndarray]:
+_FRAGMENT_ARRAYS = ("local", "depth_written", "call", "key")
+
+
+def group_by_pixel(block: Block, pixels: int,
+                   drop_lone: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Reorder ``block``'s arrays (in place of the block) so its fragments are grouped by pixel
-    ascending, each pixel's in the order the frame applied them. Returns (counts (P,) int64
-    fragments per pixel, starts (P,) int64 the place of each pixel's first), ``pixels`` = P the
-    block's size."""
-    order = np.argsort(block.local, kind="stable")  # 16-bit keys: numpy's radix sort
-    for name in ("local", "depth_written", "call", "key"):
+    ascending, each pixel's in the order the frame applied them; ``pixels``: the block's size.
+    With ``drop_lone`` the fragments alone at their pixel are removed first: there the frame
+    applied one fragment onto step 1's buffers, as the reference does
+    (:func:`.sorted_reference.lone_fragments_as_frame`).
+
+    Every per-pixel array is over the pixels that hold fragments only (Q of them, ascending):
+    returns (pixels (Q,) int64 their numbers within the block, counts (Q,) int64 fragments at
+    each, starts (Q,) int64 the place of each one's first, lone (K,) int64 the numbers of the
+    pixels whose lone fragment was removed)."""
+    lone = np.zeros(0, dtype=np.int64)
+    if drop_lone:
+        many = np.bincount(block.local, minlength=pixels)[block.local] > 1
+        if not many.all():
+            lone = block.local[~many].astype(np.int64)
+            for name in _FRAGMENT_ARRAYS:
+                setattr(block, name, getattr(block, name)[many])
+        del many
+    order = np.argsort(block.local, kind="stable")  # 16-bit keys: radix sort; wider: runs merged
+    for name in _FRAGMENT_ARRAYS:
         setattr(block, name, np.take(getattr(block, name), order))
     del order
-    counts = np.bincount(block.local, minlength=pixels).astype(np.int64)
-    return counts, np.cumsum(counts) - counts
+    local, n = block.local, block.local.size
+    new = np.empty(n, dtype=bool)
+    new[:1] = True
+    np.not_equal(local[1:], local[:-1], out=new[1:])
+    starts = np.flatnonzero(new)
+    return np.take(local, starts).astype(np.int64), np.diff(starts, append=n), starts, lone
 
 
 def _classes(counts: np.ndarray, smallest: int) -> list[tuple[int, np.ndarray]]:
@@ -60,6 +85,8 @@ def _classes(counts: np.ndarray, smallest: int) -> list[tuple[int, np.ndarray]]:
     if wanted.size == 0:
         return []
     values = counts[wanted]
+    if values.size and int(values.max()) <= np.iinfo(np.uint16).max:
+        values = values.astype(np.uint16)  # numpy's radix sort
     by_count = wanted[np.argsort(values, kind="stable")]
     sorted_values = counts[by_count]
     cuts = np.flatnonzero(sorted_values[1:] != sorted_values[:-1]) + 1
@@ -152,6 +179,14 @@ class ReferenceBlender:
                 self.tables[g] = find_table(buf, p, palette, 0) if use else None
             return self.tables[g]
 
+    def keep_frame(self, pixels: np.ndarray, frame: FrameBuffers) -> None:
+        """Set the colour of ``pixels`` (K,) int64 to the ``frame``'s own (one sample a pixel):
+        pixels where the frame applied a lone fragment onto step 1 (:func:`group_by_pixel`)."""
+        to, source = self.buf.color, frame.color
+        if to.dtype == np.uint8:  # an RGBA code as one uint32: a gather of words, not of rows
+            to, source = to.view(np.uint32)[:, 0], source.view(np.uint32)[:, 0]
+        to[pixels] = source[pixels]
+
     def colour_ids(self, block: Block) -> tuple[np.ndarray | None, np.ndarray]:
         """(group (N,) int64 or None when there is one, ids (N,) int32) of a block's fragments:
         the state group of each, and its entry in the group's palette (``ids >= 0``) or its own
@@ -212,7 +247,7 @@ class ReferenceBlender:
 def block_inversions(block: Block, f0: int, f1: int, counts: np.ndarray, renderer_of_call: np.ndarray,
                      renderers: int, exact_keys: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`inverted_pairs` of the written fragments ``[f0, f1)`` of a block grouped by
-    :func:`group_by_pixel`: the fragments of a range of pixels, ``counts`` (P,) per pixel
+    :func:`group_by_pixel`: the fragments of a range of its pixels, ``counts`` (P,) per pixel
     (pixels numbered from the range's first)."""
     pixel = np.repeat(np.arange(counts.size, dtype=np.int64), counts)
     dw = block.depth_written[f0:f1]

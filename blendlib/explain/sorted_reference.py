@@ -33,7 +33,7 @@ import numpy as np
 from ..core.drawlist import DrawCall, draw_calls
 from ..core.merger import FrameBuffers
 from ..core.pipeline import render_scene
-from ..core.records import Frame, RenderCancelled
+from ..core.records import Frame, FrameObserver, RenderCancelled
 from ..core.scene import DrawScene, SceneError, validate_scene
 from . import layering
 from .fragment_store import (
@@ -59,6 +59,8 @@ TAKE_FRAGMENTS = 1 << 21
 #: Fragments one thread sorts and applies at once (a range of a block's pixels): bounds the
 #: working memory of step 2 and of the inversion count beside the kept fragments.
 WORK_FRAGMENTS = 1 << 19
+#: Fragments a unit of blocks holds at least when it may (:func:`unit_fragments`).
+UNIT_FRAGMENTS = 1 << 16
 #: Memory the analysis needs per pixel at most, bytes, with LDR and with HDR buffers: the
 #: result (frame 21, reference 16, error 4, overdraw 8, inverted 2), the render's buffers and
 #: their step-1 copy (13 each, HDR 25), the overdraw counts (8), and a resumed render's buffers
@@ -267,14 +269,50 @@ def sort_error(frame_color: np.ndarray, reference: np.ndarray, hdr: bool) -> np.
 
 
 
+def unit_fragments(collector: FragmentCollector, threads: int) -> int:
+    """Fragments of the blocks processed together at most: :data:`WORK_FRAGMENTS`, fewer so
+    that each thread has two units, at least :data:`UNIT_FRAGMENTS` (smaller units cost the
+    per-unit work more often than they share it)."""
+    total = int(collector.block_counts[collector.first_block:collector.limit].sum())
+    return max(UNIT_FRAGMENTS, min(WORK_FRAGMENTS, total // (2 * threads)))
+
+
+class _LastBuffers(FrameObserver):
+    """Keeps the buffers a render leaves (at its last ``draw_end``); reads no fragment."""
+
+    exact_boundaries = False
+    reads_fragments = False
+    buffers: FrameBuffers | None = None
+
+    def draw_end(self, call, buffers, triangles) -> None:
+        self.buffers = buffers
+
+
+def lone_fragments_as_frame(calls: list[DrawCall], samples: int) -> bool:
+    """Whether the reference may take the frame's colour at each pixel where the frame kept one
+    fragment of queues 2501–3999 (:func:`.layering.group_by_pixel`): one sample a pixel, no Overlay
+    draw after them (it would read the depth they wrote), and no draw call of those queues that
+    the collector does not keep writes anything (a ``ColorMask 0`` pass with ZWrite or stencil).
+    There the frame applied that one fragment onto step 1's buffers with its own pass, as the
+    reference does; its depth write changes no colour."""
+    if samples != 1 or any(c.queue > LAST_SORTED_QUEUE for c in calls):
+        return False
+    return all(c.state.color_mask or (not c.state.zwrite and not c.state.stencil)
+               for c in calls if is_sorted_queue(c.queue))
+
+
 class _Blocks:
     """Step 2 and the inversion count of the blocks each pass keeps, two blocks at a time on the
     two cores (numpy releases the GIL; blocks own disjoint pixels), at most ``threads`` blocks
     taken out of the store at once."""
 
     def __init__(self, calls: list[DrawCall], renderer_of_call: np.ndarray, renderers: int,
-                 threads: int, should_cancel: Callable[[], bool] | None) -> None:
+                 threads: int, should_cancel: Callable[[], bool] | None,
+                 lone_from: FrameBuffers | None = None) -> None:
         self.by_index = {c.index: c for c in calls}
+        #: The frame's final buffers when a pixel's lone fragment takes the frame's colour
+        #: (:func:`lone_fragments_as_frame`), else None.
+        self.lone_from = lone_from
         self.renderer_of_call = renderer_of_call
         self.renderers = renderers
         sorted_per_renderer = np.bincount(
@@ -287,40 +325,38 @@ class _Blocks:
         self.rows_finished = 0
 
     def run(self, collector: FragmentCollector, buf: FrameBuffers):
-        """Yield (first window pixel, inverted pairs per pixel (P,), pair ids, their pixels) of
-        each block ``collector`` kept, its reference rows applied onto ``buf``."""
+        """Yield (first window pixel, pixels (K,) int64 from it with inverted pairs, their
+        counts (K,) int64, pair ids, their pixels) of each block ``collector`` kept, its
+        reference rows applied onto ``buf``."""
         palettes = {index: collector.palette(index) for index in collector.palettes}
         blender = layering.ReferenceBlender(buf, self.by_index, collector.sorted_calls, palettes,
                                             dict(collector.call_fragments))
         self.rows_finished = 0
 
         def one(unit: list[int]):
-            pixels = len(unit) * collector.block_pixels
-            inverted = np.zeros(pixels, dtype=np.int64)
-            found, tallies = [], []
+            parts = []
             for block in collector.take(unit, TAKE_FRAGMENTS):
                 if self.should_cancel is not None and self.should_cancel():
                     raise RenderCancelled("render cancelled")
-                per_pixel, ids, tally = self._block(block, pixels, blender)
-                inverted += per_pixel
-                found.append(ids)
-                tallies.append(tally)
-            return unit[-1], (unit[0] * collector.block_pixels, inverted,
-                              np.concatenate(found) if found else np.zeros(0, np.int64),
-                              np.concatenate(tallies) if tallies else np.zeros(0, np.int64))
+                parts.append(self._block(block, len(unit) * collector.block_pixels, blender))
+            joined = [np.concatenate(p) if p else np.zeros(0, np.int64) for p in zip(*parts, strict=True)]
+            return unit[-1], (unit[0] * collector.block_pixels, *(joined or [np.zeros(0, np.int64)] * 4))
 
         with ThreadPoolExecutor(max_workers=self.threads) as pool:
-            for b, out in pool.map(one, collector.units(WORK_FRAGMENTS)):
+            for b, out in pool.map(one, collector.units(unit_fragments(collector, self.threads))):
                 self.rows_finished = collector.rows_of(b)[1] - collector.rows_of(collector.first_block)[0]
                 yield out
 
     def _block(self, block, block_pixels: int, blender: layering.ReferenceBlender):
-        """Step 2 and the inverted pairs of a block (or a range of its pixels): (inverted pairs
-        per pixel of the block (P,), pair ids, their pixels)."""
-        counts, starts = layering.group_by_pixel(block, block_pixels)
+        """Step 2 and the inverted pairs of a block (or a range of its pixels): (its pixels with
+        inverted pairs (K,) int64, their counts (K,) int64, pair ids, their pixels)."""
+        pixels, counts, starts, lone = layering.group_by_pixel(block, block_pixels, self.lone_from is not None)
+        if lone.size:
+            lone += block.start
+            blender.keep_frame(lone, self.lone_from)
+        del lone
         group, ids = blender.colour_ids(block)
-        inverted = np.zeros(block_pixels, dtype=np.int64)
-        pair_ids, pair_pixels = [], []
+        inverted, inverted_at, pair_ids, pair_pixels = [], [], [], []
         for p0, p1 in pixel_ranges(counts, WORK_FRAGMENTS):
             f0, f1 = int(starts[p0]), int(starts[p1 - 1] + counts[p1 - 1])
             order, bounds = layering.far_to_near_layers(counts[p0:p1], starts[p0:p1] - f0, block.depth(slice(f0, f1)))
@@ -328,12 +364,13 @@ class _Blocks:
             del order
             per_pixel, found, tally = layering.block_inversions(block, f0, f1, counts[p0:p1], self.renderer_of_call,
                                                                 self.renderers, self.exact_keys)
-            inverted[p0:p1] = per_pixel
+            some = np.flatnonzero(per_pixel)
+            inverted_at.append(pixels[p0 + some])
+            inverted.append(per_pixel[some])
             pair_ids.append(found)
             pair_pixels.append(tally)
-        found = np.concatenate(pair_ids) if pair_ids else np.zeros(0, dtype=np.int64)
-        tally = np.concatenate(pair_pixels) if pair_pixels else np.zeros(0, dtype=np.int64)
-        return inverted, found, tally
+        return tuple(np.concatenate(p) if p else np.zeros(0, dtype=np.int64)
+                     for p in (inverted_at, inverted, pair_ids, pair_pixels))
 
 
 def analyze(
@@ -391,13 +428,16 @@ def analyze(
     else:
         buf = collector.step1
         step1 = buf.copy() if keep_step1 else None
-        blocks = _Blocks(calls, renderer_of_call, nrend, threads, should_cancel)
+        blocks = _Blocks(calls, renderer_of_call, nrend, threads, should_cancel,
+                         counts.final if lone_fragments_as_frame(calls, samples) else None)
         while True:
             rows_before = collector.rows_of(collector.first_block)[0]
-            for start, per_pixel, ids, tally in blocks.run(collector, buf):
-                if samples > 1:  # per sample index: a pixel's most inverted sample (units hold whole pixels)
-                    start, per_pixel = start // samples, per_pixel.reshape(-1, samples).max(axis=1)
-                inverted[start:start + per_pixel.size] = per_pixel[:inverted.size - start]
+            for start, at, per_pixel, ids, tally in blocks.run(collector, buf):
+                at += start
+                if samples > 1:  # per sample index: a pixel's most inverted sample
+                    np.maximum.at(inverted, at // samples, per_pixel.astype(inverted.dtype))
+                else:
+                    inverted[at] = per_pixel
                 for pair, count in zip(ids.tolist(), tally.tolist(), strict=True):
                     pair_counts[pair] = pair_counts.get(pair, 0) + count
                 bar(0.4 + 0.55 * (rows_before + blocks.rows_finished) / height)
@@ -411,9 +451,14 @@ def analyze(
                          band=(collector.rows_of(first)[0], height))
         bar(0.95)
         last_sorted = max(c.index for c in calls if c.queue <= LAST_SORTED_QUEUE)
-        if any(c.queue > LAST_SORTED_QUEUE for c in calls):
+        if any(c.queue > LAST_SORTED_QUEUE for c in calls) and (scene.hdr or samples > 1):
             reference = render_scene(scene, resume=(buf, last_sorted), workers=workers, calls=calls,
                                      should_cancel=should_cancel).color
+        elif any(c.queue > LAST_SORTED_QUEUE for c in calls):  # the Overlay draws' codes, compared
+            last = _LastBuffers()
+            render_scene(scene, resume=(buf, last_sorted), workers=workers, calls=calls,
+                         should_cancel=should_cancel, observer=last, output=False)
+            reference, error = reference_from_codes(frame.color, counts.final, last.buffers)
         elif scene.hdr or samples > 1:  # MSAA: the samples resolved as the frame's
             reference = buf.output()[0]
         else:

@@ -32,6 +32,7 @@ def _share(max_advice: int) -> float:
 def test_one_fraction_over_every_phase(monkeypatch, memory):
     monkeypatch.setattr(fragment_store, "BLOCK_PIXELS", 32)  # two rows a block: seven blocks,
     monkeypatch.setattr(sr, "WORK_FRAGMENTS", 40)  # processed a few at a time
+    monkeypatch.setattr(sr, "UNIT_FRAGMENTS", 1)
     scene = _with_overlay(layered_scene(3))
     fractions = []
     result = analyze_and_advise(scene, max_advice=3, progress=fractions.append, memory=memory)
@@ -61,6 +62,7 @@ def _cancel_after(limit: float):
 def test_cancel_stops_step_two_and_the_advice(monkeypatch, phase):
     monkeypatch.setattr(fragment_store, "BLOCK_PIXELS", 32)  # two rows a block: seven blocks,
     monkeypatch.setattr(sr, "WORK_FRAGMENTS", 40)  # processed a few at a time
+    monkeypatch.setattr(sr, "UNIT_FRAGMENTS", 1)
     scene = layered_scene(1)
     share = _share(2)
     # After the first of seven blocks; or once the analysis is done (the advice has started).

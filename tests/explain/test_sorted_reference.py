@@ -15,7 +15,7 @@ from blendlib import render_scene
 from blendlib.core.drawlist import draw_calls
 from blendlib.core.merger import Outcome
 from blendlib.core.pipeline import FrameObserver
-from blendlib.core.vocabulary import BlendFactor, CompareFunction, Cull, Pass, Queue, preset
+from blendlib.core.vocabulary import BlendFactor, CompareFunction, Cull, Pass, Queue, StencilOp, preset
 from blendlib.explain import fragment_store
 from blendlib.explain import sorted_reference as sr
 from blendlib.explain.sorted_reference import analyze
@@ -71,6 +71,7 @@ def test_small_blocks_ranges_and_budgets_give_the_same_result(monkeypatch, seed,
     whole = analyze(scene)
     monkeypatch.setattr(fragment_store, "BLOCK_PIXELS", 1)
     monkeypatch.setattr(sr, "WORK_FRAGMENTS", 5)
+    monkeypatch.setattr(sr, "UNIT_FRAGMENTS", 1)
     passes = []
     real = fragment_store.FragmentCollector.__init__
 
@@ -120,6 +121,50 @@ def test_two_quads_in_the_wrong_order():
     assert summary["pixels"] == 16 * 12 and summary["differing"] == overlap
     assert summary["max_error"] == float(result.error.max())
     assert summary["mean_error"] == pytest.approx(float(result.error.sum()) / (16 * 12))
+
+
+@pytest.mark.parametrize("mask", ["depth", "stencil"])
+def test_a_colourless_pass_in_the_sorted_queues_hides_only_the_frame(mask):
+    """A ``ColorMask 0`` pass at queue 2990 (sorted, nearer) writes depth (or stencil 1, which the
+    blue quad's ``Stencil Comp Equal`` asks for) where the blue quad, drawn after it, is alone.
+    In the frame it hides the blue quad there (or shows it only there); in the reference it writes
+    nothing (docs/sorting.md): the lone fragment must not take the frame's colour
+    (:func:`sorted_reference.lone_fragments_as_frame`)."""
+    cam = sc.screen_camera(16, 8)
+    if mask == "depth":
+        writer = Pass(color_mask=frozenset(), zwrite=True)
+        blue_pass = BLEND
+    else:
+        writer = Pass(color_mask=frozenset(), zwrite=False, stencil=True, stencil_ref=1,
+                      stencil_pass=StencilOp.Replace)
+        blue_pass = replace(BLEND, stencil=True, stencil_ref=1, stencil_comp=CompareFunction.Equal)
+    masker = sc.renderer(sc.quad(0, 0, 8, 8, z=2.0), sc.unlit((1, 1, 1, 1), queue=Queue.Transparent,
+                                                               queue_offset=-10, passes=[writer]), name="Mask")
+    blue = sc.renderer(sc.quad(4, 0, 16, 8, z=-2.0), sc.unlit((0, 0, 1, 0.5), queue=Queue.Transparent,
+                                                               passes=[blue_pass]), name="Blue")
+    scene = sc.scene(cam, masker, blue)
+    assert sr.lone_fragments_as_frame(draw_calls(scene), 1) is False
+    result = assert_reference(scene)
+    # Only where the two quads overlap (columns 4..7) does the frame hide blue (depth) or show it
+    # (stencil 1 written there); the reference tests blue against step 1's depth and stencil.
+    assert np.array_equal((result.error > 1).any(axis=0), np.arange(16) // 4 == 1)
+
+
+def test_pixels_of_one_transparent_fragment_take_the_frame_colour():
+    """Two overlapping blended quads: where one is alone, the reference is the frame's own colour
+    (the same bits: one fragment applied onto the opaque buffers either way), and the reference
+    equals the scalar one everywhere, with and without the shortcut."""
+    scene = _two_quads(False)
+    assert sr.lone_fragments_as_frame(draw_calls(scene), 1) is True
+    result = assert_reference(scene)
+    assert np.array_equal(result.reference[:, :6], result.frame.color[:, :6])
+    assert np.array_equal(result.reference[:, 10:], result.frame.color[:, 10:])
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(sr, "lone_fragments_as_frame", lambda calls, samples: False)
+        plain = analyze(scene)
+    for name in ("reference", "error", "inverted", "overdraw"):
+        assert np.array_equal(getattr(plain, name), getattr(result, name)), name
+    assert plain.inversions == result.inversions
 
 
 def _depth_alone(renderer, cam):
