@@ -11,9 +11,9 @@ import pytest
 
 from blendlib import render_scene
 from blendlib.core.merger import PEEL_LAYERS, primitive_layers
-from blendlib.core.merger.buffers import PEEL_FREE
+from blendlib.core.merger.buffers import PEEL_FREE, FrameBuffers
 from blendlib.core.scene import DrawScene, Mesh
-from blendlib.core.vocabulary import BlendFactor, Cull, Lighting, Material, Pass, Queue
+from blendlib.core.vocabulary import BlendFactor, ColorSpace, Cull, Lighting, Material, Pass, Queue
 from tests.reference import scenes as sc
 from tests.reference.scalar import render_reference
 
@@ -97,3 +97,21 @@ def test_a_draw_call_deeper_than_the_peel_equals_the_reference():
         frame = render_scene(scene, workers=workers)
         np.testing.assert_array_equal(frame.color, color)
         np.testing.assert_array_equal(frame.depth, depth)
+
+
+def test_the_peel_table_of_buffers_gone_is_the_next_buffers_own():
+    """Buffers that no longer exist hand their peel table (every entry free again) to the next
+    buffers of that size, which then fill none; buffers of another size make their own."""
+    def made(width):
+        return FrameBuffers(width, 3, False, ColorSpace.Gamma, (0, 0, 0, 1))
+
+    first = made(5)
+    table = first.peel_scratch()
+    assert table.shape == (15,) and (table == PEEL_FREE).all()
+    pix = np.array([4, 2, 4, 4], dtype=np.int64)
+    for layer in primitive_layers(pix, False, table):  # used, and left free
+        assert layer is not None
+    del first
+    assert made(5).peel_scratch() is table and (table == PEEL_FREE).all()
+    other = made(6).peel_scratch()
+    assert other is not table and other.shape == (18,)
