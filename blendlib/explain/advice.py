@@ -351,6 +351,7 @@ class _Measurer:
         self.opaque = self._opaque_prefix(self.signature, self.calls)
         self.cache: dict[tuple, tuple[dict, int]] = {}
         self._step1 = analysis.step1
+        self.differing_before = analysis.differing  # a count over the whole frame: once
         # Per renderer place (the signature's first field), the box of rows and columns its
         # calls' fragments reached and how they were covered.
         self.place_boxes: dict[int, tuple[int, int, int, int]] = {}
@@ -457,7 +458,7 @@ class _Measurer:
 
     def as_analysed(self) -> tuple[dict[tuple[Key, Key], int], int]:
         """The measurement of a frame equal to the analysed one: the analysis's own figures."""
-        return {pair: self.analysis.pair_pixels(*pair) for pair in self.pairs}, self.analysis.differing
+        return {pair: self.analysis.pair_pixels(*pair) for pair in self.pairs}, self.differing_before
 
     #: Bands of at least this share of the frame's rows are drawn whole (the band saves little).
     WHOLE_SHARE = 0.9
@@ -523,7 +524,7 @@ class _Measurer:
         old = original.final_codes.view(np.uint32).reshape(-1)[y0 * width:y1 * width]
         changed = np.flatnonzero(new != old) + y0 * width  # buffer pixels
         if changed.size == 0:
-            return original.differing
+            return self.differing_before
         color = np.divide(codes[changed], np.float32(255.0), dtype=np.float32)
         height = original.frame.color.shape[0]
         return self._differing_at(color, (height - 1 - changed // width) * width + changed % width)
@@ -535,7 +536,7 @@ class _Measurer:
         flat = (-1, 1, 4)
         now = sort_error(color.reshape(flat), original.reference.reshape(flat)[at], original.hdr)
         before = original.error.reshape(-1)[at]
-        return (original.differing - int(np.count_nonzero(before > original.step))
+        return (self.differing_before - int(np.count_nonzero(before > original.step))
                 + int(np.count_nonzero(now > original.step)))
 
     def differing(self, color: np.ndarray, top: int = 0) -> int:
@@ -557,7 +558,7 @@ class _Measurer:
             changed.append(np.flatnonzero(rows) + y * width)
         changed = np.concatenate(changed)
         if changed.size == 0:
-            return original.differing
+            return self.differing_before
         return self._differing_at(color.reshape(-1, 4)[changed], changed + top * width)
 
 
