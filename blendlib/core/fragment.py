@@ -437,11 +437,23 @@ def _unreached_rows(setup, rows, state: DrawState, positions: np.ndarray, run_of
     if state.dark_alpha is not None and unreached.any():
         # Dropped rows keep their stored colour; their alpha too only where it is 255 already.
         some = np.flatnonzero(unreached)
-        sub = rows.take_rows(some)
-        pix = raster.rasterize_rows(sub, 0, sub.count, state.width, bary=False).pix
-        short = _segment_sums(np.take(state.dark_alpha, pix) != 255, sub.length)
-        unreached[some[short > 0]] = False
+        unreached[some[_unsaturated(state.dark_alpha, state.width, rows.take_rows(some))]] = False
     return unreached if unreached.any() else None
+
+
+def _unsaturated(alpha: np.ndarray, width: int, rows) -> np.ndarray:
+    """(R,) bool: which of ``rows`` hold a pixel whose stored ``alpha`` (H*W,) uint8 is not 255.
+    Over the rows' box, a running count of such pixels along each buffer row gives a span's in
+    two reads, when the box is not much larger than the spans; else their pixels are read."""
+    y, x0, x1 = rows.y, rows.x0, rows.x0 + rows.length
+    y_lo, y_hi, x_lo, x_hi = int(y.min()), int(y.max()) + 1, int(x0.min()), int(x1.max())
+    if (y_hi - y_lo) * (x_hi - x_lo) > 4 * int(rows.length.sum()):
+        pix = raster.rasterize_rows(rows, 0, rows.count, width, bary=False).pix
+        return _segment_sums(np.take(alpha, pix) != 255, rows.length) > 0
+    running = np.zeros((y_hi - y_lo, x_hi - x_lo + 1), dtype=np.int32)
+    np.cumsum(alpha.reshape(-1, width)[y_lo:y_hi, x_lo:x_hi] != 255, axis=1, out=running[:, 1:])
+    at = y - y_lo
+    return running[at, x1 - x_lo] != running[at, x0 - x_lo]
 
 
 def _dark(state: DrawState, position: np.ndarray, pix: np.ndarray, corners: list[np.ndarray]) -> np.ndarray | None:

@@ -772,3 +772,30 @@ def test_draw_list_and_pixel_history_name_the_light_of_each_forward_add_draw():
     history = framedebug.pixel_history(scene, 16, 16).to_json()
     assert [(f["pass_name"], f["light"], f["result"]) for f in history["fragments"]] == [
         ("Base", None, "written"), ("Add", "Rim", "written"), ("Add", "Bulb", "written")]
+
+
+@pytest.mark.parametrize("apart", [False, True])  # spans filling their box (running counts), or far apart
+def test_rows_holding_an_unsaturated_alpha_are_found_span_by_span(apart, monkeypatch):
+    """:func:`fragment._unsaturated` says of each span whether one of its pixels' stored alpha is
+    not 255, as reading every pixel of it does: by running counts over a compact box, by the
+    spans' pixels when they lie far apart."""
+    from blendlib.core import fragment, raster
+
+    width, height = 64, 48
+    rng = np.random.default_rng(int(apart))
+    alpha = np.where(rng.random(width * height) < 0.05, rng.integers(0, 255, width * height), 255).astype(np.uint8)
+    count = 40
+    y = np.sort(rng.integers(0, 2, count) * 40 if apart else rng.integers(10, 16, count))
+    x0 = rng.integers(0, 2, count) * (width - 9) if apart else rng.integers(20, 28, count)
+    length = rng.integers(1, 9, count)
+    zeros = np.zeros(count, dtype=np.int64)
+    rows = raster.Rows(tri=zeros, y=y.astype(np.int64), x0=x0.astype(np.int64), length=length.astype(np.int64),
+                       c0=zeros, c1=zeros, dy0=zeros, dy1=zeros, swap=zeros.astype(bool), area=zeros + 1)
+    plane = alpha.reshape(height, width)
+    expected = np.array([(plane[yy, xx:xx + n] != 255).any() for yy, xx, n in zip(y, x0, length, strict=True)])
+    assert expected.any() and not expected.all()
+    rasterised = []
+    real = raster.rasterize_rows
+    monkeypatch.setattr(raster, "rasterize_rows", lambda *a, **k: rasterised.append(1) or real(*a, **k))
+    assert np.array_equal(fragment._unsaturated(alpha, width, rows), expected)
+    assert bool(rasterised) == apart
