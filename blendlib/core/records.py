@@ -185,10 +185,10 @@ class ShadedFragments:
         if self.ids is None:
             return self.rgba
         if self.rgba is None:
-            return self.palette[self.ids]
+            return np.take(self.palette, self.ids, axis=0)
         out = self.rgba.copy()
         tabled = self.ids >= 0
-        out[tabled] = self.palette[self.ids[tabled]]
+        out[tabled] = np.take(self.palette, self.ids[tabled], axis=0)
         return out
 
     def span(self, lo: int, hi: int) -> ShadedFragments:

@@ -215,7 +215,7 @@ class ReferenceBlender:
         own = fid < 0
         if own.any():  # per-fragment colours: rows of the block's table
             rgba = np.empty((order.size, 4), dtype=np.float64)
-            rgba[own] = block.table[-1 - fid[own]]
+            rgba[own] = np.take(block.table, -1 - fid[own], axis=0)
         grp = None if group is None else group[order]
         for k in range(len(bounds) - 1):
             a, b = bounds[k], bounds[k + 1]
@@ -237,10 +237,10 @@ class ReferenceBlender:
         if table is None and (own is None or not own.all()):
             palette = self.palettes[g]
             if own is None:
-                rgba = palette[fid]
+                rgba = np.take(palette, fid, axis=0)
             else:
                 rgba = rgba.copy()
-                rgba[~own] = palette[fid[~own]]
+                rgba[~own] = np.take(palette, fid[~own], axis=0)
         apply_layer(self.buf, self.group_pass[g], pix, depth, rgba, None if table is None else fid, table)
 
 
