@@ -116,26 +116,28 @@ class TriangleSetup:
         """World-space corner positions (K, 3, 3) float64 of source triangles ``src`` (K,): §1's
         ``((M[i][0]*x + M[i][1]*y) + M[i][2]*z) + M[i][3]``."""
         if self.world_corners is not None:
-            return self.world_corners[src]
+            return np.take(self.world_corners, src, axis=0)
         positions, triangles, matrix = self.placement
-        corners = np.asarray(positions, dtype=np.float64)[np.asarray(triangles)[src].reshape(-1)]  # (3K, 3)
+        # np.take gathers whole rows: many times faster than fancy indexing of (K, 3[, C]) arrays.
+        corner_vertices = np.take(np.asarray(triangles), src, axis=0).reshape(-1)
+        corners = np.take(np.asarray(positions, dtype=np.float64), corner_vertices, axis=0)  # (3K, 3)
         cols = np.ascontiguousarray(corners.T)
         out = _affine_rows(np.asarray(matrix, dtype=np.float64)[:3], cols[0], cols[1], cols[2], 3)
         return out.T.reshape(-1, 3, 3)
 
     def colors_of(self, src: np.ndarray) -> np.ndarray:
         """Shading-space corner vertex colours (K, 3, 4) float64 of source triangles ``src`` (K,)."""
-        return self.object_colors[src]
+        return np.take(self.object_colors, src, axis=0)
 
     def world_normals_of(self, src: np.ndarray) -> np.ndarray:
         """World-space corner normals (K, 3, 3) float64 of source triangles ``src`` (K,)."""
         if self.normal_matrix is None:
-            return self.object_normals[src]
-        return _world_normals(self.object_normals[src], self.normal_matrix)
+            return np.take(self.object_normals, src, axis=0)
+        return _world_normals(np.take(self.object_normals, src, axis=0), self.normal_matrix)
 
     def uvs_of(self, src: np.ndarray) -> np.ndarray:
         """Corner UVs (K, 3, 2) float64 of source triangles ``src`` (K,)."""
-        return np.asarray(self.object_uvs[src], dtype=np.float64)
+        return np.take(self.object_uvs, src, axis=0).astype(np.float64, copy=False)
 
     @property
     def count(self) -> int:
