@@ -599,7 +599,7 @@ def advise(scene: DrawScene, analysis: Analysis, limit: int = 5, workers: int | 
     total = max(1, sum(len(candidates) for _, candidates in plans))
     done = 0
     items = []
-    before_differing = analysis.differing
+    before_differing = measurer.differing_before
     for inv, candidates in plans:
         base = {**inv.as_json(), "inversions_before": inv.pixels, "differing_before": before_differing}
         base.pop("pixels")

@@ -456,7 +456,7 @@ class FragmentCollector(FrameObserver):
                     pieces += self.blocks[b]
                 else:
                     shift = dtype(k * self.block_pixels)
-                    pieces += [(p[0].astype(dtype) + shift, *p[1:]) for p in self.blocks[b]]
+                    pieces += [(p[0].astype(dtype, copy=False) + shift, *p[1:]) for p in self.blocks[b]]
                 self.blocks[b] = []
                 self.bytes -= int(self.block_bytes[b])
                 self.block_bytes[b] = 0

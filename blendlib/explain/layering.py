@@ -3,8 +3,8 @@ of the sorted reference (step 2) and the renderer pairs the frame applied out of
 
 A block's fragments come in the order the frame applied them at each pixel. Where the
 frame allows it, the fragments alone at their pixel leave first (the frame's colour is the
-reference's there). One stable sort by pixel (:func:`group_by_pixel`; a radix sort of 16-bit
-pixels) groups the rest, each pixel's still in that order, and every per-pixel array that
+reference's there). One stable sort by pixel (:func:`group_by_pixel`; a radix sort where a
+unit's pixels fit 16 bits) groups the rest, each pixel's still in that order, and every per-pixel array that
 follows is over the pixels holding them only. Then, for pixels of bounded fragment totals at
 a time (:func:`pixel_ranges`):
 
@@ -247,8 +247,8 @@ class ReferenceBlender:
 def block_inversions(block: Block, f0: int, f1: int, counts: np.ndarray, renderer_of_call: np.ndarray,
                      renderers: int, exact_keys: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`inverted_pairs` of the written fragments ``[f0, f1)`` of a block grouped by
-    :func:`group_by_pixel`: the fragments of a range of its pixels, ``counts`` (P,) per pixel
-    (pixels numbered from the range's first)."""
+    :func:`group_by_pixel`: the fragments of a range of its occupied pixels, ``counts`` (P,) per
+    pixel (pixels numbered by their place in the range)."""
     pixel = np.repeat(np.arange(counts.size, dtype=np.int64), counts)
     dw = block.depth_written[f0:f1]
     call = block.call[f0:f1]

@@ -4,11 +4,13 @@ One observed render of the scene gives everything: the frame as drawn, the buffe
 last draw of queue ≤ 2500 (step 1), every fragment of queues 2501–3999 that survived culling
 and the alpha test (with whether the frame wrote it) and the per-pixel fragment counts. The
 fragments are kept compactly by blocks of rows (:mod:`.fragment_store`). Step 2 applies each
-block's fragments per pixel far to near, ties in draw order then primitive order, layer by layer
-(layer k = the k-th farthest fragment of every pixel, distinct pixels), each through its own
-pass's stencil, depth test (against step 1's depth: nothing writes depth in step 2), blending and
-ColorMask; the same block gives the inverted renderer pairs (:mod:`.layering`). Step 3 resumes
-the pipeline from those buffers for the Overlay draws.
+block's fragments per pixel far to near (where the frame kept one fragment at a pixel, the
+frame's own colour is the reference's there, :func:`lone_fragments_as_frame`), ties in draw
+order then primitive order, layer by layer (layer k = the k-th farthest fragment of every
+pixel, distinct pixels), each through its own pass's stencil, depth test (against step 1's
+depth: nothing writes depth in step 2), blending and ColorMask; the same block gives the
+inverted renderer pairs (:mod:`.layering`). Step 3 resumes the pipeline from those buffers for
+the Overlay draws.
 
 **Memory** (docs/sorting.md "Cost"): the kept fragments stay within a budget (``memory``,
 default :data:`FRAGMENT_BUDGET`, less when the machine has less to spare). When a frame's
@@ -291,7 +293,8 @@ class _LastBuffers(FrameObserver):
 def lone_fragments_as_frame(calls: list[DrawCall], samples: int) -> bool:
     """Whether the reference may take the frame's colour at each pixel where the frame kept one
     fragment of queues 2501–3999 (:func:`.layering.group_by_pixel`): one sample a pixel, no Overlay
-    draw after them (it would read the depth they wrote), and no draw call of those queues that
+    draw after them (the frame's final colour would hold theirs, and they read the depth the
+    transparent passes wrote), and no draw call of those queues that
     the collector does not keep writes anything (a ``ColorMask 0`` pass with ZWrite or stencil).
     There the frame applied that one fragment onto step 1's buffers with its own pass, as the
     reference does; its depth write changes no colour."""
@@ -302,9 +305,9 @@ def lone_fragments_as_frame(calls: list[DrawCall], samples: int) -> bool:
 
 
 class _Blocks:
-    """Step 2 and the inversion count of the blocks each pass keeps, two blocks at a time on the
-    two cores (numpy releases the GIL; blocks own disjoint pixels), at most ``threads`` blocks
-    taken out of the store at once."""
+    """Step 2 and the inversion count of the blocks each pass keeps, by units of consecutive
+    blocks (:func:`unit_fragments`), a unit on each of ``threads`` threads (numpy releases the GIL;
+    units own disjoint pixels), at most ``threads`` units taken out of the store at once."""
 
     def __init__(self, calls: list[DrawCall], renderer_of_call: np.ndarray, renderers: int,
                  threads: int, should_cancel: Callable[[], bool] | None,
@@ -338,7 +341,7 @@ class _Blocks:
             for block in collector.take(unit, TAKE_FRAGMENTS):
                 if self.should_cancel is not None and self.should_cancel():
                     raise RenderCancelled("render cancelled")
-                parts.append(self._block(block, len(unit) * collector.block_pixels, blender))
+                parts.append(self._block(block, len(unit) * collector.block_pixels, blender))  # unit's pixels
             joined = [np.concatenate(p) if p else np.zeros(0, np.int64) for p in zip(*parts, strict=True)]
             return unit[-1], (unit[0] * collector.block_pixels, *(joined or [np.zeros(0, np.int64)] * 4))
 
@@ -348,8 +351,9 @@ class _Blocks:
                 yield out
 
     def _block(self, block, block_pixels: int, blender: layering.ReferenceBlender):
-        """Step 2 and the inverted pairs of a block (or a range of its pixels): (its pixels with
-        inverted pairs (K,) int64, their counts (K,) int64, pair ids, their pixels)."""
+        """Step 2 and the inverted pairs of a :class:`.fragment_store.Block` (a unit, or a range of
+        its pixels; ``block_pixels``: the unit's pixels): (its pixels with inverted pairs (K,)
+        int64, their counts (K,) int64, pair ids, their pixels)."""
         pixels, counts, starts, lone = layering.group_by_pixel(block, block_pixels, self.lone_from is not None)
         if lone.size:
             lone += block.start
@@ -435,7 +439,10 @@ def analyze(
             for start, at, per_pixel, ids, tally in blocks.run(collector, buf):
                 at += start
                 if samples > 1:  # per sample index: a pixel's most inverted sample
-                    np.maximum.at(inverted, at // samples, per_pixel.astype(inverted.dtype))
+                    pixels, which = np.unique(at // samples, return_inverse=True)
+                    most = np.zeros(pixels.size, dtype=np.int64)
+                    np.maximum.at(most, which, per_pixel)
+                    inverted[pixels] = most
                 else:
                     inverted[at] = per_pixel
                 for pair, count in zip(ids.tolist(), tally.tolist(), strict=True):

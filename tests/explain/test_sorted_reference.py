@@ -150,21 +150,54 @@ def test_a_colourless_pass_in_the_sorted_queues_hides_only_the_frame(mask):
     assert np.array_equal((result.error > 1).any(axis=0), np.arange(16) // 4 == 1)
 
 
-def test_pixels_of_one_transparent_fragment_take_the_frame_colour():
-    """Two overlapping blended quads: where one is alone, the reference is the frame's own colour
-    (the same bits: one fragment applied onto the opaque buffers either way), and the reference
-    equals the scalar one everywhere, with and without the shortcut."""
-    scene = _two_quads(False)
+@pytest.mark.parametrize("hdr", [False, True])
+def test_pixels_of_one_transparent_fragment_take_the_frame_colour(hdr):
+    """Two overlapping blended quads: where one is alone, the reference takes the frame's own
+    colour (8-bit codes or HDR floats) instead of blending it again; everything the analysis
+    gives equals the scalar reference and the analysis without the shortcut."""
+    scene = replace(_two_quads(False), hdr=hdr)
     assert sr.lone_fragments_as_frame(draw_calls(scene), 1) is True
     result = assert_reference(scene)
-    assert np.array_equal(result.reference[:, :6], result.frame.color[:, :6])
-    assert np.array_equal(result.reference[:, 10:], result.frame.color[:, 10:])
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(sr, "lone_fragments_as_frame", lambda calls, samples: False)
         plain = analyze(scene)
     for name in ("reference", "error", "inverted", "overdraw"):
         assert np.array_equal(getattr(plain, name), getattr(result, name)), name
     assert plain.inversions == result.inversions
+
+
+def test_units_wider_than_16_bits_of_pixels_give_the_same_analysis(monkeypatch):
+    """Few fragments over many rows: one unit holds blocks of more than 65536 pixels in all (its
+    pixels numbered in 32 bits, grouped without the radix sort). The same analysis as units of
+    one block each, and the scalar reference."""
+    cam = sc.screen_camera(320, 240)
+    quads = []
+    for k, y in enumerate((10, 120, 220)):  # one pair in each of three blocks of rows, in the wrong order
+        far = sc.renderer(sc.quad(20 + 40 * k, y, 70 + 40 * k, y + 12, z=-1.0),
+                          sc.unlit((0, 0, 1, 0.5), queue=Queue.Transparent, passes=[BLEND]), name=f"Far{k}")
+        near = sc.renderer(sc.quad(40 + 40 * k, y + 4, 90 + 40 * k, y + 16, z=1.0),
+                           sc.unlit((1, 0, 0, 0.5), queue=Queue.Transparent, passes=[BLEND]), name=f"Near{k}")
+        quads += [replace(far, bounds_center=np.array([0.0, 0.0, 9.0])),
+                  replace(near, bounds_center=np.array([0.0, 0.0, -9.0]))]
+    scene = sc.scene(cam, *quads)
+    widths = []
+    real_take = fragment_store.FragmentCollector.take
+
+    def take(self, unit, most):
+        for block in real_take(self, unit, most):
+            widths.append(block.local.dtype)
+            yield block
+
+    monkeypatch.setattr(fragment_store.FragmentCollector, "take", take)
+    wide = assert_reference(scene)
+    assert np.dtype(np.int32) in widths
+    widths.clear()
+    monkeypatch.setattr(fragment_store, "UNIT_PIXELS", 1)  # one block a unit
+    narrow = analyze(scene)
+    assert widths and set(widths) == {np.dtype(np.uint16)}
+    for name in ("reference", "error", "inverted", "overdraw"):
+        assert np.array_equal(getattr(wide, name), getattr(narrow, name)), name
+    assert wide.inversions == narrow.inversions and len(wide.inversions) == 3 and wide.differing > 0
 
 
 def _depth_alone(renderer, cam):
