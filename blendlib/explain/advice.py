@@ -60,7 +60,7 @@ from ..core.scene import DrawScene, Renderer
 from ..core.vocabulary import LAST_OPAQUE_QUEUE, Cull, Material, SortMode, preset, queue_text
 from .fragment_store import is_sorted_queue, union_box
 from .progress import Progress
-from .sorted_reference import ERROR_ROWS, Analysis, analyze, sort_error
+from .sorted_reference import ERROR_ROWS, Analysis, LastBuffers, analyze, sort_error
 
 PREPASS_PRESET = "Alpha Blend ZWrite"
 #: Share of the progress bar the analysis takes in :func:`analyze_and_advise`, per advised pair
@@ -263,19 +263,6 @@ class _PairWatch(FrameObserver):
         return {pair: int(np.count_nonzero(hit)) for pair, hit in self.inverted.items()}
 
 
-class _Snapshot(FrameObserver):
-    """Keeps the buffers after the last draw call a render draws (with ``until_draw``)."""
-
-    exact_boundaries = False
-    per_sample = True  # reads the buffers only
-
-    def __init__(self) -> None:
-        self.buffers: FrameBuffers | None = None
-
-    def draw_end(self, call, buffers, triangles) -> None:
-        self.buffers = buffers
-
-
 def _signature(scene: DrawScene, calls: list[DrawCall]) -> tuple:
     """What a draw list draws, call by call: the renderer (its place in the scene), pass, its
     state, light, and its material's cutoff and colour. Candidates change only queues, sort
@@ -413,9 +400,9 @@ class _Measurer:
 
     def _opaque_drawn(self, scene: DrawScene, calls: list[DrawCall]) -> FrameBuffers:
         """``scene``'s buffers after its last draw call of queue ≤ 2500 (``calls``: its draw list)."""
-        snapshot = _Snapshot()
+        snapshot = LastBuffers()
         render_scene(scene, until_draw=_last_opaque(calls), observer=snapshot, workers=self.workers,
-                     should_cancel=self.should_cancel, calls=calls)
+                     should_cancel=self.should_cancel, calls=calls, output=False)
         return snapshot.buffers if snapshot.buffers is not None else _cleared(scene)
 
     def measure(self, changed: DrawScene) -> tuple[dict[tuple[Key, Key], int], int]:

@@ -279,12 +279,16 @@ def unit_fragments(collector: FragmentCollector, threads: int) -> int:
     return max(UNIT_FRAGMENTS, min(WORK_FRAGMENTS, total // (2 * threads)))
 
 
-class _LastBuffers(FrameObserver):
-    """Keeps the buffers a render leaves (at its last ``draw_end``); reads no fragment."""
+class LastBuffers(FrameObserver):
+    """Keeps the buffers a render leaves at its last ``draw_end`` (with ``until_draw``, after that
+    call), None when it drew no call; reads no fragment, so the calls are drawn as unobserved."""
 
     exact_boundaries = False
     reads_fragments = False
-    buffers: FrameBuffers | None = None
+    per_sample = True  # reads the buffers only
+
+    def __init__(self) -> None:
+        self.buffers: FrameBuffers | None = None
 
     def draw_end(self, call, buffers, triangles) -> None:
         self.buffers = buffers
@@ -462,7 +466,7 @@ def analyze(
             reference = render_scene(scene, resume=(buf, last_sorted), workers=workers, calls=calls,
                                      should_cancel=should_cancel).color
         elif any(c.queue > LAST_SORTED_QUEUE for c in calls):  # the Overlay draws' codes, compared
-            last = _LastBuffers()
+            last = LastBuffers()
             render_scene(scene, resume=(buf, last_sorted), workers=workers, calls=calls,
                          should_cancel=should_cancel, observer=last, output=False)
             reference, error = reference_from_codes(frame.color, counts.final, last.buffers)

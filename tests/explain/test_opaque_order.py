@@ -18,7 +18,7 @@ from blendlib.core.pipeline import render_scene
 from blendlib.core.vocabulary import BlendFactor, BlendOp, CompareFunction, Pass, Queue
 from blendlib.explain import advice
 from blendlib.explain.fragment_store import alpha_extreme, writes_nearest
-from blendlib.explain.sorted_reference import analyze
+from blendlib.explain.sorted_reference import LastBuffers, analyze
 from tests.explain.test_advice import _candidates, _full_measure
 from tests.explain.test_sorted_reference import BLEND
 from tests.reference import scenes as sc
@@ -97,7 +97,7 @@ def _reordered(scene, order):
 
 def _opaque_buffers(scene):
     last = max(c.index for c in draw_calls(scene) if c.queue <= 2500)
-    snapshot = advice._Snapshot()
+    snapshot = LastBuffers()
     render_scene(scene, until_draw=last, observer=snapshot)
     return snapshot.buffers
 
