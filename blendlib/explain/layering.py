@@ -4,9 +4,9 @@ of the sorted reference (step 2) and the renderer pairs the frame applied out of
 A block's fragments come in the order the frame applied them at each pixel. Where the
 frame allows it, the fragments alone at their pixel leave first (the frame's colour is the
 reference's there). One stable sort by pixel (:func:`group_by_pixel`; a radix sort where a
-unit's pixels fit 16 bits) groups the rest, each pixel's still in that order, and every per-pixel array that
-follows is over the pixels holding them only. Then, for pixels of bounded fragment totals at
-a time (:func:`pixel_ranges`):
+unit's pixels fit 16 bits) groups the rest, each pixel's still in that order, and every
+per-pixel array that follows is over the pixels holding them only. Then, for pixels of bounded
+fragment totals at a time (:func:`pixel_ranges`):
 
 - :func:`far_to_near_layers`: pixels with the same number of fragments ``c`` form one (n, c)
   matrix, sorted row by row by (depth code descending, applied order) — small sorts, no sort of
@@ -182,10 +182,7 @@ class ReferenceBlender:
     def keep_frame(self, pixels: np.ndarray, frame: FrameBuffers) -> None:
         """Set the colour of ``pixels`` (K,) int64 to the ``frame``'s own (one sample a pixel):
         pixels where the frame applied a lone fragment onto step 1 (:func:`group_by_pixel`)."""
-        to, source = self.buf.color, frame.color
-        if to.dtype == np.uint8:  # an RGBA code as one uint32: a gather of words, not of rows
-            to, source = to.view(np.uint32)[:, 0], source.view(np.uint32)[:, 0]
-        to[pixels] = source[pixels]
+        self.buf.packed()[pixels] = np.take(frame.packed(), pixels)  # whole pixels, not rows of four
 
     def colour_ids(self, block: Block) -> tuple[np.ndarray | None, np.ndarray]:
         """(group (N,) int64 or None when there is one, ids (N,) int32) of a block's fragments:

@@ -462,10 +462,11 @@ def analyze(
                          band=(collector.rows_of(first)[0], height))
         bar(0.95)
         last_sorted = max(c.index for c in calls if c.queue <= LAST_SORTED_QUEUE)
-        if any(c.queue > LAST_SORTED_QUEUE for c in calls) and (scene.hdr or samples > 1):
+        overlay = any(c.queue > LAST_SORTED_QUEUE for c in calls)
+        if overlay and (scene.hdr or samples > 1):
             reference = render_scene(scene, resume=(buf, last_sorted), workers=workers, calls=calls,
                                      should_cancel=should_cancel).color
-        elif any(c.queue > LAST_SORTED_QUEUE for c in calls):  # the Overlay draws' codes, compared
+        elif overlay:  # the Overlay draws' codes, compared
             last = LastBuffers()
             render_scene(scene, resume=(buf, last_sorted), workers=workers, calls=calls,
                          should_cancel=should_cancel, observer=last, output=False)
