@@ -512,7 +512,7 @@ class _Measurer:
         changed = np.flatnonzero(new != old) + y0 * width  # buffer pixels
         if changed.size == 0:
             return self.differing_before
-        color = np.divide(codes[changed], np.float32(255.0), dtype=np.float32)
+        color = np.divide(np.take(codes, changed, axis=0), np.float32(255.0), dtype=np.float32)
         height = original.frame.color.shape[0]
         return self._differing_at(color, (height - 1 - changed // width) * width + changed % width)
 
@@ -521,7 +521,7 @@ class _Measurer:
         at pixels ``at`` (K,) (top row first) instead of its own."""
         original = self.analysis
         flat = (-1, 1, 4)
-        now = sort_error(color.reshape(flat), original.reference.reshape(flat)[at], original.hdr)
+        now = sort_error(color.reshape(flat), np.take(original.reference.reshape(flat), at, axis=0), original.hdr)
         before = original.error.reshape(-1)[at]
         return (self.differing_before - int(np.count_nonzero(before > original.step))
                 + int(np.count_nonzero(now > original.step)))
@@ -546,7 +546,7 @@ class _Measurer:
         changed = np.concatenate(changed)
         if changed.size == 0:
             return self.differing_before
-        return self._differing_at(color.reshape(-1, 4)[changed], changed + top * width)
+        return self._differing_at(np.take(color.reshape(-1, 4), changed, axis=0), changed + top * width)
 
 
 def _last_opaque(calls: list[DrawCall]) -> int:

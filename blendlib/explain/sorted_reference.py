@@ -251,9 +251,9 @@ def reference_from_codes(frame_color: np.ndarray, frame: FrameBuffers,
     error = np.zeros((h, w), dtype=np.float32)
     if differ.size:
         y, x = h - 1 - differ // w, differ % w
-        codes = reference.color[differ]
+        codes = np.take(reference.color, differ, axis=0)  # rows of four: np.take, not fancy indexing
         out[y, x] = np.divide(codes, np.float32(255), dtype=np.float32)  # as FrameBuffers.output
-        error[y, x] = np.abs(frame.color[differ].astype(np.int16) - codes.astype(np.int16)).max(axis=1)
+        error[y, x] = np.abs(np.take(frame.color, differ, axis=0).astype(np.int16) - codes.astype(np.int16)).max(axis=1)
     return out, error
 
 
