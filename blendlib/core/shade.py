@@ -158,7 +158,7 @@ class Texels:
         return cached
 
     def fetch(self, index: np.ndarray) -> np.ndarray:
-        """Texels at flat indices ``index`` (N,) int64 (row * w + column) → (N, 4) float64
+        """Texels at flat indices ``index`` (N,) int64 (row * w + column, in 0..h*w-1) → (N, 4) float64
         (for byte images a transposed view of a channels-first array)."""
         return self.fetch_channels(index).T
 
@@ -173,14 +173,14 @@ class Texels:
         planes = self._planes()
         if planes is not None:  # one gather per channel from the decoded texture
             for row, k in enumerate(channels):
-                np.take(planes[k], index, out=out[row])
+                np.take(planes[k], index, out=out[row], mode="clip")
             return out
         # Whole texels gathered as one uint32 each (fancy indexing of (N, 4) rows is slower),
         # then one table per channel.
         c = np.take(self.codes.view(np.uint32).reshape(-1), index).view(np.uint8).reshape(-1, 4)
         luts = (self.lut_rgb, self.lut_rgb, self.lut_rgb, self.lut_alpha)
         for row, k in enumerate(channels):
-            np.take(luts[k], c[:, k], out=out[row])
+            np.take(luts[k], c[:, k], out=out[row], mode="clip")
         return out
 
     #: Byte images of up to this many texels are also kept decoded, channels first (8 MB at most).
@@ -193,9 +193,56 @@ class Texels:
         if planes is None and self.codes.shape[0] <= self.PLANE_TEXELS:
             planes = np.empty((4, self.codes.shape[0]), np.float64)
             for k, lut in enumerate((self.lut_rgb, self.lut_rgb, self.lut_rgb, self.lut_alpha)):
-                np.take(lut, self.codes[:, k], out=planes[k])
+                np.take(lut, self.codes[:, k], out=planes[k], mode="clip")
             self._decoded = planes
         return planes
+
+    def uniform(self) -> tuple[float | None, ...]:
+        """Per channel (four) the value every texel holds there, as :meth:`fetch` gives it
+        (the same bits), or None where texels differ or hold NaN; computed once."""
+        cached = getattr(self, "_uniform", None)
+        if cached is None:
+            found: list[float | None] = []
+            for k in range(4):
+                if self.codes is not None:
+                    column = self.codes[:, k]
+                    lut = self.lut_alpha if k == 3 else self.lut_rgb
+                    value = float(lut[column[0]]) if (column == column[0]).all() else None
+                else:
+                    column = self.values[:, k]
+                    bits = column.view(np.uint32 if column.dtype == np.float32 else np.uint64)
+                    value = float(column[0]) if (bits == bits[0]).all() else None
+                found.append(None if value is None or math.isnan(value) else value)
+            cached = self._uniform = tuple(found)
+        return cached
+
+    #: Textures of up to this many texels also keep, per wrap mode, each texel's bilinear
+    #: neighbourhood (:meth:`quads`; 8.5 MB for 256×256).
+    QUAD_TEXELS = 1 << 16
+
+    def quads(self, wrap: TextureWrap) -> np.ndarray | None:
+        """(4, (h+1)*(w+1), 4) float64, made on first use for textures of at most
+        :attr:`QUAD_TEXELS` texels (None for larger ones): entry ``[k, (j+1)*(w+1) + i+1]`` holds
+        channel ``k`` of the four texels bilinear filtering blends with its corner at texel
+        (j, i), for j in -1..h-1 and i in -1..w-1 — (j, i), (j, i+1), (j+1, i), (j+1, i+1), each
+        index wrapped by ``wrap`` as :func:`sample` wraps it — so a sample gathers one row of four
+        per channel instead of four texels."""
+        cache = self.__dict__.setdefault("_quads", {})
+        table = cache.get(wrap)
+        h, w = self.shape[:2]
+        if table is None and h * w <= self.QUAD_TEXELS:
+            if self.codes is not None:
+                planes = self._planes()
+                if planes is None:  # a byte image too large to keep decoded (only when PLANE_TEXELS < QUAD_TEXELS)
+                    return None
+            else:
+                planes = self.values.T.astype(np.float64)
+            rows = _wrap(np.arange(-1.0, h + 1.0), h, wrap) * w
+            columns = _wrap(np.arange(-1.0, w + 1.0), w, wrap)
+            texel = rows[:, None] + columns[None, :]  # (h+2, w+2): the texel at extended (j, i)
+            corners = np.stack([texel[:-1, :-1], texel[:-1, 1:], texel[1:, :-1], texel[1:, 1:]], axis=-1)
+            table = cache[wrap] = np.ascontiguousarray(planes[:, corners.reshape(-1, 4)])
+        return table
 
 
 def texture_texels(texture: Texture, color_space: ColorSpace) -> Texels:
@@ -258,36 +305,106 @@ def sample(texels: Texels, uv: np.ndarray, filt: TextureFilter, wrap: TextureWra
     if filt is TextureFilter.Point:
         return texels.fetch_channels(point_texel_index(texels, uv, wrap), channels).T
     h, w = texels.shape[:2]
-
-    def fetch(index: np.ndarray) -> np.ndarray:
-        return texels.fetch_channels(index, channels)
     u, v = uv[:, 0], uv[:, 1]
-    finite = np.isfinite(u) & np.isfinite(v)
+    finite = np.isfinite(u)
+    finite &= np.isfinite(v)
+    every_finite = bool(finite.all())
     with np.errstate(invalid="ignore", over="ignore"):
-        fu = u * w - 0.5
-        fv = v * h - 0.5
-        i0 = np.where(finite, np.floor(fu), 0.0)
-        j0 = np.where(finite, np.floor(fv), 0.0)
-        au = np.where(finite, fu - i0, 0.0)
-        av = np.where(finite, fv - j0, 0.0)
+        fu = np.multiply(u, w)
+        fu -= 0.5
+        fv = np.multiply(v, h)
+        fv -= 0.5
+        if every_finite:
+            i0, j0 = np.floor(fu), np.floor(fv)
+            au, av = np.subtract(fu, i0, out=fu), np.subtract(fv, j0, out=fv)
+        else:
+            i0 = np.where(finite, np.floor(fu), 0.0)
+            j0 = np.where(finite, np.floor(fv), 0.0)
+            au = np.where(finite, fu - i0, 0.0)
+            av = np.where(finite, fv - j0, 0.0)
+    bu, bv = 1.0 - au, 1.0 - av
+    out = np.empty((len(channels), u.size), np.float64)
+    scratch = np.empty(u.size, np.float64)
+    # Per element the same operations in the same order as lo = t00*(1-au) + t01*au,
+    # hi = t10*(1-au) + t11*au, lo*(1-av) + hi*av, one channel at a time.
+    uniform = texels.uniform()
+    varying: list[tuple[int, int]] = []  # (row of out, channel) of channels whose texels differ
+    made: dict[str, int] = {}  # a uniform value's bits → the row that holds its samples
+    for row, k in enumerate(channels):
+        c = uniform[k]
+        if c is None:
+            varying.append((row, k))
+        elif c.hex() in made:  # the same value in another channel: the same samples
+            out[row] = out[made[c.hex()]]
+        else:  # t00 = t01 = t10 = t11 = c, so hi = lo: each operation once
+            made[c.hex()] = row
+            lo = np.multiply(bu, c, out=out[row])
+            lo += np.multiply(au, c, out=scratch)
+            np.multiply(lo, av, out=scratch)
+            lo *= bv
+            lo += scratch
+    if not varying:
+        return out.T
+    quads = texels.quads(wrap)
+    corner = None if quads is None else _quad_index(i0, j0, h, w, wrap)
+    if corner is not None:  # one gather of a texel's four neighbours per channel
+        four = np.empty((u.size, 4), np.float64)
+        for row, k in varying:
+            np.take(quads[k], corner, axis=0, out=four, mode="clip")
+            lo = np.multiply(four[:, 0], bu, out=out[row])
+            lo += np.multiply(four[:, 1], au, out=scratch)
+            hi = np.multiply(four[:, 2], bu, out=four[:, 2])
+            hi += np.multiply(four[:, 3], au, out=scratch)
+            lo *= bv
+            lo += np.multiply(hi, av, out=hi)
+        return out.T
     i1, j1 = _wrap(i0 + 1.0, w, wrap), _wrap(j0 + 1.0, h, wrap)
     i0, j0 = _wrap(i0, w, wrap), _wrap(j0, h, wrap)
     j0 *= w
     j1 *= w
-    # Channels first, one channel at a time on contiguous arrays: per element the same operations
-    # in the same order as lo = t00*(1-au) + t01*au, hi = t10*(1-au) + t11*au, lo*(1-av) + hi*av.
-    t00, t01, t10, t11 = (fetch(j + i) for j, i in ((j0, i0), (j0, i1), (j1, i0), (j1, i1)))
-    bu, bv = 1.0 - au, 1.0 - av
-    out = np.empty((len(channels), u.size), np.float64)
-    scratch = np.empty(u.size, np.float64)
-    for k in range(len(channels)):
-        lo = np.multiply(t00[k], bu, out=out[k])
-        lo += np.multiply(t01[k], au, out=scratch)
-        hi = np.multiply(t10[k], bu, out=t10[k])
-        hi += np.multiply(t11[k], au, out=scratch)
+    fetched = tuple(k for _row, k in varying)
+    t00, t01, t10, t11 = (texels.fetch_channels(j + i, fetched) for j, i in ((j0, i0), (j0, i1), (j1, i0), (j1, i1)))
+    for at, (row, _k) in enumerate(varying):
+        lo = np.multiply(t00[at], bu, out=out[row])
+        lo += np.multiply(t01[at], au, out=scratch)
+        hi = np.multiply(t10[at], bu, out=t10[at])
+        hi += np.multiply(t11[at], au, out=scratch)
         lo *= bv
         lo += np.multiply(hi, av, out=hi)
     return out.T
+
+
+def _quad_index(i0: np.ndarray, j0: np.ndarray, h: int, w: int, wrap: TextureWrap) -> np.ndarray | None:
+    """Rows of :meth:`Texels.quads` for bilinear corners at float texel indices ``i0``, ``j0`` (N,)
+    (integer-valued) → (N,) int64; None when an index is 2**52 or more from the texture (there
+    ``i0 + 1.0`` rounds and :func:`sample` wraps it as it falls)."""
+    span = 2.0 ** 52
+    low = min(i0.min(initial=0.0), j0.min(initial=0.0))
+    high = max(i0.max(initial=0.0), j0.max(initial=0.0))
+    if not (-span < low and high < span):
+        return None
+    if -1.0 <= low and high <= min(h, w) - 1.0:  # every corner's texels inside or on the border
+        row = j0.astype(np.int64)
+        column = i0.astype(np.int64)
+    else:
+        row, column = _extended(j0, h, wrap), _extended(i0, w, wrap)
+    row += 1
+    row *= w + 1
+    row += column
+    row += 1
+    return row
+
+
+def _extended(i: np.ndarray, size: int, wrap: TextureWrap) -> np.ndarray:
+    """Float texel indices (integer-valued, under 2**52 in magnitude) → int64 in -1..size-1 with
+    the same wrapped pair (i, i + 1) as :func:`_wrap` gives: Repeat keeps i modulo ``size``,
+    Clamp holds i in -1..size-1 (below, both clamp to 0; above, both to size - 1)."""
+    k = i.astype(np.int64)
+    if wrap is TextureWrap.Repeat:
+        if size & (size - 1) == 0:
+            return np.bitwise_and(k, size - 1, out=k)
+        return np.remainder(k, size, out=k)
+    return np.clip(k, -1, size - 1, out=k)
 
 
 def texture_uv_of(material: Material, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -456,11 +456,13 @@ def setup_renderers(items: list[SetupInput], camera: Camera, pool=None, parts: i
     iw = np.empty(tw.shape, dtype=np.float64)
 
     def gather_part(lo: int, hi: int) -> None:
-        t = tw[lo:hi]
-        np.take(Xv, t, out=X[lo:hi])
-        np.take(Yv, t, out=Y[lo:hi])
-        np.take(zwv, t, out=zw[lo:hi])
-        np.take(iwv, t, out=iw[lo:hi])
+        t = tw[lo:hi]  # vertex indices, checked in range by the scene's validation
+        # mode="clip": with ``out`` numpy's default mode ("raise") gathers into a buffer and copies
+        # it over; the indices are in range, so clip changes no value and writes in place.
+        np.take(Xv, t, out=X[lo:hi], mode="clip")
+        np.take(Yv, t, out=Y[lo:hi], mode="clip")
+        np.take(zwv, t, out=zw[lo:hi], mode="clip")
+        np.take(iwv, t, out=iw[lo:hi], mode="clip")
 
     run_parts(pool, parts, tw.shape[0], gather_part, piece=PIECE)
     parts_list = [(whole, X, Y, zw, iw, None)]

@@ -393,6 +393,56 @@ def test_point_texel_index_of_non_finite_coordinates_is_texel_zero():
     np.testing.assert_array_equal(got, [0, 0, 0, 0, 5 * 10 + 7, 3 * 10 + 2])
 
 
+def _sprite_like(h: int, w: int, byte: bool) -> np.ndarray:
+    """(h, w, 4) float32: red and green white everywhere, blue varying (but along its first
+    row), alpha 0.2 everywhere — the uniform channels of a particle sprite, and two channels
+    sharing one uniform value."""
+    rng = np.random.default_rng(h * 100 + w)
+    px = rng.uniform(0.0, 1.0, (h, w, 4)).astype(np.float32)
+    if byte:
+        px = (np.rint(px * 255.0) / np.float32(255.0)).astype(np.float32)
+    px[..., 0] = 1.0
+    px[..., 1] = 1.0
+    px[..., 3] = np.float32(51.0 / 255.0) if byte else np.float32(0.2)
+    px[0, :, 2] = 0.6  # blue uniform along the first row only
+    return px
+
+
+@pytest.mark.parametrize("wrap", [TextureWrap.Repeat, TextureWrap.Clamp])
+@pytest.mark.parametrize("byte", [True, False], ids=["byte", "float"])
+@pytest.mark.parametrize("quads", [True, False], ids=["quads", "texels"])
+def test_bilinear_samples_equal_the_scalar_formula(wrap, byte, quads, monkeypatch):
+    """Bilinear sampling (§7) through each texel's kept neighbourhood (``Texels.quads``) or four
+    texel gathers, with uniform channels computed once: the same bits as the scalar reference's
+    ``lo = t00*(1-au) + t01*au``, ``hi = t10*(1-au) + t11*au``, ``lo*(1-av) + hi*av`` for
+    coordinates inside, on and far beyond the border (the corners' extended rows), non-finite
+    ones, ones 2**52 texels away, a non-square texture and any subset of channels."""
+    from blendlib.core import shade
+    from tests.reference.scalar_shading import sample_rows
+
+    if not quads:
+        monkeypatch.setattr(shade.Texels, "QUAD_TEXELS", 0)
+    h, w = 5, 12
+    px = _sprite_like(h, w, byte)
+    texels = shade.Texels(px, None)
+    assert (texels.codes is not None) == byte
+    assert texels.uniform() == (1.0, 1.0, None, float(px[0, 0, 3]))
+    assert (texels.quads(wrap) is not None) == quads
+    rng = np.random.default_rng(5)
+    near = rng.uniform(-0.2, 1.2, (600, 2))
+    border = np.array([[0.0, 0.0], [1.0, 1.0], [0.5 / w, 0.5 / h], [1.0 - 0.5 / w, 1.0 - 0.5 / h],
+                       [-0.01, 0.5], [0.5, 1.01], [np.nan, 0.5], [0.5, np.inf], [-np.inf, -np.inf]])
+    far = rng.uniform(-4000.0, 4000.0, (200, 2))
+    tall = np.stack([rng.uniform(0.0, 1.0, 200), rng.uniform(1.0, 2.0, 200)], axis=1)  # rows past h, columns not past w
+    huge = np.array([[2.0**55 / w + 0.3, 0.4], [0.2, -(2.0**56) / h]])
+    T = [[[float(c) for c in px[j, i]] for i in range(w)] for j in range(h)]
+    for uv in (near, border, tall, far, huge, np.concatenate([near, huge])):
+        expected = np.array([sample_rows(T, u, v, False, wrap is TextureWrap.Repeat) for u, v in uv])
+        for channels in ((0, 1, 2, 3), (2,), (3, 0), (1, 2), (2, 0, 1)):
+            got = shade.sample(texels, uv, TextureFilter.Bilinear, wrap, channels)
+            np.testing.assert_array_equal(got.view(np.int64), expected[:, list(channels)].view(np.int64))
+
+
 @pytest.mark.parametrize("src, dst, op", FACTOR_CASES)
 @pytest.mark.parametrize("color_space", [ColorSpace.Gamma, ColorSpace.Linear])
 def test_per_fragment_blending_by_channel_equals_reference(src, dst, op, color_space, monkeypatch):
