@@ -205,11 +205,10 @@ def _blend_ldr(buf: FrameBuffers, p: Pass, stored: np.ndarray, rgba: np.ndarray)
     arrays: the operations of :func:`blend` and :meth:`FrameBuffers.encode`, element by element."""
     codes = stored.view(np.uint8).reshape(-1, 4)
     n = stored.shape[0]
-    # Channels first, clamped in place: one copy (always: for one fragment rgba.T is already
-    # contiguous, and the caller's colours must survive — MSAA applies them to every sample), and
-    # every later operation on contiguous rows.
-    src = np.array(rgba.T, dtype=np.float64, order="C", copy=True)
-    np.maximum(src, 0.0, out=src)
+    # Channels first, clamped into a new array (the caller's colours must survive — MSAA applies
+    # them to every sample) by the clamp's first pass, and every later operation on contiguous rows.
+    src = np.empty((4, n), dtype=np.float64)
+    np.maximum(rgba.T, 0.0, out=src)
     np.minimum(src, 1.0, out=src)
     result = list(src)
     if p.blend:
