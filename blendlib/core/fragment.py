@@ -24,6 +24,7 @@ from collections.abc import Callable
 import numpy as np
 
 from . import lights, mips, raster, shade
+from .gather import gather
 from .merger import compare, table_pays
 from .records import DrawState, ShadedFragments
 from .vertex import TriangleSetup
@@ -210,7 +211,7 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
     if state.early_depth is not None and depth is not None:
         # Early depth test: what fails against the stored depth now fails when merged (see
         # early_depth_applies) and is dropped here, before its attributes are interpolated and shaded.
-        passing = compare(p.ztest, depth, np.take(state.early_depth, frags.pix))
+        passing = compare(p.ztest, depth, gather(state.early_depth, frags.pix))
         kept_count = int(np.count_nonzero(passing))
         # Dropping copies what is kept: it pays where a good share fails (else the merger drops them).
         if (n - kept_count) * EARLY_DROP_SHARE >= n:
@@ -219,11 +220,11 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
                 return None
             length = _segment_sums(passing, length)  # rows keep their order; some hold none now
             n = int(kept.size)
-            frags = raster.Fragments(pix=np.take(frags.pix, kept), tri=np.take(frags.tri, kept),
-                                     bary=np.take(frags.bary, kept, axis=1), row_tri=frags.row_tri,
+            frags = raster.Fragments(pix=gather(frags.pix, kept), tri=gather(frags.tri, kept),
+                                     bary=gather(frags.bary, kept, axis=1), row_tri=frags.row_tri,
                                      row_length=length)
-            depth = np.take(depth, kept)
-            weights = None if weights is None else np.take(weights, kept, axis=1)
+            depth = gather(depth, kept)
+            weights = None if weights is None else gather(weights, kept, axis=1)
     # (K,) fragments per triangle (some none): rows come in triangle order, each triangle's one run.
     counts = (np.add.reduceat(length, np.flatnonzero(first)) if of_row is None
               else np.bincount(run_of_row, weights=length, minlength=tris.size).astype(np.int64))
@@ -449,7 +450,7 @@ def _unsaturated(alpha: np.ndarray, width: int, rows) -> np.ndarray:
     y_lo, y_hi, x_lo, x_hi = int(y.min()), int(y.max()) + 1, int(x0.min()), int(x1.max())
     if (y_hi - y_lo) * (x_hi - x_lo) > 4 * int(rows.length.sum()):
         pix = raster.rasterize_rows(rows, 0, rows.count, width, bary=False).pix
-        return _segment_sums(np.take(alpha, pix) != 255, rows.length) > 0
+        return _segment_sums(alpha[pix] != 255, rows.length) > 0  # not np.take: see _dark
     running = np.zeros((y_hi - y_lo, x_hi - x_lo + 1), dtype=np.int32)
     np.cumsum(alpha.reshape(-1, width)[y_lo:y_hi, x_lo:x_hi] != 255, axis=1, out=running[:, 1:])
     at = y - y_lo
@@ -464,7 +465,9 @@ def _dark(state: DrawState, position: np.ndarray, pix: np.ndarray, corners: list
     values, convex combinations of those, then might not give a colour of exactly 0)."""
     dark = lights.dark_fragments(state.lights.add, position[:, 0], position[:, 1], position[:, 2])
     if state.dark_alpha is not None:
-        dark &= np.take(state.dark_alpha, pix) == 255
+        # Indexing, not np.take: the alpha codes are a strided view of the colour buffer, which
+        # np.take would first copy whole.
+        dark &= state.dark_alpha[pix] == 255
     if not dark.any() or not _bounded(corners):
         return None
     return dark

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .gather import gather
 from .parts import PIECE, run_parts
 from .vertex import DEPTH_MAX, HALF, SUBPIXEL, TriangleSetup
 
@@ -236,7 +237,7 @@ def _spans(X: np.ndarray, Y: np.ndarray, area2: np.ndarray, selected: np.ndarray
         index = np.flatnonzero(has)
         X, Y = np.take(X, index, axis=0), np.take(Y, index, axis=0)
         selected, area2, x_lo, x_hi, y_lo, y_hi, x_min, x_max, y_min, y_max = (
-            np.take(v, index) for v in (selected, area2, x_lo, x_hi, y_lo, y_hi, x_min, x_max, y_min, y_max))
+            gather(v, index) for v in (selected, area2, x_lo, x_hi, y_lo, y_hi, x_min, x_max, y_min, y_max))
     swap = area2 < 0
     # Counter-clockwise vertex order (a, b, c) = (v0, v1, v2), or (v0, v2, v1) when clockwise.
     ax, ay = X[:, 0], Y[:, 0]
@@ -252,7 +253,7 @@ def _spans(X: np.ndarray, Y: np.ndarray, area2: np.ndarray, selected: np.ndarray
     of_row = np.repeat(np.arange(nrows.size, dtype=np.int64), nrows)
 
     def each(per_triangle: np.ndarray) -> np.ndarray:
-        return np.take(per_triangle, of_row)
+        return gather(per_triangle, of_row)
 
     y = each(y_lo - starts)
     y += np.arange(total, dtype=np.int64)
@@ -301,8 +302,8 @@ def _spans(X: np.ndarray, Y: np.ndarray, area2: np.ndarray, selected: np.ndarray
     length = x1 - x0 + 1
     keep = np.flatnonzero(length > 0)
     if keep.size != length.size:  # rows without a covered pixel centre are dropped
-        y, x0, length, c0, c1, dy0, dy1 = (np.take(v, keep) for v in (y, x0, length, *c_rows, *dy_rows[:2]))
-        of_row = np.take(of_row, keep)
+        y, x0, length, c0, c1, dy0, dy1 = (gather(v, keep) for v in (y, x0, length, *c_rows, *dy_rows[:2]))
+        of_row = gather(of_row, keep)
     else:
         (c0, c1), (dy0, dy1) = c_rows, dy_rows[:2]
     return Rows(tri=each(selected), y=y, x0=x0, length=length, c0=c0, c1=c1, dy0=dy0,
@@ -374,9 +375,9 @@ def _sample_spans(ax, ay, bx, by, cx, cy, x_lo: np.ndarray, x_hi: np.ndarray, y:
     keep = np.flatnonzero(hi >= lo)
     of_row = np.arange(y.size, dtype=np.int64)
     if keep.size != y.size:
-        y, lo, hi, of_row = (np.take(v, keep) for v in (y, lo, hi, of_row))
-        c_rows = [np.take(v, keep) for v in c_rows]
-        dy_rows = [np.take(v, keep) for v in dy_rows]
+        y, lo, hi, of_row = (gather(v, keep) for v in (y, lo, hi, of_row))
+        c_rows = [gather(v, keep) for v in c_rows]
+        dy_rows = [gather(v, keep) for v in dy_rows]
         spans = np.take(spans, keep, axis=1)
 
     def per_row(per_triangle: np.ndarray) -> np.ndarray:
@@ -449,7 +450,7 @@ def run_expander(counts: np.ndarray, n: int) -> Callable[[np.ndarray], np.ndarra
     once and a gather per expansion."""
     if counts.size * REPEAT_MIN_RUN > n:
         run = np.repeat(np.arange(counts.size, dtype=np.int64), counts)
-        return lambda values: np.take(values, run, axis=0)
+        return lambda values: gather(values, run, axis=0)
     return lambda values: np.repeat(values, counts, axis=0)
 
 

@@ -393,6 +393,22 @@ def test_point_texel_index_of_non_finite_coordinates_is_texel_zero():
     np.testing.assert_array_equal(got, [0, 0, 0, 0, 5 * 10 + 7, 3 * 10 + 2])
 
 
+def test_gather_equals_take_for_every_index_take_accepts():
+    """``gather`` (mode "wrap") gives np.take's values for indices in -n..n-1, negative ones
+    counting from the end, along an axis and into ``out`` alike."""
+    from blendlib.core.gather import gather
+
+    rng = np.random.default_rng(3)
+    values = rng.uniform(-1.0, 1.0, (37, 4))
+    index = rng.integers(-37, 37, 500)
+    index[:2] = (-37, 36)
+    np.testing.assert_array_equal(gather(values[:, 1], index), np.take(values[:, 1], index))
+    np.testing.assert_array_equal(gather(values, index, axis=0), np.take(values, index, axis=0))
+    out = np.empty(500, np.float64)
+    assert gather(values.reshape(-1), index, out=out) is out
+    np.testing.assert_array_equal(out, np.take(values.reshape(-1), index))
+
+
 def _sprite_like(h: int, w: int, byte: bool) -> np.ndarray:
     """(h, w, 4) float32: red and green white everywhere, blue varying (but along its first
     row), alpha 0.2 everywhere — the uniform channels of a particle sprite, and two channels

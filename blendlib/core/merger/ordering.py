@@ -16,6 +16,7 @@ from collections.abc import Iterator
 
 import numpy as np
 
+from ..gather import gather
 from ..vocabulary import CompareFunction, Pass
 from .blending import BlendTable, blend_fragments, find_table
 from .buffers import PEEL_FREE, FrameBuffers, Outcome, compare, stencil_op
@@ -63,10 +64,10 @@ def apply_layer(
             return
         if not passed.all():
             index = np.flatnonzero(passed)
-            pix = np.take(pix, index)
-            depth = None if depth is None else np.take(depth, index)
-            rgba = None if rgba is None else np.take(rgba, index, axis=0)
-            ids = None if ids is None else np.take(ids, index)
+            pix = gather(pix, index)
+            depth = None if depth is None else gather(depth, index)
+            rgba = None if rgba is None else gather(rgba, index, axis=0)
+            ids = None if ids is None else gather(ids, index)
     if p.zwrite:
         buf.depth[pix] = depth
     if not p.color_mask:
@@ -171,9 +172,9 @@ def merge(
             return
         codes = None if outcome is None else np.empty(sel.shape[0], dtype=np.int8)
         # np.take: fancy indexing of (N, 4) rows costs several times more.
-        apply_layer(buf, p, np.take(pix, sel), None if depth is None else np.take(depth, sel),
-                    None if rgba is None else np.take(rgba, sel, axis=0),
-                    None if ids is None else np.take(ids, sel), lut, codes)
+        apply_layer(buf, p, gather(pix, sel), None if depth is None else gather(depth, sel),
+                    None if rgba is None else gather(rgba, sel, axis=0),
+                    None if ids is None else gather(ids, sel), lut, codes)
         if codes is not None:
             outcome[sel] = codes
 

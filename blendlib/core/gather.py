@@ -1,0 +1,22 @@
+"""Gathers by index arrays that are in range by construction.
+
+numpy's ``take`` checks every index in its default mode ("raise") and, given ``out``, first
+gathers into a buffer and then copies it over; its "wrap" mode gives the same values for every
+index the default accepts (negative ones count from the end alike) without either cost. The
+pipeline's own index arrays (run and row indices, layer selections, pixels within the buffers)
+are built from the extents of the arrays they index, so they take :func:`gather`; indices from
+outside (a scene's triangles) keep ``np.take``'s check or are validated first.
+
+``take`` of a non-contiguous source copies the whole source to contiguous memory first: a few
+elements of a strided column of a large array are read by indexing (``column[index]``) instead.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def gather(values: np.ndarray, index: np.ndarray, axis: int | None = None, out: np.ndarray | None = None) -> np.ndarray:
+    """``np.take(values, index, axis, out)`` for ``index`` (integer array) whose entries all lie
+    in ``-n..n-1`` of ``values``' extent along ``axis`` (the flattened array for None)."""
+    return np.take(values, index, axis=axis, out=out, mode="wrap")
