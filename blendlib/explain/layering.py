@@ -30,6 +30,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..core.drawlist import DrawCall
+from ..core.gather import gather
 from ..core.merger import FrameBuffers, apply_layer, find_table, lut_eligible, table_pays
 from ..core.vertex import DEPTH_MAX
 from .fragment_store import DEPTH_MASK, WRITTEN_BIT, Block
@@ -195,6 +196,9 @@ class ReferenceBlender:
             ids[own] = block.key[own]
         return group, ids
 
+    #: With at most this many state groups a layer is split by one comparison per group.
+    GROUPS_BY_PASS = 8
+
     def apply(self, block: Block, group: np.ndarray | None, ids: np.ndarray, order: np.ndarray,
               bounds: list[int], offset: int) -> None:
         """Apply layers (:func:`far_to_near_layers`: fragment indices ``order`` of a range starting
@@ -210,21 +214,32 @@ class ReferenceBlender:
         fid = ids[order]
         rgba = None
         own = fid < 0
-        if own.any():  # per-fragment colours: rows of the block's table
+        if own.all():  # per-fragment colours: rows of the block's table
+            rgba = gather(block.table, -1 - fid, axis=0)
+        elif own.any():
             rgba = np.empty((order.size, 4), dtype=np.float64)
-            rgba[own] = np.take(block.table, -1 - fid[own], axis=0)
+            rgba[own] = gather(block.table, -1 - fid[own], axis=0)
         grp = None if group is None else group[order]
+        groups = len(self.group_pass)
         for k in range(len(bounds) - 1):
             a, b = bounds[k], bounds[k + 1]
             if grp is None:
                 self._apply(0, pix[a:b], depth[a:b], fid[a:b], None if rgba is None else rgba[a:b])
                 continue
-            sel = a + np.argsort(grp[a:b], kind="stable")
-            sg = grp[sel]
-            cuts = np.flatnonzero(sg[1:] != sg[:-1]) + 1
-            for lo, hi in zip([0, *cuts.tolist()], [*cuts.tolist(), sg.size], strict=True):
-                part = sel[lo:hi]
-                self._apply(int(sg[lo]), pix[part], depth[part], fid[part], None if rgba is None else rgba[part])
+            # The layer's fragments by group, each group's in layer order (its pixels are distinct
+            # anyway): a pass per group where groups are few, else one stable sort.
+            if groups <= self.GROUPS_BY_PASS:
+                parts = [(g, np.flatnonzero(grp[a:b] == g)) for g in range(groups)]
+                parts = [(g, part + a) for g, part in parts if part.size]
+            else:
+                sel = a + np.argsort(grp[a:b], kind="stable")
+                sg = grp[sel]
+                cuts = np.flatnonzero(sg[1:] != sg[:-1]) + 1
+                parts = [(int(sg[lo]), sel[lo:hi])
+                         for lo, hi in zip([0, *cuts.tolist()], [*cuts.tolist(), sg.size], strict=True)]
+            for g, part in parts:
+                self._apply(g, gather(pix, part), gather(depth, part), gather(fid, part),
+                            None if rgba is None else gather(rgba, part, axis=0))
 
     def _apply(self, g: int, pix: np.ndarray, depth: np.ndarray, fid: np.ndarray, rgba: np.ndarray | None) -> None:
         """Fragments of one group on distinct pixels: ``fid`` (M,) int32 palette entries or -1

@@ -87,6 +87,27 @@ def test_small_blocks_ranges_and_budgets_give_the_same_result(monkeypatch, seed,
     assert whole.inversions == banded.inversions and np.array_equal(whole.frame.color, banded.frame.color)
 
 
+@pytest.mark.parametrize("by_pass", [0, 1 << 16], ids=["sorted", "by-comparison"])
+@pytest.mark.parametrize("seed", [18, 30, 60])
+def test_layers_of_several_state_groups_split_either_way_equal_the_scalar_reference(monkeypatch, seed, by_pass):
+    """Step 2 applies a layer's fragments state group by state group (a group: one pass state),
+    split by one comparison per group or by a stable sort of their groups: the scalar sorted
+    reference either way, on scenes whose layers hold several groups."""
+    from blendlib.explain import layering
+
+    monkeypatch.setattr(layering.ReferenceBlender, "GROUPS_BY_PASS", by_pass)
+    groups = []
+    real = layering.ReferenceBlender._apply
+
+    def spy(self, g, *args):
+        groups.append(g)
+        return real(self, g, *args)
+
+    monkeypatch.setattr(layering.ReferenceBlender, "_apply", spy)
+    assert_reference(transparent(seeded_scene(seed)))
+    assert len(set(groups)) >= 3
+
+
 def _two_quads(order_right: bool):
     """A red quad nearer than a blue one; ``order_right``: the blue (far) one drawn first."""
     cam = sc.screen_camera(16, 12)
