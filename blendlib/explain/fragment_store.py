@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.drawlist import DrawCall
+from ..core.gather import gather
 from ..core.merger import FrameBuffers, Outcome
 from ..core.records import FrameObserver, ShadedFragments
 from ..core.vocabulary import LAST_OPAQUE_QUEUE, QUEUE_NUMBERS, BlendFactor, BlendOp, CompareFunction, Pass, Queue
@@ -357,28 +358,46 @@ class FragmentCollector(FrameObserver):
         elif wrote.any():
             depth[wrote] |= WRITTEN_BIT
         key = self._palette_keys(call.index, frags)
-        pieces = []
-        for b, sel in _pieces(block, self.first_block, self.limit):
-            local = np.empty(pix[sel].size, dtype=np.uint16)
-            np.subtract(pix[sel], b * self.block_pixels, out=local, casting="unsafe")
-            n = local.size
-            piece_key = np.empty(n, dtype=np.int32) if key is None else key[sel]
-            own = None if key is None else (np.flatnonzero(piece_key < 0) if frags.rgba is not None else None)
-            table = None
-            if key is None or (own is not None and own.size):
-                # np.take: a gather of whole rows, many times faster than fancy indexing of (M, 4).
-                rows = frags.rgba[sel] if isinstance(sel, slice) else np.take(frags.rgba, sel, axis=0)
-                table, codes = _color_table(rows if own is None else np.take(rows, own, axis=0))
+        order, spans = _pieces(block, self.first_block, self.limit)
+        if not spans:
+            return
+        # The kept fragments in piece order, each array made once for the chunk (pieces are then
+        # slices of it, copied so that an evicted block frees its memory).
+        lo, hi = spans[0][1], spans[-1][2]
+        index = None if order is None else order[lo:hi]
+
+        def kept(a: np.ndarray) -> np.ndarray:
+            return a[lo:hi] if index is None else gather(a, index, axis=0)
+
+        local = np.empty(hi - lo, dtype=np.uint16)
+        np.subtract(kept(pix), kept(block) * self.block_pixels, out=local, casting="unsafe")
+        depth = kept(depth)
+        keys = np.empty(hi - lo, dtype=np.int32) if key is None else kept(key)
+        starts = np.array([a - lo for _b, a, _e in spans], dtype=np.int64)
+        tables = None
+        if key is None or frags.rgba is not None:
+            own = None if key is None else np.flatnonzero(keys < 0)  # fragments with their own colour
+            if own is None or own.size:
                 if own is None:
-                    piece_key[:] = codes
+                    rows = kept(frags.rgba)
                 else:
-                    piece_key[own] = codes
-            if piece_key.base is not None:
-                piece_key = piece_key.copy()  # a slice of the chunk's keys would keep them all alive
-            piece = (local, depth[sel].copy() if isinstance(sel, slice) else depth[sel],
-                     np.full(n, call.index, dtype=self.call_dtype), piece_key, table)
-            nbytes = n * FRAGMENT_BYTES + (0 if table is None else table.shape[0] * COLOR_BYTES)
-            pieces.append((b, piece, n, nbytes))
+                    rows = gather(frags.rgba, (own + lo) if index is None else gather(index, own), axis=0)
+                tables = _color_tables(rows, starts if own is None else np.searchsorted(own, starts))
+                if own is None:
+                    keys = tables[1]
+                else:
+                    keys[own] = tables[1]
+        pieces = []
+        for k, (b, a, e) in enumerate(spans):
+            a -= lo
+            e -= lo
+            table = None
+            if tables is not None and tables[2][k] < tables[2][k + 1]:
+                table = tables[0][tables[2][k]:tables[2][k + 1]].copy()
+            piece = (local[a:e].copy(), depth[a:e].copy(), np.full(e - a, call.index, dtype=self.call_dtype),
+                     keys[a:e].copy(), table)
+            nbytes = (e - a) * FRAGMENT_BYTES + (0 if table is None else table.shape[0] * COLOR_BYTES)
+            pieces.append((b, piece, e - a, nbytes))
         with self.lock:
             for b, piece, n, nbytes in pieces:
                 if b >= self.limit:
@@ -544,31 +563,44 @@ def _count(counts: np.ndarray, pix: np.ndarray) -> None:
 SPLIT_RUNS = 64
 
 
-def _pieces(block: np.ndarray, first: int, limit: int) -> list[tuple[int, slice | np.ndarray]]:
-    """(block, selection) for the fragments of a chunk in blocks ``[first, limit)``, each block's
-    in chunk order: runs of consecutive fragments (slices) when there are few, else index arrays."""
+def _pieces(block: np.ndarray, first: int, limit: int) -> tuple[np.ndarray | None, list[tuple[int, int, int]]]:
+    """The pieces of a chunk's fragments in blocks ``[first, limit)``, each block's in chunk order:
+    ``(order, [(block, lo, hi), ...])``, piece k being fragments ``lo..hi`` of the chunk (``order``
+    None: runs of consecutive fragments, when there are few) or of ``order`` (N,) int64 (the
+    chunk's fragments stably sorted by block), in that order."""
     cuts = np.flatnonzero(block[1:] != block[:-1]) + 1
     if cuts.size < SPLIT_RUNS:
         bounds = [0, *cuts.tolist(), block.size]
-        runs = [(int(block[a]), slice(a, b)) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
-        return [(b, s) for b, s in runs if first <= b < limit]
+        runs = [(int(block[a]), a, b) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+        return None, [(b, lo, hi) for b, lo, hi in runs if first <= b < limit]
     b_lo = int(block.min())
     order = np.argsort((block - b_lo).astype(np.uint16), kind="stable")  # radix; chunk order kept
     sorted_block = block[order]
     cuts = np.flatnonzero(sorted_block[1:] != sorted_block[:-1]) + 1
     bounds = [0, *cuts.tolist(), order.size]
-    parts = [(int(sorted_block[a]), order[a:b]) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
-    return [(b, s) for b, s in parts if first <= b < limit]
+    parts = [(int(sorted_block[a]), a, b) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+    return order, [(b, lo, hi) for b, lo, hi in parts if first <= b < limit]
 
 
-def _color_table(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Rows (M, 4) float64 → (distinct consecutive rows (K, 4), codes (M,) int32 ``-1 - row``).
-    Rows are compared as two complex numbers each (the same float comparisons, in two passes)."""
+def _color_tables(rows: np.ndarray, starts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The colour tables of consecutive pieces of ``rows`` (R, 4) float64, piece k holding rows
+    ``starts[k]..starts[k+1]`` (``starts`` (K,) int64 ascending, the last piece to R; a piece may
+    be empty): each piece's distinct consecutive rows, and each row's code ``-1 - entry`` in its
+    piece's table. Returns (the tables laid end to end (T, 4), codes (R,) int32, bounds (K+1,)
+    int64: piece k's table is rows ``bounds[k]..bounds[k+1]``). Rows are compared as two complex
+    numbers each (the same float comparisons, in two passes)."""
     new = np.ones(rows.shape[0], dtype=bool)
     if rows.shape[0] > 1:
         pairs = np.ascontiguousarray(rows).view(np.complex128)
         np.not_equal(pairs[1:, 0], pairs[:-1, 0], out=new[1:])
         new[1:] |= pairs[1:, 1] != pairs[:-1, 1]
-    codes = np.cumsum(new, dtype=np.int32)
-    np.negative(codes, out=codes)
-    return np.compress(new, rows, axis=0), codes
+    inside = starts < rows.shape[0]
+    new[starts[inside]] = True  # a piece's first row opens its table
+    count = np.cumsum(new, dtype=np.int32)  # entries so far, over all pieces
+    bounds = np.empty(starts.size + 1, dtype=np.int64)
+    bounds[:-1] = np.where(inside, count[np.minimum(starts, rows.shape[0] - 1)] - 1, count[-1] if count.size else 0)
+    bounds[-1] = count[-1] if count.size else 0
+    lengths = np.diff(np.append(starts, rows.shape[0]))
+    codes = np.repeat(bounds[:-1].astype(np.int32), lengths)  # the table's start: -1 - (count - 1 - start)
+    codes -= count
+    return np.compress(new, rows, axis=0), codes, bounds

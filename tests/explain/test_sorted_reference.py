@@ -61,14 +61,17 @@ def test_random_scenes_equal_the_scalar_sorted_reference(scene):
     assert_reference(transparent(scene, every=2))
 
 
+@pytest.mark.parametrize("runs", [fragment_store.SPLIT_RUNS, 1 << 30], ids=["sorted", "runs"])
 @pytest.mark.parametrize("msaa", [1, 4])
 @pytest.mark.parametrize("seed", [42, 7])
-def test_small_blocks_ranges_and_budgets_give_the_same_result(monkeypatch, seed, msaa):
+def test_small_blocks_ranges_and_budgets_give_the_same_result(monkeypatch, seed, msaa, runs):
     """One row per block, a few fragments per working range, and a budget so small that every
     pass keeps one block (the rows above are rendered again, alone): the same analysis (with
-    MSAA too: a block's pixels are its rows' samples)."""
+    MSAA too: a block's pixels are its rows' samples), a chunk's pieces found by sorting its
+    fragments by block or as runs of consecutive ones (``runs``)."""
     scene = transparent(seeded_scene(seed, msaa=msaa))
     whole = analyze(scene)
+    monkeypatch.setattr(fragment_store, "SPLIT_RUNS", runs)
     monkeypatch.setattr(fragment_store, "BLOCK_PIXELS", 1)
     monkeypatch.setattr(sr, "WORK_FRAGMENTS", 5)
     monkeypatch.setattr(sr, "UNIT_FRAGMENTS", 1)
@@ -106,6 +109,60 @@ def test_layers_of_several_state_groups_split_either_way_equal_the_scalar_refere
     monkeypatch.setattr(layering.ReferenceBlender, "_apply", spy)
     assert_reference(transparent(seeded_scene(seed)))
     assert len(set(groups)) >= 3
+
+
+def test_colour_tables_of_consecutive_pieces_equal_each_piece_tabled_alone():
+    """``fragment_store._color_tables``: pieces of kept colours tabled together equal each piece
+    tabled by the definition (its distinct consecutive rows; a row's code ``-1 - entry``): a row
+    repeating across a piece's start opens the piece's own table; empty pieces (also at the
+    end) get empty tables; NaN never equals itself."""
+    rng = np.random.default_rng(8)
+    rows = rng.integers(0, 3, (40, 4)).astype(np.float64) / 2.0
+    rows[10:14] = rows[9]  # a run crossing the start of the piece at 12
+    rows[20, 1] = np.nan
+    rows[21] = rows[20]
+    starts = np.array([0, 5, 12, 12, 13, 30, 40, 40], dtype=np.int64)
+    tables, codes, bounds = fragment_store._color_tables(rows, starts)
+    ends = [*starts[1:].tolist(), rows.shape[0]]
+    assert bounds.shape == (starts.size + 1,) and bounds[-1] == tables.shape[0]
+    for k, (a, b) in enumerate(zip(starts.tolist(), ends, strict=True)):
+        expected_table, expected_codes = [], []
+        for r in range(a, b):
+            if r == a or not np.array_equal(rows[r], rows[r - 1]):
+                expected_table.append(rows[r])
+            expected_codes.append(-len(expected_table))
+        table = tables[bounds[k]:bounds[k + 1]]
+        assert table.shape[0] == len(expected_table), k
+        if expected_table:
+            np.testing.assert_array_equal(table, np.array(expected_table))
+        np.testing.assert_array_equal(codes[a:b], np.array(expected_codes, dtype=np.int32))
+
+
+@pytest.mark.parametrize("runs", [fragment_store.SPLIT_RUNS, 1 << 30], ids=["sorted", "runs"])
+def test_a_call_of_tabled_and_own_colours_kept_over_passes_equals_the_scalar_reference(monkeypatch, runs):
+    """A transparent call whose triangles alternate one colour at every corner (kept as palette
+    entries) and varying vertex colours (kept as their own rows), over rows of one block each and
+    a budget of one block a pass, so that later passes keep a chunk from its middle: the scalar
+    sorted reference, with the chunk's pieces sorted by block or taken as runs."""
+    from blendlib.core.vocabulary import Lighting, Material, VertexColor
+
+    rng = np.random.default_rng(4)
+    cam = sc.screen_camera(40, 32)
+    meshes = []
+    for k in range(4):  # frame-wide quads: 640 fragments a triangle, enough for a blend table
+        mesh = sc.quad(-3.0 * k, 0.0, 40.0 + 3.0 * k, 32.0, z=0.1 * k)
+        colors = rng.uniform(0.1, 0.9, (2, 3, 4)).astype(np.float32)
+        colors[k % 2] = colors[k % 2, :1]  # one triangle of one colour at its three corners
+        meshes.append(replace(mesh, colors=colors))
+    material = Material(name="Tinted", queue=Queue.Transparent, lighting=Lighting.Unlit,
+                        vertex_color=VertexColor.Multiply, color=(1.0, 1.0, 1.0, 0.6), passes=(BLEND,))
+    scene = sc.scene(cam, *(sc.renderer(m, material, name=f"Layer{k}") for k, m in enumerate(meshes)))
+    whole = assert_reference(scene)
+    monkeypatch.setattr(fragment_store, "SPLIT_RUNS", runs)
+    monkeypatch.setattr(fragment_store, "BLOCK_PIXELS", 1)
+    monkeypatch.setattr(sr, "UNIT_FRAGMENTS", 1)
+    banded = analyze(scene, memory=1)
+    assert np.array_equal(whole.reference, banded.reference) and whole.inversions == banded.inversions
 
 
 def _two_quads(order_right: bool):
