@@ -70,7 +70,7 @@ def group_by_pixel(block: Block, pixels: int,
         del many
     order = np.argsort(block.local, kind="stable")  # 16-bit keys: radix sort; wider: runs merged
     for name in _FRAGMENT_ARRAYS:
-        setattr(block, name, np.take(getattr(block, name), order))
+        setattr(block, name, gather(getattr(block, name), order))
     del order
     local, n = block.local, block.local.size
     new = np.empty(n, dtype=bool)
@@ -109,7 +109,10 @@ def far_to_near_layers(counts: np.ndarray, starts: np.ndarray, depth: np.ndarray
         else:
             bits = (c - 1).bit_length()
             place = np.arange(c, dtype=np.int64)
-            key = ((DEPTH_MAX - depth[first + place]) << bits) | place  # far first, then applied order
+            key = gather(depth, first + place)
+            np.subtract(DEPTH_MAX, key, out=key)  # far first, then applied order
+            key <<= bits
+            key |= place
             key.sort(axis=1)
             key &= (1 << bits) - 1  # the place within the pixel
             frag = key
