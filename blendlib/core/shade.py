@@ -217,8 +217,9 @@ class Texels:
         return cached
 
     #: Textures of up to this many texels also keep, per wrap mode, each texel's bilinear
-    #: neighbourhood (:meth:`quads`; 8.5 MB for 256×256).
-    QUAD_TEXELS = 1 << 16
+    #: neighbourhood (:meth:`quads`: 128 bytes a texel, 2.1 MB for 128×128; four times the
+    #: decoded texture, so larger ones, whose gathers miss the caches anyway, gather texels).
+    QUAD_TEXELS = 1 << 14
 
     def quads(self, wrap: TextureWrap) -> np.ndarray | None:
         """(4, (h+1)*(w+1), 4) float64, made on first use for textures of at most
