@@ -4,8 +4,8 @@ numpy's ``take`` checks every index in its default mode ("raise") and, given ``o
 gathers into a buffer and then copies it over; its "wrap" mode gives the same values for every
 index the default accepts (negative ones count from the end alike) without either cost. The
 pipeline's own index arrays (run and row indices, layer selections, pixels within the buffers)
-are built from the extents of the arrays they index, so they take :func:`gather`; indices from
-outside (a scene's triangles) keep ``np.take``'s check or are validated first.
+are built from the extents of the arrays they index, so they take :func:`gather`; so do texel
+indices (wrapped into the texture) and a scene's triangles, which the scene's validation checks.
 
 ``take`` of a non-contiguous source copies the whole source to contiguous memory first: a few
 elements of a strided column of a large array are read by indexing (``column[index]``) instead.

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import colorspace
+from .gather import gather
 from .lights import AddLight, light_terms
 from .scene import DrawScene
 from .vocabulary import ColorSpace, Lighting, Material, Pass, Texture, TextureFilter, TextureWrap, VertexColor
@@ -173,14 +174,14 @@ class Texels:
         planes = self._planes()
         if planes is not None:  # one gather per channel from the decoded texture
             for row, k in enumerate(channels):
-                np.take(planes[k], index, out=out[row], mode="clip")
+                gather(planes[k], index, out=out[row])
             return out
         # Whole texels gathered as one uint32 each (fancy indexing of (N, 4) rows is slower),
         # then one table per channel.
         c = np.take(self.codes.view(np.uint32).reshape(-1), index).view(np.uint8).reshape(-1, 4)
         luts = (self.lut_rgb, self.lut_rgb, self.lut_rgb, self.lut_alpha)
         for row, k in enumerate(channels):
-            np.take(luts[k], c[:, k], out=out[row], mode="clip")
+            gather(luts[k], c[:, k], out=out[row])
         return out
 
     #: Byte images of up to this many texels are also kept decoded, channels first (8 MB at most).
@@ -193,7 +194,7 @@ class Texels:
         if planes is None and self.codes.shape[0] <= self.PLANE_TEXELS:
             planes = np.empty((4, self.codes.shape[0]), np.float64)
             for k, lut in enumerate((self.lut_rgb, self.lut_rgb, self.lut_rgb, self.lut_alpha)):
-                np.take(lut, self.codes[:, k], out=planes[k], mode="clip")
+                gather(lut, self.codes[:, k], out=planes[k])
             self._decoded = planes
         return planes
 
@@ -351,7 +352,7 @@ def sample(texels: Texels, uv: np.ndarray, filt: TextureFilter, wrap: TextureWra
     if corner is not None:  # one gather of a texel's four neighbours per channel
         four = np.empty((u.size, 4), np.float64)
         for row, k in varying:
-            np.take(quads[k], corner, axis=0, out=four, mode="clip")
+            gather(quads[k], corner, axis=0, out=four)
             lo = np.multiply(four[:, 0], bu, out=out[row])
             lo += np.multiply(four[:, 1], au, out=scratch)
             hi = np.multiply(four[:, 2], bu, out=four[:, 2])

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .gather import gather
 from .outline import outline_clip
 from .parts import PIECE, run_parts
 from .scene import Camera, Mesh, cofactors3_many
@@ -457,12 +458,10 @@ def setup_renderers(items: list[SetupInput], camera: Camera, pool=None, parts: i
 
     def gather_part(lo: int, hi: int) -> None:
         t = tw[lo:hi]  # vertex indices, checked in range by the scene's validation
-        # mode="clip": with ``out`` numpy's default mode ("raise") gathers into a buffer and copies
-        # it over; the indices are in range, so clip changes no value and writes in place.
-        np.take(Xv, t, out=X[lo:hi], mode="clip")
-        np.take(Yv, t, out=Y[lo:hi], mode="clip")
-        np.take(zwv, t, out=zw[lo:hi], mode="clip")
-        np.take(iwv, t, out=iw[lo:hi], mode="clip")
+        gather(Xv, t, out=X[lo:hi])
+        gather(Yv, t, out=Y[lo:hi])
+        gather(zwv, t, out=zw[lo:hi])
+        gather(iwv, t, out=iw[lo:hi])
 
     run_parts(pool, parts, tw.shape[0], gather_part, piece=PIECE)
     parts_list = [(whole, X, Y, zw, iw, None)]

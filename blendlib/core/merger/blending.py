@@ -20,6 +20,7 @@ from collections import OrderedDict
 import numpy as np
 
 from .. import colorspace
+from ..gather import gather
 from ..vocabulary import BlendFactor, BlendOp, Pass
 from .buffers import FrameBuffers
 
@@ -214,7 +215,7 @@ def _blend_ldr(buf: FrameBuffers, p: Pass, stored: np.ndarray, rgba: np.ndarray)
     if p.blend:
         dst = np.empty((4, n), dtype=np.float64)
         if buf.linear:
-            np.take(colorspace.DECODE_LUT, codes.T[:3], out=dst[:3], mode="clip")  # codes < 256: in range
+            gather(colorspace.DECODE_LUT, codes.T[:3], out=dst[:3])  # codes < 256: in range
             np.divide(codes[:, 3], 255.0, out=dst[3])
         else:
             np.divide(codes.T, 255.0, out=dst)
