@@ -24,7 +24,7 @@ from collections.abc import Callable
 import numpy as np
 
 from . import lights, mips, raster, shade
-from .gather import gather
+from .gather import gather, scatter_rows
 from .merger import compare, table_pays
 from .records import DrawState, ShadedFragments
 from .vertex import TriangleSetup
@@ -286,7 +286,8 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
         every = not np.any(flat)  # e.g. a smooth mesh: no masked copies needed
         keep = slice(None) if every else ~flat
         at = slice(None) if every else np.flatnonzero(~constant)  # their places in the chunk
-        w = weights if every else weights[:, ~constant]
+        # Columns by np.take: fancy indexing along the second axis costs several times more.
+        w = weights if every else gather(weights, at, axis=1)
         # Channels first: each coordinate contiguous for the texel lookups (uv (2, M)).
         uv = None if uvs is None else raster.interpolate_runs(w, uvs[keep], counts[keep], uv_flat[keep],
                                                               channels_first=True)
@@ -311,10 +312,10 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
             palettes.append(shade.texel_palette(material, texels, state.lights, state.color_space, palette_normals,
                                                 palette_colors, outline))
             keep = ~flat & ~tabled
-            shaded = ~by_texel
+            shaded = np.flatnonzero(~by_texel)
             at = places[shaded]
-            w = w[:, shaded]
-            uv = uv[:, shaded]
+            w = gather(w, shaded, axis=1)
+            uv = gather(uv, shaded, axis=1)
         if w.shape[1]:
             def varying(corners: np.ndarray | None, corner_flat: np.ndarray | None) -> np.ndarray | None:
                 return None if corners is None else raster.interpolate_runs(
@@ -338,25 +339,31 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
                 if discarded.any():
                     skip = discarded if skip is None else skip | discarded
             if skip is None:
-                rgba[at] = shade_at(None if uv is None else uv.T, varying(normals, normal_flat),
-                                    varying(colors, color_flat) if color is None else color, position,
-                                    w.shape[1], lod)
+                shaded_rgba = shade_at(None if uv is None else uv.T, varying(normals, normal_flat),
+                                       varying(colors, color_flat) if color is None else color, position,
+                                       w.shape[1], lod)
+                if isinstance(at, slice):
+                    rgba[at] = shaded_rgba
+                else:
+                    scatter_rows(rgba, at, shaded_rgba)
             else:  # unreached by a ForwardAdd light or discarded: dropped, never shaded
                 places = np.arange(n)[at]
                 lit = np.flatnonzero(~skip)
                 run_counts = counts[keep]
                 lit_counts = _segment_sums(~skip, run_counts)
-                w_lit = w[:, lit]  # runs keep their order: a triangle's lit fragments stay one run
+                w_lit = gather(w, lit, axis=1)  # runs keep their order: a triangle's lit fragments stay one run
 
                 def varying_lit(corners: np.ndarray | None, corner_flat: np.ndarray | None) -> np.ndarray | None:
                     return None if corners is None else raster.interpolate_runs(
                         w_lit, corners[keep], lit_counts, corner_flat[keep], channels_first=True).T
 
                 rgba[places[skip]] = 0.0
-                rgba[places[lit]] = shade_at(None if uv is None else uv[:, lit].T, varying_lit(normals, normal_flat),
-                                             varying_lit(colors, color_flat) if color is None else color[lit],
-                                             None if position is None else position[lit], lit.size,
-                                             None if lod is None else lod[lit])
+                # Colours and positions are views of channels-first arrays: gathered along those.
+                scatter_rows(rgba, places[lit], shade_at(
+                    None if uv is None else gather(uv, lit, axis=1).T, varying_lit(normals, normal_flat),
+                    varying_lit(colors, color_flat) if color is None else gather(color.T, lit, axis=1).T,
+                    None if position is None else gather(position.T, lit, axis=1).T, lit.size,
+                    None if lod is None else gather(lod, lit)))
                 dropped = np.zeros(n, dtype=bool)
                 dropped[places[skip]] = True
     palette = None

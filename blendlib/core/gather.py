@@ -20,3 +20,12 @@ def gather(values: np.ndarray, index: np.ndarray, axis: int | None = None, out: 
     """``np.take(values, index, axis, out)`` for ``index`` (integer array) whose entries all lie
     in ``-n..n-1`` of ``values``' extent along ``axis`` (the flattened array for None)."""
     return np.take(values, index, axis=axis, out=out, mode="wrap")
+
+
+def scatter_rows(dest: np.ndarray, index: np.ndarray, rows: np.ndarray) -> None:
+    """``dest[index] = rows`` for a C-contiguous (N, C) ``dest``, ``index`` (M,) distinct and in
+    range, ``rows`` (M, C) of ``dest``'s dtype: each row moved whole (as one C-item value), where
+    numpy's fancy assignment of rows copies them element by element."""
+    row = np.dtype((np.void, dest.shape[1] * dest.itemsize))
+    values = np.ascontiguousarray(rows, dtype=dest.dtype).view(row).reshape(-1)
+    np.put(dest.view(row).reshape(-1), index, values, mode="wrap")

@@ -291,6 +291,35 @@ def test_point_texture_palette_equals_reference(lighting, hdr, blend, monkeypatc
     np.testing.assert_array_equal(frame.stencil, stencil)
 
 
+def test_point_texture_palette_beside_fragments_shaded_one_by_one_equals_reference(monkeypatch):
+    """A chunk whose flat faces take the texel palette while two faces with a normal varying
+    from corner to corner are shaded fragment by fragment (their weights and coordinates taken
+    out of the chunk's): equal to the scalar reference."""
+    from blendlib.core import shade
+
+    palettes = []
+    original = shade.texel_palette
+
+    def counting(material, texels, lights, color_space, normals, *colors):
+        palettes.append(normals.shape[0])
+        return original(material, texels, lights, color_space, normals, *colors)
+
+    monkeypatch.setattr(shade, "texel_palette", counting)
+    p = Pass(cull=Cull.Off, zwrite=False, blend=True, src_blend=BlendFactor.SrcAlpha,
+             dst_blend=BlendFactor.OneMinusSrcAlpha)
+    scene = _texel_palette_scene(Lighting.Lambert, p)
+    background, cube = scene.renderers
+    normals = np.array(cube.mesh.normals, dtype=np.float32)
+    normals[:4] += np.array([[0.3, -0.2, 0.1], [-0.25, 0.15, 0.05], [0.1, 0.3, -0.2]], dtype=np.float32)
+    cube = replace(cube, mesh=replace(cube.mesh, normals=normals))
+    scene = replace(scene, renderers=(background, cube))
+    frame = render_scene(scene, workers=1)
+    color, depth, stencil = render_reference(scene)
+    assert palettes, "the texel palette was not used"
+    np.testing.assert_array_equal(frame.color, color)
+    np.testing.assert_array_equal(frame.depth, depth)
+
+
 def test_texel_palette_is_left_when_the_texture_is_large(monkeypatch):
     """A texture with more texels than a quarter of the fragments it serves is shaded per fragment."""
     from blendlib.core import fragment, shade
@@ -407,6 +436,22 @@ def test_gather_equals_take_for_every_index_take_accepts():
     out = np.empty(500, np.float64)
     assert gather(values.reshape(-1), index, out=out) is out
     np.testing.assert_array_equal(out, np.take(values.reshape(-1), index))
+
+
+@pytest.mark.parametrize("columns", [3, 4])
+def test_scatter_rows_equals_row_assignment(columns):
+    """``scatter_rows`` writes whole rows where fancy assignment would, from rows given as a
+    transposed view too, and leaves every other row as it was."""
+    from blendlib.core.gather import scatter_rows
+
+    rng = np.random.default_rng(columns)
+    dest = rng.uniform(-1.0, 1.0, (50, columns))
+    index = rng.permutation(50)[:23]
+    rows = rng.uniform(-1.0, 1.0, (columns, 23)).T  # (23, C), not contiguous
+    expected = dest.copy()
+    expected[index] = rows
+    scatter_rows(dest, index, rows)
+    np.testing.assert_array_equal(dest.view(np.int64), expected.view(np.int64))
 
 
 def _sprite_like(h: int, w: int, byte: bool) -> np.ndarray:
