@@ -260,6 +260,21 @@ def _texel_palette_scene(lighting: Lighting, p: Pass, *, hdr: bool = False, cuto
                      light=sc.Light(direction=(0.3, -0.5, -0.8), color=(1, 0.9, 0.8), energy=1.5))
 
 
+def _count_palettes(monkeypatch) -> list[int]:
+    """The group count of every texel palette made from now on (``shade.texel_palette`` spied)."""
+    from blendlib.core import shade
+
+    palettes: list[int] = []
+    original = shade.texel_palette
+
+    def counting(material, texels, lights, color_space, normals, *colors):
+        palettes.append(normals.shape[0])
+        return original(material, texels, lights, color_space, normals, *colors)
+
+    monkeypatch.setattr(shade, "texel_palette", counting)
+    return palettes
+
+
 @pytest.mark.parametrize("lighting", [Lighting.Unlit, Lighting.Lambert])
 @pytest.mark.parametrize("hdr", [False, True])
 @pytest.mark.parametrize("blend", [True, False])
@@ -268,16 +283,7 @@ def test_point_texture_palette_equals_reference(lighting, hdr, blend, monkeypatc
     per (normal, texel) (``shade.texel_palette``): equal to the scalar reference, blended through
     the table in LDR (Blend Off: one stored value per colour) and gathered in HDR, with an alpha
     test on the palette's alpha."""
-    from blendlib.core import shade
-
-    palettes = []
-    original = shade.texel_palette
-
-    def counting(material, texels, lights, color_space, normals, *colors):
-        palettes.append(normals.shape[0])
-        return original(material, texels, lights, color_space, normals, *colors)
-
-    monkeypatch.setattr(shade, "texel_palette", counting)
+    palettes = _count_palettes(monkeypatch)
     p = Pass(cull=Cull.Off, zwrite=False, blend=blend, src_blend=BlendFactor.SrcAlpha,
              dst_blend=BlendFactor.OneMinusSrcAlpha, alpha_test=True)
     scene = _texel_palette_scene(lighting, p, hdr=hdr, cutoff=0.3)
@@ -295,16 +301,7 @@ def test_point_texture_palette_beside_fragments_shaded_one_by_one_equals_referen
     """A chunk whose flat faces take the texel palette while two faces with a normal varying
     from corner to corner are shaded fragment by fragment (their weights and coordinates taken
     out of the chunk's): equal to the scalar reference."""
-    from blendlib.core import shade
-
-    palettes = []
-    original = shade.texel_palette
-
-    def counting(material, texels, lights, color_space, normals, *colors):
-        palettes.append(normals.shape[0])
-        return original(material, texels, lights, color_space, normals, *colors)
-
-    monkeypatch.setattr(shade, "texel_palette", counting)
+    palettes = _count_palettes(monkeypatch)
     p = Pass(cull=Cull.Off, zwrite=False, blend=True, src_blend=BlendFactor.SrcAlpha,
              dst_blend=BlendFactor.OneMinusSrcAlpha)
     scene = _texel_palette_scene(Lighting.Lambert, p)
