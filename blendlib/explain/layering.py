@@ -81,7 +81,9 @@ def group_by_pixel(block: Block, pixels: int,
 
 
 def _classes(counts: np.ndarray, smallest: int) -> list[tuple[int, np.ndarray]]:
-    """(c, pixels (n,) int64 ascending) for each count ``c >= smallest`` present in ``counts``."""
+    """(c, places (n,) int64 ascending) for each value ``c >= smallest`` present in ``counts``
+    (P,) (non-negative integers: fragment counts per pixel, state groups per fragment), in
+    ascending order of ``c``."""
     wanted = np.flatnonzero(counts >= smallest)
     if wanted.size == 0:
         return []
@@ -230,17 +232,15 @@ class ReferenceBlender:
                 self._apply(0, pix[a:b], depth[a:b], fid[a:b], None if rgba is None else rgba[a:b])
                 continue
             # The layer's fragments by group, each group's in layer order (its pixels are distinct
-            # anyway): a pass per group where groups are few, else one stable sort.
+            # anyway): a pass per group where groups are few, else one stable sort (_classes).
             if groups <= self.GROUPS_BY_PASS:
                 parts = [(g, np.flatnonzero(grp[a:b] == g)) for g in range(groups)]
-                parts = [(g, part + a) for g, part in parts if part.size]
             else:
-                sel = a + np.argsort(grp[a:b], kind="stable")
-                sg = grp[sel]
-                cuts = np.flatnonzero(sg[1:] != sg[:-1]) + 1
-                parts = [(int(sg[lo]), sel[lo:hi])
-                         for lo, hi in zip([0, *cuts.tolist()], [*cuts.tolist(), sg.size], strict=True)]
+                parts = _classes(grp[a:b], 0)
             for g, part in parts:
+                if not part.size:
+                    continue
+                part = part + a
                 self._apply(g, gather(pix, part), gather(depth, part), gather(fid, part),
                             None if rgba is None else gather(rgba, part, axis=0))
 
