@@ -374,7 +374,7 @@ class FragmentCollector(FrameObserver):
         depth = kept(depth)
         keys = np.empty(hi - lo, dtype=np.int32) if key is None else kept(key)
         starts = np.array([a - lo for _b, a, _e in spans], dtype=np.int64)
-        tables = None
+        table_rows = table_bounds = None  # every piece's colour table, laid end to end
         if key is None or frags.rgba is not None:
             own = None if key is None else np.flatnonzero(keys < 0)  # fragments with their own colour
             if own is None or own.size:
@@ -382,18 +382,19 @@ class FragmentCollector(FrameObserver):
                     rows = kept(frags.rgba)
                 else:
                     rows = gather(frags.rgba, (own + lo) if index is None else gather(index, own), axis=0)
-                tables = _color_tables(rows, starts if own is None else np.searchsorted(own, starts))
+                table_rows, codes, table_bounds = _color_tables(
+                    rows, starts if own is None else np.searchsorted(own, starts))
                 if own is None:
-                    keys = tables[1]
+                    keys = codes
                 else:
-                    keys[own] = tables[1]
+                    keys[own] = codes
         pieces = []
         for k, (b, a, e) in enumerate(spans):
             a -= lo
             e -= lo
             table = None
-            if tables is not None and tables[2][k] < tables[2][k + 1]:
-                table = tables[0][tables[2][k]:tables[2][k + 1]].copy()
+            if table_bounds is not None and table_bounds[k] < table_bounds[k + 1]:
+                table = table_rows[table_bounds[k]:table_bounds[k + 1]].copy()
             piece = (local[a:e].copy(), depth[a:e].copy(), np.full(e - a, call.index, dtype=self.call_dtype),
                      keys[a:e].copy(), table)
             nbytes = (e - a) * FRAGMENT_BYTES + (0 if table is None else table.shape[0] * COLOR_BYTES)
