@@ -185,20 +185,21 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
         if corners_flat is not None:
             flat &= corners_flat
     any_varying = not bool(np.all(flat))
-    of_row = None  # (P,) int64: each row piece's row in the chunk, when rows were cut (below)
+    of_row = None  # (P,) int64: each row's row in the chunk, when rows were cut (below)
     if state.dark_skip and positions is not None and n >= ROW_REACH_MIN_RUN * length.size:
-        # Pieces of rows whose every fragment is out of the ForwardAdd light's reach are dropped
-        # before they are rasterised (they are fragments _dark would drop).
-        pieces, of_row = raster.split_rows(rows, start, stop, REACH_PIECE)
-        unreached = _unreached_rows(setup, pieces, state, positions, run_of_row[of_row],
-                                    [c for c in (normals, colors) if c is not None])
-        if unreached is None:
-            of_row = None
-        else:
-            reached = np.flatnonzero(~unreached)
+        # The parts of rows out of the ForwardAdd light's reach are cut off before they are
+        # rasterised (they hold fragments _dark would drop).
+        spans = _reached_spans(setup, rows, start, stop, state, positions, run_of_row,
+                               [c for c in (normals, colors) if c is not None])
+        if spans is not None:
+            x0, x1 = spans
+            reached = np.flatnonzero(x1 > x0)
             if reached.size == 0:
                 return None
-            rows, of_row = pieces.take_rows(reached), np.take(of_row, reached)
+            rows = rows.take_rows(reached + start)
+            rows.x0 = np.take(x0, reached)
+            rows.length = np.take(x1, reached) - rows.x0
+            of_row = reached
             start, stop, run_of_row = 0, rows.count, np.take(run_of_row, of_row)
             length = rows.length
             n = int(length.sum())
@@ -412,41 +413,82 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
                            row_counts=None if n == full else length)
 
 
-#: Rows are tested against a ForwardAdd light's reach (:func:`_unreached_rows`, two interpolated
-#: positions per piece of at most REACH_PIECE pixels) when they hold at least ROW_REACH_MIN_RUN
-#: fragments on average: shorter ones cost about as much to test as to shade.
+#: Rows are cut to a ForwardAdd light's reach (:func:`_reached_spans`: two interpolated positions
+#: and a quadratic per row) when they hold at least ROW_REACH_MIN_RUN fragments on average:
+#: shorter ones cost about as much to cut as to shade.
 ROW_REACH_MIN_RUN = 16
-REACH_PIECE = 32
+#: A row keeps this many pixels beyond each end of the part of it the light may reach: far above
+#: the rounding of that part's ends.
+REACH_PIXEL_MARGIN = 1.0
 
 
-def _unreached_rows(setup, rows, state: DrawState, positions: np.ndarray, run_of_row: np.ndarray,
-                    corners: list[np.ndarray]) -> np.ndarray | None:
-    """(R,) bool: which of ``rows`` hold only fragments a ForwardAdd light does not reach and may
-    drop (:attr:`DrawState.dark_skip`; where ``dark_alpha`` is set, only rows whose stored alpha is
-    255 throughout); None when none. ``positions`` (K, 3, 3) float64: the world corners of the
-    chunk's source triangles, ``run_of_row`` (R,) int64 each row's among them; ``corners``: their
-    (K, 3, C) normals and colours, all finite and bounded or nothing is dropped (as :func:`_dark`).
+def _reached_spans(setup, rows, start: int, stop: int, state: DrawState, positions: np.ndarray,
+                   run_of_row: np.ndarray, corners: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray] | None:
+    """Rows ``[start, stop)`` (R rows) cut to the part a ForwardAdd light may reach
+    (:attr:`DrawState.dark_skip`): the new spans ``[x0, x1)`` (two (R,) int64 within each row's;
+    ``x1 <= x0``: nothing kept), or None when nothing is cut. ``positions`` (K, 3, 3) float64: the
+    world corners of the chunk's source triangles, ``run_of_row`` (R,) int64 each row's among
+    them; ``corners``: their (K, 3, C) normals and colours, all finite and bounded or nothing is
+    cut (as :func:`_dark`). Where ``dark_alpha`` is set, a row is cut only where its stored alpha
+    is 255 throughout the parts cut off, else kept whole.
 
     Along a row the screen barycentrics are affine in x, so a fragment's perspective-correct world
-    position ``Σ b_i iw_i W_i / Σ b_i iw_i`` runs along the segment between the positions of the
-    row's first and last fragments: a row whose segment keeps out of the light's reach
-    (:func:`.lights.segments_out_of_reach`, with a margin far above the interpolation's rounding)
-    holds only fragments :func:`.lights.dark_fragments` calls dark."""
+    position runs along the segment between those of the row's first and last pixels, ``A + t (B −
+    A)`` with ``t = λ s_B / ((1 − λ) s_A + λ s_B)`` at the row's fraction ``λ`` of the way from its
+    first pixel to its last and ``s`` the interpolated ``1/w`` at each end. The part of the segment
+    within the light's reach (:func:`.lights.segments_reach`) maps back to ``λ = t s_A / (t s_A +
+    (1 − t) s_B)`` (increasing in t), and the row keeps its pixels within
+    :data:`REACH_PIXEL_MARGIN` of that part: the others hold only fragments
+    :func:`.lights.dark_fragments` calls dark."""
     if not _bounded(corners):
         return None
-    ends = raster.row_end_fragments(rows, 0, rows.count, state.width)
+    count = stop - start
+    ends = raster.row_end_fragments(rows, start, stop, state.width)
     weights = raster.interpolate(setup, ends, weights=True, depth=False)[1]  # (3, 2R): first pixels, then last
-    count = rows.count
     world = np.take(positions, np.concatenate([run_of_row, run_of_row]), axis=0)  # (2R, 3 corners, 3)
     # Interpolated as the fragments' positions are: each end a run of one fragment.
     at = raster.interpolate_runs(weights, world, np.ones(2 * count, dtype=np.int64), raster.flat_corners(world))
     scale = float(np.abs(positions).max(initial=0.0))
-    unreached = lights.segments_out_of_reach(state.lights.add, at[:count], at[count:], scale)
-    if state.dark_alpha is not None and unreached.any():
-        # Dropped rows keep their stored colour; their alpha too only where it is 255 already.
-        some = np.flatnonzero(unreached)
-        unreached[some[_unsaturated(state.dark_alpha, state.width, rows.take_rows(some))]] = False
-    return unreached if unreached.any() else None
+    t_lo, t_hi = lights.segments_reach(state.lights.add, at[:count], at[count:], scale)
+    iw = np.take(setup.iw, ends.tri, axis=0)  # (2R, 3) 1/w at the triangle's vertices
+    b = ends.bary
+    s = b[0] * iw[:, 0]
+    s += b[1] * iw[:, 1]
+    s += b[2] * iw[:, 2]
+    s_a, s_b = s[:count], s[count:]
+    first = rows.x0[start:stop]
+    stop_x = first + rows.length[start:stop]
+    last = (rows.length[start:stop] - 1).astype(np.float64)
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        near, far = np.multiply(t_lo, s_a), np.multiply(t_hi, s_a)
+        lam_lo = near / (near + (1.0 - t_lo) * s_b)
+        lam_hi = far / (far + (1.0 - t_hi) * s_b)
+        lo = np.ceil(first + lam_lo * last - REACH_PIXEL_MARGIN)
+        hi = np.floor(first + lam_hi * last + REACH_PIXEL_MARGIN) + 1.0
+    known = (s_a > 0.0) & (s_b > 0.0) & np.isfinite(s_a) & np.isfinite(s_b) & np.isfinite(lo) & np.isfinite(hi)
+    x0 = np.where(known, np.clip(lo, first, stop_x), first).astype(np.int64)
+    x1 = np.where(known, np.clip(hi, x0, stop_x), stop_x).astype(np.int64)
+    empty = known & (t_lo > t_hi)
+    x0[empty] = first[empty]
+    x1[empty] = first[empty]
+    cut = (x0 != first) | (x1 != stop_x)
+    if not cut.any():
+        return None
+    if state.dark_alpha is not None:
+        # Cut-off parts keep their stored colour; their alpha too only where it is 255 already.
+        some = np.flatnonzero(cut)
+        whole = np.zeros(some.size, dtype=bool)
+        for part_x0, part_x1 in ((first[some], np.maximum(x0[some], first[some])), (x1[some], stop_x[some])):
+            parts = np.flatnonzero(part_x1 > part_x0)
+            if parts.size:
+                part = rows.take_rows(some[parts] + start)
+                part.x0 = part_x0[parts]
+                part.length = part_x1[parts] - part_x0[parts]
+                whole[parts] |= _unsaturated(state.dark_alpha, state.width, part)
+        keep = some[whole]
+        x0[keep] = first[keep]
+        x1[keep] = stop_x[keep]
+    return x0, x1
 
 
 def _unsaturated(alpha: np.ndarray, width: int, rows) -> np.ndarray:

@@ -211,103 +211,121 @@ def dark_fragments(light: AddLight, px: np.ndarray, py: np.ndarray, pz: np.ndarr
     return dark
 
 
-#: The bound of :func:`segments_out_of_reach` is widened by this share of the reach's radius, and by
+#: The reach of :func:`segments_reach` is widened by this share of the reach's radius, and by
 #: :data:`REACH_SCALE_MARGIN` of the largest coordinate in play: far above the rounding of the
 #: positions' interpolation (a few units in the last place of those coordinates).
 REACH_MARGIN = 1e-6
 REACH_SCALE_MARGIN = 1e-9
 
 
-def reach_ball(light: AddLight) -> tuple[tuple[float, float, float], float]:
-    """A ball (centre, radius) holding every point a point or spot light reaches (attenuation not
-    0): a point light's range sphere; for a spot, the smallest ball about its axis holding the cone
-    cut at the range (apex at the lamp, half-angle θ with ``tan θ = tan_half``): centre ``h`` along
-    the axis and radius ``h = range / (2 cos θ)`` while that is below the range (θ < 60°), else the
-    range sphere. (A point of the cut cone at distance ``r ≤ range`` from the lamp and angle
-    ``φ ≤ θ`` off the axis lies ``sqrt(r² + h² − 2 r h cos φ)`` from that centre: at most ``h``.)"""
+def segments_reach(light: AddLight, a: np.ndarray, b: np.ndarray, scale: float) -> tuple[np.ndarray, np.ndarray]:
+    """The part of each segment ``a + t (b − a)``, ``0 <= t <= 1`` (``a``, ``b`` (R, 3) float64
+    world positions), that may lie within the light's range sphere (about the lamp) and, for a
+    spot, within its cone (:func:`_cone_span`): ``(t_lo, t_hi)``, two (R,) float64 in [0, 1], empty (``t_lo > t_hi``)
+    where the whole segment keeps out. Both are widened by :data:`REACH_MARGIN` of the radius (and
+    of ``tan θ``) and by :data:`REACH_SCALE_MARGIN` of the largest magnitude in play (``scale``:
+    that of the coordinates the segments' points are interpolated from), far above the rounding of
+    the positions' interpolation: points at ``t`` outside the part, and positions interpolated
+    near them, are ones :func:`dark_fragments` calls dark. A segment with a non-finite end (or
+    whose terms overflow) is kept whole; one of no length is kept whole or not at all."""
     radius = math.sqrt(light.range2)
-    if light.type is LightType.Spot and light.tan_half < math.sqrt(3.0):
-        h = radius * math.sqrt(1.0 + light.tan_half * light.tan_half) / 2.0
-        x, y, z = light.position
-        ax, ay, az = light.spot_axis
-        return (x + h * ax, y + h * ay, z + h * az), h
-    return light.position, radius
-
-
-def segments_out_of_reach(light: AddLight, a: np.ndarray, b: np.ndarray, scale: float) -> np.ndarray:
-    """(R,) bool: the segments from ``a`` to ``b`` ((R, 3) float64 world positions) that keep out
-    of :func:`reach_ball`, or for a spot out of its cone (:func:`_segments_out_of_cone`), by a
-    margin (:data:`REACH_MARGIN`; ``scale``: the largest magnitude of the coordinates the segments'
-    points are interpolated from), so that every point on them — and every position interpolated
-    near them — has an attenuation :func:`dark_fragments` gives as exactly 0. NaN or infinite
-    ends are never out of reach."""
-    centre, radius = reach_ball(light)
-    c = np.asarray(centre, dtype=np.float64)
+    c = np.asarray(light.position, dtype=np.float64)
     slack = REACH_SCALE_MARGIN * max(scale, float(np.abs(np.asarray(light.position)).max()), radius)
     bound = radius * (1.0 + REACH_MARGIN) + slack
-    with np.errstate(invalid="ignore", over="ignore"):  # non-finite ends: never out of reach (below)
-        out = _segments_out_of_ball(c, bound, a, b)
-        if light.type is LightType.Spot:
-            out |= _segments_out_of_cone(light, slack, a, b)
-    out &= np.isfinite(a).all(axis=1)
-    out &= np.isfinite(b).all(axis=1)
-    return out
+    with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+        d = b - a
+        off = a - c
+        dd = np.einsum("ij,ij->i", d, d)
+        half = np.einsum("ij,ij->i", d, off)  # |off + t d|² − bound² = dd t² + 2 half t + cc
+        cc = np.einsum("ij,ij->i", off, off) - bound * bound
+        disc = half * half - dd * cc
+        root = np.sqrt(disc)
+        t_lo = (-half - root) / dd
+        t_hi = (-half + root) / dd
+        np.maximum(t_lo, 0.0, out=t_lo)
+        np.minimum(t_hi, 1.0, out=t_hi)
+        missed = disc < 0.0
+        t_lo[missed] = 1.0
+        t_hi[missed] = 0.0
+        point = dd == 0.0  # no length: in or out whole
+        t_lo[point] = np.where(cc[point] <= 0.0, 0.0, 1.0)
+        t_hi[point] = np.where(cc[point] <= 0.0, 1.0, 0.0)
+    unknown = ~(np.isfinite(a).all(axis=1) & np.isfinite(b).all(axis=1) & np.isfinite(dd) & np.isfinite(half)
+                & np.isfinite(cc) & np.isfinite(disc))
+    if light.type is LightType.Spot:
+        cone_lo, cone_hi = _cone_span(light, slack, a, b)
+        np.maximum(t_lo, cone_lo, out=t_lo)
+        np.minimum(t_hi, cone_hi, out=t_hi)
+    t_lo[unknown] = 0.0
+    t_hi[unknown] = 1.0
+    return t_lo, t_hi
 
 
-def _segments_out_of_ball(c: np.ndarray, bound: float, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(R,) bool: the segments ``a``–``b`` (R, 3) whose nearest point to ``c`` (3,) lies farther than ``bound``."""
-    d = b - a
-    to_centre = c - a
-    dd = np.einsum("ij,ij->i", d, d)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = np.einsum("ij,ij->i", to_centre, d) / dd
-    t = np.where(dd > 0.0, np.clip(t, 0.0, 1.0), 0.0)
-    gap = to_centre - t[:, None] * d
-    return np.einsum("ij,ij->i", gap, gap) > bound * bound
-
-
-def _segments_out_of_cone(light: AddLight, slack: float, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(R,) bool: the segments ``a``–``b`` (R, 3) that miss a spot's cone (where :func:`spot_cone`
-    is not 0) widened by :data:`REACH_MARGIN` in ``tan`` and by ``slack`` in every direction (its
-    apex moved back along the axis by ``slack × (1 + 1/sin θ)``, so the cone holds every point
-    within ``slack`` of the original).
+def _cone_span(light: AddLight, slack: float, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The part ``[t_lo, t_hi]`` (two (R,) float64 in [0, 1]; empty where ``t_lo > t_hi``) of each
+    segment ``a + t (b − a)`` (``a``, ``b`` (R, 3) float64) that may lie in a spot's cone (where
+    :func:`spot_cone` is not 0), widened by :data:`REACH_MARGIN` in ``tan`` and by ``slack`` in every
+    direction (its apex moved back along the axis by ``slack × (1 + 1/sin θ)``, so the cone holds
+    every point within ``slack`` of the original).
 
     With ``d(t) = a − apex + t (b − a)`` and ``z(t) = d(t) · axis``, a point is in the cone when
-    ``z > 0`` and ``g = (1 + tan²) z² − |d|² > 0``; ``g`` is quadratic in t, so its largest value
-    over the part of [0, 1] where ``z > 0`` is at an end of that part or at its vertex. A segment
-    misses the cone when that largest value is below 0 by a margin above its rounding."""
+    ``z > 0`` and ``g = (1 + tan²) z² − |d|² > 0``, ``g`` quadratic in t. Where ``g`` is at least
+    minus a margin above its rounding within the part of [0, 1] where ``z >= 0``: one interval
+    when ``g`` opens downwards, up to two when it opens upwards (then their hull is taken, a
+    superset), the whole front part when ``g`` never falls below it."""
+    count = a.shape[0]
     tan = light.tan_half * (1.0 + REACH_MARGIN)
     if not math.isfinite(tan) or tan <= 0.0:
-        return np.zeros(a.shape[0], dtype=bool)
+        return np.zeros(count, dtype=np.float64), np.ones(count, dtype=np.float64)
     k = 1.0 + tan * tan
     axis = np.asarray(light.spot_axis, dtype=np.float64)
     back = slack * (1.0 + math.sqrt(k) / tan)  # 1 / sin θ = sqrt(1 + tan²) / tan
     apex = np.asarray(light.position, dtype=np.float64) - back * axis
-    d0 = a - apex
-    e = b - a
-    z0 = d0 @ axis
-    ez = e @ axis
-    ee = np.einsum("ij,ij->i", e, e)
-    alpha = k * ez * ez - ee
-    beta = 2.0 * (k * z0 * ez - np.einsum("ij,ij->i", d0, e))
-    gamma = k * z0 * z0 - np.einsum("ij,ij->i", d0, d0)
-    # The part of [0, 1] in front of the apex: z0 + t ez > 0.
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        d0 = a - apex
+        e = b - a
+        # einsum, not ``@``: a matrix-vector product goes to OpenBLAS, whose worker threads then
+        # spin for a while on the other core, where a band worker of the render runs.
+        z0 = np.einsum("ij,j->i", d0, axis)
+        ez = np.einsum("ij,j->i", e, axis)
+        ee = np.einsum("ij,ij->i", e, e)
+        dd = np.einsum("ij,ij->i", d0, d0)
+        alpha = k * ez * ez - ee
+        beta = 2.0 * (k * z0 * ez - np.einsum("ij,ij->i", d0, e))
+        size = np.sqrt(dd) + np.sqrt(ee)
+        gamma = (k * z0 * z0 - dd) + 1e-12 * k * size * size  # g plus the margin
+        # The front part of [0, 1]: z0 + t ez >= 0.
         root = -z0 / ez
-    lo = np.where(ez > 0.0, np.maximum(root, 0.0), 0.0)
-    hi = np.where(ez < 0.0, np.minimum(root, 1.0), 1.0)
-    flat = ez == 0.0
-    ahead = np.where(flat, z0 > 0.0, lo <= hi)
-    lo = np.where(flat, 0.0, lo)
-    hi = np.where(flat, 1.0, hi)
-
-    def g(t: np.ndarray) -> np.ndarray:
-        return (alpha * t + beta) * t + gamma
-
-    with np.errstate(divide="ignore", invalid="ignore"):
-        vertex = np.clip(-beta / (2.0 * alpha), lo, hi)
-    top = np.maximum(g(lo), g(hi))
-    top = np.where(alpha < 0.0, np.maximum(top, g(np.where(np.isfinite(vertex), vertex, lo))), top)
-    size = np.sqrt(np.einsum("ij,ij->i", d0, d0)) + np.sqrt(ee)
-    margin = 1e-12 * k * size * size
-    return ~ahead | (top < -margin)
+        front_lo = np.where(ez > 0.0, np.maximum(root, 0.0), 0.0)
+        front_hi = np.where(ez < 0.0, np.minimum(root, 1.0), 1.0)
+        flat = ez == 0.0
+        front_lo[flat] = np.where(z0[flat] >= 0.0, 0.0, 1.0)
+        front_hi[flat] = np.where(z0[flat] >= 0.0, 1.0, 0.0)
+        disc = beta * beta - 4.0 * alpha * gamma
+        sq = np.sqrt(np.maximum(disc, 0.0))
+        r1 = (-beta - sq) / (2.0 * alpha)
+        r2 = (-beta + sq) / (2.0 * alpha)
+        r_lo, r_hi = np.minimum(r1, r2), np.maximum(r1, r2)
+        # Up to two pieces where g >= −margin, each cut to the front part.
+        lo1, hi1 = front_lo.copy(), front_hi.copy()
+        lo2, hi2 = np.ones(count), np.zeros(count)  # empty unless g opens upwards and has roots
+        down = alpha < 0.0
+        lo1[down] = np.maximum(front_lo[down], r_lo[down])
+        hi1[down] = np.minimum(front_hi[down], r_hi[down])
+        lo1[down & ~(disc >= 0.0)] = 1.0
+        hi1[down & ~(disc >= 0.0)] = 0.0
+        up = (alpha > 0.0) & (disc >= 0.0)
+        hi1[up] = np.minimum(front_hi[up], r_lo[up])
+        lo2[up] = np.maximum(front_lo[up], r_hi[up])
+        hi2[up] = front_hi[up]
+        first, second = lo1 <= hi1, lo2 <= hi2
+        t_lo = np.where(first, lo1, np.where(second, lo2, 1.0))
+        t_hi = np.where(second, hi2, np.where(first, hi1, 0.0))
+        whole_front = ~down & ~up  # g never below the margin (or linear in t): the front part
+        t_lo[whole_front] = front_lo[whole_front]
+        t_hi[whole_front] = front_hi[whole_front]
+        unknown = ~(np.isfinite(alpha) & np.isfinite(beta) & np.isfinite(gamma) & np.isfinite(front_lo)
+                    & np.isfinite(front_hi) & np.isfinite(r_lo) & np.isfinite(r_hi))
+    t_lo[unknown] = 0.0
+    t_hi[unknown] = 1.0
+    return t_lo, t_hi

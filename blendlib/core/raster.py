@@ -491,24 +491,6 @@ def rasterize_rows(rows: Rows, start: int, stop: int, width: int, bary: bool = T
     return Fragments(pix=pix, tri=tri, bary=weights, row_tri=row_tri, row_length=length)
 
 
-def split_rows(rows: Rows, start: int, stop: int, piece: int) -> tuple[Rows, np.ndarray]:
-    """Rows ``[start, stop)`` cut into consecutive pieces of at most ``piece`` pixels, in order
-    (a row's edge functions hold along all of it, so each piece is a row of its own), and the
-    row (P,) int64 in ``[0, stop - start)`` each piece comes from. Not with MSAA spans."""
-    assert rows.sample_x0 is None
-    length = rows.length[start:stop]
-    parts = (length + (piece - 1)) // piece
-    of_row = np.repeat(np.arange(length.size, dtype=np.int64), parts)
-    out = rows.each_field(lambda _, v: np.take(v[start:stop], of_row, axis=0))
-    offset = np.arange(of_row.size, dtype=np.int64)
-    offset -= np.repeat(np.cumsum(parts) - parts, parts)
-    offset *= piece  # the piece's first pixel from its row's
-    out.x0 += offset
-    out.length -= offset
-    np.minimum(out.length, piece, out=out.length)
-    return out, of_row
-
-
 def row_end_fragments(rows: Rows, start: int, stop: int, width: int) -> Fragments:
     """The first and last covered pixel of each of rows ``[start, stop)`` (R rows, each holding
     one at least) as :class:`Fragments` with barycentrics: the R first pixels, then the R last

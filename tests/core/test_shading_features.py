@@ -197,52 +197,46 @@ def test_light_sweeps_drop_unreached_fragments_and_equal_the_reference(color_spa
     assert not dropped  # HDR: alpha does not saturate, nothing is dropped
 
 
-def test_segments_out_of_reach_hold_only_dark_points():
-    """A random sweep of segments under point lights and spots of several angles: wherever
-    ``segments_out_of_reach`` says a segment keeps out of the light's reach, every point along it
-    (interpolated as fragments' positions are) is one ``dark_fragments`` calls dark; and it says
-    so of many segments, among them ones inside the range sphere but off a spot's cone."""
+def test_segments_reach_leaves_out_only_dark_points():
+    """A random sweep of segments under point lights and spots of several angles: every point
+    outside the part of a segment ``segments_reach`` keeps (interpolated as fragments' positions
+    are) is one ``dark_fragments`` calls dark; it keeps nothing of many segments, and only part
+    of many others, among them ones inside the range sphere but off a spot's cone."""
     rng = np.random.default_rng(12)
     lamps = [lights.add_light(ForwardLight("P", LightType.Point, position=(0.5, -0.2, 1.0), range=1.5),
                               ColorSpace.Gamma)]
     lamps += [lights.add_light(ForwardLight("S", LightType.Spot, position=(-0.3, 0.4, 2.0), axis=(0.2, -0.3, 0.9),
                                             range=4.0, spot_angle=angle), ColorSpace.Gamma)
               for angle in (10.0, 45.0, 100.0, 170.0)]
-    t = np.linspace(0.0, 1.0, 257)
+    t = np.linspace(0.0, 1.0, 513)
     for light in lamps:
         a = rng.uniform(-4, 4, size=(3000, 3))
         b = a + rng.normal(0, 1.5, size=(3000, 3)) * rng.uniform(0, 1, size=(3000, 1)) ** 2
-        out = lights.segments_out_of_reach(light, a, b, 4.0)
-        assert out.sum() > 300, (light.type, light.tan_half, out.sum())
-        # Segments across the axis half the range out hold lit points: never out of reach.
+        lo, hi = lights.segments_reach(light, a, b, 4.0)
+        assert np.all((lo >= 0.0) & (hi <= 1.0))
+        empty = lo > hi
+        assert empty.sum() > 300, (light.type, light.tan_half, empty.sum())
+        assert (~empty & ((lo > 0.0) | (hi < 1.0))).sum() > 5  # cut, not only kept or dropped whole
+        points = a[:, None, :] + t[None, :, None] * (b - a)[:, None, :]
+        left_out = (t[None, :] < lo[:, None]) | (t[None, :] > hi[:, None])
+        flat = points[left_out]
+        assert lights.dark_fragments(light, flat[:, 0], flat[:, 1], flat[:, 2]).all()
+        # Segments across the axis half the range out hold lit points there: kept about their middle.
         mid = np.array(light.position) + 0.5 * math.sqrt(light.range2) * np.array(light.spot_axis)
         across = rng.normal(0, 1.0, size=(50, 3))
-        assert not lights.segments_out_of_reach(light, mid - across, mid + across, 4.0).any()
-        points = a[out][:, None, :] + t[None, :, None] * (b[out] - a[out])[:, None, :]
-        flat = points.reshape(-1, 3)
-        assert lights.dark_fragments(light, flat[:, 0], flat[:, 1], flat[:, 2]).all()
+        mid_lo, mid_hi = lights.segments_reach(light, mid - across, mid + across, 4.0)
+        assert np.all((mid_lo <= 0.5) & (mid_hi >= 0.5))
         if light.type is LightType.Spot and light.tan_half < 1.0:  # off the cone, within the range
             d2 = ((a - np.array(light.position)) ** 2).sum(axis=1)
-            assert (out & (d2 < 0.5 * light.range2)).sum() > 50
-    # Not out of reach: a segment through the lamp, and one with a NaN or infinite end.
+            assert (empty & (d2 < 0.5 * light.range2)).sum() > 50
+    # Kept whole: a segment through the lamp, and ones with a NaN or infinite end.
     spot = lamps[1]
     through = np.array([spot.position]) + np.array([[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
     bad = np.array([[np.nan, 0.0, 0.0], [np.inf, 9.0, 9.0]])
-    assert not lights.segments_out_of_reach(spot, through[:1], through[1:], 4.0).any()
-    assert not lights.segments_out_of_reach(spot, bad, bad + 20.0, 4.0).any()
-
-
-def test_split_rows_cuts_each_row_into_pieces_covering_it_in_order():
-    from blendlib.core import raster, vertex
-
-    setup = vertex.setup_triangles(sc.quad(-1, -1, 1, 1), np.eye(4), sc.camera(64, 48, eye=(0.0, 0.0, 2.5)))
-    rows = raster.coverage_rows(setup, np.arange(setup.count), 64, 48)
-    pieces, of_row = raster.split_rows(rows, 3, rows.count - 2, 7)
-    assert pieces.length.max() == 7 and pieces.length.min() >= 1
-    whole = raster.rasterize_rows(rows, 3, rows.count - 2, 64)
-    cut = raster.rasterize_rows(pieces, 0, pieces.count, 64)
-    assert np.array_equal(whole.pix, cut.pix) and np.array_equal(whole.bary, cut.bary)
-    assert np.array_equal(np.bincount(of_row, weights=pieces.length).astype(np.int64), rows.length[3:rows.count - 2])
+    lo, hi = lights.segments_reach(spot, through[:1], through[1:], 4.0)
+    assert lo[0] < 0.5 < hi[0]
+    lo, hi = lights.segments_reach(spot, bad, bad + 20.0, 4.0)
+    assert np.array_equal(lo, [0.0, 0.0]) and np.array_equal(hi, [1.0, 1.0])
 
 
 def _reach_scene(color_space: ColorSpace) -> DrawScene:
@@ -272,30 +266,82 @@ def _reach_scene(color_space: ColorSpace) -> DrawScene:
                      lights=lamps, pixel_light_count=3, clear_color=(0.0, 0.0, 0.0, 0.0))
 
 
+@pytest.mark.parametrize("light", [
+    ForwardLight("Point", LightType.Point, position=(0.6, 2.0, 0.6), range=1.2),
+    ForwardLight("Spot", LightType.Spot, position=(-1.0, 3.0, 2.5), axis=(0.6, 0.0, 1.0), range=6.0,
+                 spot_angle=50.0),
+])
+def test_reached_spans_keep_every_lit_fragment_and_little_more(light):
+    """On a floor tilted sideways and seen at a grazing angle (depth varies strongly along each
+    row), the spans ``_reached_spans`` keeps hold every fragment of a row that ``dark_fragments``
+    does not call dark, and beyond the lit ones at most the pixel margin and one pixel at each end."""
+    from types import SimpleNamespace
+
+    from blendlib.core import fragment, raster, vertex
+
+    width, height = 480, 270
+    cam = sc.camera(width, height, eye=(0.0, -1.0, 0.35), target=(0.0, 6.0, 0.0), fov=70.0)
+    tilt = math.radians(35.0)  # about the view's axis: rising to the right
+    roll = np.array([[math.cos(tilt), 0.0, -math.sin(tilt), 0.0], [0.0, 1.0, 0.0, 0.0],
+                     [math.sin(tilt), 0.0, math.cos(tilt), 0.0], [0.0, 0.0, 0.0, 1.0]])
+    setup = vertex.setup_triangles(sc.quad(-8, -1, 8, 14), roll, cam)
+    rows = raster.coverage_rows(setup, np.arange(setup.count), width, height)
+    add = lights.add_light(light, ColorSpace.Linear)
+    state = SimpleNamespace(width=width, lights=SimpleNamespace(add=add), dark_alpha=None)
+    tris = setup.src[rows.tri]
+    positions = setup.world_positions_of(np.arange(int(tris.max()) + 1))
+    x0, x1 = fragment._reached_spans(setup, rows, 0, rows.count, state, positions, tris, [])
+    # Every fragment's world position, interpolated as shading does.
+    frags = raster.rasterize_rows(rows, 0, rows.count, width)
+    weights = raster.interpolate(setup, frags, weights=True, depth=False)[1]
+    world = raster.interpolate_runs(weights, np.take(positions, tris, axis=0), rows.length,
+                                    raster.flat_corners(np.take(positions, tris, axis=0)))
+    lit = ~lights.dark_fragments(add, world[:, 0], world[:, 1], world[:, 2])
+    x = frags.pix % width
+    row = np.repeat(np.arange(rows.count), rows.length)
+    kept = (x >= x0[row]) & (x < x1[row])
+    assert lit.sum() > 1000 and (~lit).sum() > 5000
+    assert not np.any(lit & ~kept)
+    lit_rows = np.flatnonzero(np.bincount(row, weights=lit, minlength=rows.count) > 0)
+    first_lit = np.full(rows.count, width)
+    np.minimum.at(first_lit, row[lit], x[lit])
+    last_lit = np.full(rows.count, -1)
+    np.maximum.at(last_lit, row[lit], x[lit])
+    slack = int(fragment.REACH_PIXEL_MARGIN) + 1
+    assert np.all(x0[lit_rows] >= first_lit[lit_rows] - slack)
+    assert np.all(x1[lit_rows] <= last_lit[lit_rows] + 1 + slack)
+    unlit_rows = np.setdiff1d(np.arange(rows.count), lit_rows)
+    assert unlit_rows.size > 10 and np.all(x1[unlit_rows] - x0[unlit_rows] <= 2 * slack)
+
+
 @pytest.mark.parametrize("color_space", [ColorSpace.Gamma, ColorSpace.Linear])
-def test_row_pieces_out_of_a_lights_reach_are_dropped_and_equal_the_reference(color_space, monkeypatch):
-    """Pieces of long rows whose fragments a ForwardAdd light cannot reach are dropped before they
-    are rasterised — on the opaque floor and wall; on the veil, whose pass adds alpha, only where
-    the stored alpha is already 255 — and the frame equals the scalar reference."""
+def test_row_parts_out_of_a_lights_reach_are_cut_and_equal_the_reference(color_space, monkeypatch):
+    """The parts of long rows whose fragments a ForwardAdd light cannot reach are cut off before
+    they are rasterised — on the opaque floor and wall; on the veil, whose pass adds alpha, only
+    where the stored alpha is already 255 — and the frame equals the scalar reference."""
     from blendlib.core import fragment
 
-    dropped: dict[str, int] = {}
+    cut: dict[str, int] = {}
     kept_for_alpha: dict[str, int] = {}  # out of reach, but the stored alpha is not 255 throughout
-    original = fragment._unreached_rows
+    original = fragment._reached_spans
 
-    def counting(setup, rows, state, *args):
-        out = original(setup, rows, state, *args)
-        anywhere = original(setup, rows, replace(state, dark_alpha=None), *args)
+    def counting(setup, rows, start, stop, state, *args):
+        def cut_off(spans):
+            if spans is None:
+                return 0
+            return int(rows.length[start:stop].sum() - np.maximum(spans[1] - spans[0], 0).sum())
+
+        out = original(setup, rows, start, stop, state, *args)
+        anywhere = original(setup, rows, start, stop, replace(state, dark_alpha=None), *args)
         name = state.call.renderer.name
-        dropped[name] = dropped.get(name, 0) + (0 if out is None else int(rows.length[out].sum()))
-        vetoed = 0 if anywhere is None else int(rows.length[anywhere & ~(False if out is None else out)].sum())
-        kept_for_alpha[name] = kept_for_alpha.get(name, 0) + vetoed
+        cut[name] = cut.get(name, 0) + cut_off(out)
+        kept_for_alpha[name] = kept_for_alpha.get(name, 0) + cut_off(anywhere) - cut_off(out)
         return out
 
-    monkeypatch.setattr(fragment, "_unreached_rows", counting)
+    monkeypatch.setattr(fragment, "_reached_spans", counting)
     scene = _reach_scene(color_space)
     _assert_equal_to_reference(scene)
-    assert dropped["Floor"] > 10000 and dropped["Wall"] > 5000, dropped
+    assert cut["Floor"] > 10000 and cut["Wall"] > 5000, cut
     assert kept_for_alpha["Veil"] > 1000 and kept_for_alpha["Wall"] == 0, kept_for_alpha
 
 
