@@ -407,7 +407,7 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
                                        p.offset_factor, p.offset_units, weights=False)[0]
             sub_first = np.cumsum(sub.length) - sub.length
             return codes[sub_first[which.reshape(-1)] + (index - (ends - length)[row])]
-    if of_row is not None:  # the counts of the chunk's rows, whose pieces these are
+    if of_row is not None:  # the counts of the chunk's rows, of which these are the parts kept
         length = np.bincount(of_row, weights=length, minlength=chunk_rows).astype(np.int64)
     return ShadedFragments(frags.pix, depth, rgba, ids, palette, None, alive, disjoint, depth_fn, triangle_fn,
                            row_counts=None if n == full else length)

@@ -251,7 +251,11 @@ def _sample_levels(chain: MipChain, u: np.ndarray, v: np.ndarray, level: np.ndar
                    wrap: TextureWrap, channels: tuple[int, ...]) -> np.ndarray:
     """Each fragment's texel sample (N, C) float64 of ``channels`` at (u, v) in its level ``level`` (N,) int64."""
     out = np.empty((u.size, len(channels)), dtype=np.float64)
-    for index in np.unique(level).tolist():
+    present = np.flatnonzero(np.bincount(level))  # the levels in use (a count, not np.unique's sort)
+    if present.size == 1:
+        out[:] = shade.sample(chain.levels[int(present[0])], np.stack([u, v], axis=1), filt, wrap, channels)
+        return out
+    for index in present.tolist():
         at = np.flatnonzero(level == index)
         uv = np.stack([u[at], v[at]], axis=1)
         out[at] = shade.sample(chain.levels[index], uv, filt, wrap, channels)
