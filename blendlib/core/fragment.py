@@ -244,7 +244,7 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
     ids = None  # (N,) int32 palette entry of each fragment, -1 for those shaded one by one
     tabled_count = 0  # fragments with an id
     row_flat = flat[run_of_row]
-    dropped = None  # (N,) bool: fragments dropped unshaded (DrawState.dark_skip)
+    dropped = None  # (N,) bool: fragments dropped before merging (out of a light's reach, alpha first)
     constant = None if not any_varying else np.repeat(row_flat, length)
 
     def sample_at(uv: np.ndarray, lod: np.ndarray | None, channels: tuple[int, ...]) -> np.ndarray:
@@ -339,7 +339,10 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
                 discarded = ~alpha_passes(alpha, material.cutoff, p.alpha_test_comp)
                 if discarded.any():
                     skip = discarded if skip is None else skip | discarded
-            if skip is None:
+            sparse = skip is not None and int(np.count_nonzero(skip)) * SPARSE_SKIP_SHARE < skip.size
+            if skip is None or sparse:
+                # Few to drop: all are shaded (a dropped fragment's colour is never read) rather
+                # than the others gathered out and scattered back.
                 shaded_rgba = shade_at(None if uv is None else uv.T, varying(normals, normal_flat),
                                        varying(colors, color_flat) if color is None else color, position,
                                        w.shape[1], lod)
@@ -347,6 +350,9 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
                     rgba[at] = shaded_rgba
                 else:
                     scatter_rows(rgba, at, shaded_rgba)
+                if sparse:
+                    dropped = np.zeros(n, dtype=bool)
+                    dropped[np.arange(n)[at][skip]] = True
             else:  # unreached by a ForwardAdd light or discarded: dropped, never shaded
                 places = np.arange(n)[at]
                 lit = np.flatnonzero(~skip)
@@ -413,6 +419,11 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
                            row_counts=None if n == full else length)
 
 
+#: Fragments dropped before merging (out of a ForwardAdd light's reach, discarded by the alpha
+#: test) are left out of shading when they are at least 1/SPARSE_SKIP_SHARE of those shaded one
+#: by one; fewer are shaded with the others and dropped after (gathering the others out and
+#: their colours back costs more than shading a few more).
+SPARSE_SKIP_SHARE = 8
 #: Rows are cut to a ForwardAdd light's reach (:func:`_reached_spans`: two interpolated positions
 #: and a quadratic per row) when they hold at least ROW_REACH_MIN_RUN fragments on average:
 #: shorter ones cost about as much to cut as to shade.
