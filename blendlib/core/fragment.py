@@ -339,7 +339,12 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
                 discarded = ~alpha_passes(alpha, material.cutoff, p.alpha_test_comp)
                 if discarded.any():
                     skip = discarded if skip is None else skip | discarded
-            sparse = skip is not None and int(np.count_nonzero(skip)) * SPARSE_SKIP_SHARE < skip.size
+            sparse = False
+            if skip is not None:
+                places = np.arange(n)[at]
+                dropped = np.zeros(n, dtype=bool)
+                dropped[places[skip]] = True
+                sparse = int(np.count_nonzero(skip)) * SPARSE_SKIP_SHARE < skip.size
             if skip is None or sparse:
                 # Few to drop: all are shaded (a dropped fragment's colour is never read) rather
                 # than the others gathered out and scattered back.
@@ -350,11 +355,7 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
                     rgba[at] = shaded_rgba
                 else:
                     scatter_rows(rgba, at, shaded_rgba)
-                if sparse:
-                    dropped = np.zeros(n, dtype=bool)
-                    dropped[np.arange(n)[at][skip]] = True
             else:  # unreached by a ForwardAdd light or discarded: dropped, never shaded
-                places = np.arange(n)[at]
                 lit = np.flatnonzero(~skip)
                 run_counts = counts[keep]
                 lit_counts = _segment_sums(~skip, run_counts)
@@ -371,8 +372,6 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
                     varying_lit(colors, color_flat) if color is None else gather(color.T, lit, axis=1).T,
                     None if position is None else gather(position.T, lit, axis=1).T, lit.size,
                     None if lod is None else gather(lod, lit)))
-                dropped = np.zeros(n, dtype=bool)
-                dropped[places[skip]] = True
     palette = None
     if palettes:
         palette = palettes[0] if len(palettes) == 1 else np.concatenate(palettes)
@@ -487,16 +486,17 @@ def _reached_spans(setup, rows, start: int, stop: int, state: DrawState, positio
         return None
     if state.dark_alpha is not None:
         # Cut-off parts keep their stored colour; their alpha too only where it is 255 already.
+        # Both sides of the cut rows in one test: they share the box the running count covers.
         some = np.flatnonzero(cut)
-        whole = np.zeros(some.size, dtype=bool)
-        for part_x0, part_x1 in ((first[some], np.maximum(x0[some], first[some])), (x1[some], stop_x[some])):
-            parts = np.flatnonzero(part_x1 > part_x0)
-            if parts.size:
-                part = rows.take_rows(some[parts] + start)
-                part.x0 = part_x0[parts]
-                part.length = part_x1[parts] - part_x0[parts]
-                whole[parts] |= _unsaturated(state.dark_alpha, state.width, part)
-        keep = some[whole]
+        side_x0 = np.concatenate([first[some], x1[some]])  # [first, x0) then [x1, stop)
+        side_x1 = np.concatenate([x0[some], stop_x[some]])
+        owner = np.concatenate([np.arange(some.size), np.arange(some.size)])
+        sides = np.flatnonzero(side_x1 > side_x0)
+        part = rows.take_rows(some[owner[sides]] + start)
+        part.x0 = side_x0[sides]
+        part.length = side_x1[sides] - part.x0
+        unsaturated = _unsaturated(state.dark_alpha, state.width, part)
+        keep = some[np.bincount(owner[sides], weights=unsaturated, minlength=some.size) > 0]
         x0[keep] = first[keep]
         x1[keep] = stop_x[keep]
     return x0, x1
