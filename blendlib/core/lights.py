@@ -230,7 +230,7 @@ def segments_reach(light: AddLight, a: np.ndarray, b: np.ndarray, scale: float) 
     whose terms overflow) is kept whole; one of no length is kept whole or not at all."""
     radius = math.sqrt(light.range2)
     c = np.asarray(light.position, dtype=np.float64)
-    slack = REACH_SCALE_MARGIN * max(scale, float(np.abs(np.asarray(light.position)).max()), radius)
+    slack = REACH_SCALE_MARGIN * max(scale, float(np.abs(c).max()), radius)
     bound = radius * (1.0 + REACH_MARGIN) + slack
     with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
         d = b - a
@@ -307,6 +307,8 @@ def _cone_span(light: AddLight, slack: float, a: np.ndarray, b: np.ndarray) -> t
         r2 = (-beta + sq) / (2.0 * alpha)
         r_lo, r_hi = np.minimum(r1, r2), np.maximum(r1, r2)
         # Up to two pieces where g >= −margin, each cut to the front part.
+        # Where g opens neither way with roots (never below the margin, or linear in t): the
+        # front part whole.
         lo1, hi1 = front_lo.copy(), front_hi.copy()
         lo2, hi2 = np.ones(count), np.zeros(count)  # empty unless g opens upwards and has roots
         down = alpha < 0.0
@@ -321,9 +323,6 @@ def _cone_span(light: AddLight, slack: float, a: np.ndarray, b: np.ndarray) -> t
         first, second = lo1 <= hi1, lo2 <= hi2
         t_lo = np.where(first, lo1, np.where(second, lo2, 1.0))
         t_hi = np.where(second, hi2, np.where(first, hi1, 0.0))
-        whole_front = ~down & ~up  # g never below the margin (or linear in t): the front part
-        t_lo[whole_front] = front_lo[whole_front]
-        t_hi[whole_front] = front_hi[whole_front]
         unknown = ~(np.isfinite(alpha) & np.isfinite(beta) & np.isfinite(gamma) & np.isfinite(front_lo)
                     & np.isfinite(front_hi) & np.isfinite(r_lo) & np.isfinite(r_hi))
     t_lo[unknown] = 0.0
