@@ -12,6 +12,8 @@ Registering also lists the engine in the ``COMPAT_ENGINES`` of Blender's own pro
 
 from __future__ import annotations
 
+from blendlib.runtime import bandprocs
+
 from ..registration import feature
 from .render import UnityPassesRenderEngine
 
@@ -37,6 +39,9 @@ def _attach() -> None:
 def _detach() -> None:
     for panel in _compat_panels():
         panel.COMPAT_ENGINES.discard(UnityPassesRenderEngine.bl_idname)
+    # Final renders' helper process (large F12 frames are drawn in two bands): ended with the
+    # engine; a render after registering again starts a new one.
+    bandprocs.close_final_renderer()
 
 
 register, unregister = feature(CLASSES, _attach, _detach)

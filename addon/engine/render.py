@@ -87,7 +87,7 @@ class UnityPassesRenderEngine(bpy.types.RenderEngine):
                                             should_cancel=self.test_break)
                 frame = analysis.frame
             else:
-                frame = blendlib.render_scene(draw, progress=self._progress, should_cancel=self.test_break)
+                frame = blender.render_frame(draw, progress=self._progress, should_cancel=self.test_break)
         except RenderCancelled:
             # An error report (not a bare return) also stops write_still / animation from saving
             # an empty frame when the break did not come from Blender's own Esc handling.

@@ -34,6 +34,7 @@ from .render import (
     linear_rgba,
     render,
     render_final,
+    render_frame,
     write_image,
 )
 from .schema import (
@@ -68,7 +69,7 @@ __all__ = [
     "linear_rgba",
     "material_fields", "material_from_blender", "material_named", "material_values", "mesh_arrays",
     "migrate_data", "migrate_stored", "open_blend", "pass_from_values", "principled_inputs", "read_group",
-    "read_pass", "render", "render_final", "render_size", "render_visible_objects", "scene_named",
+    "read_pass", "render", "render_final", "render_frame", "render_size", "render_visible_objects", "scene_named",
     "scene_settings", "stamp_version", "unity_props", "world_ambient", "write_image", "write_material",
     "write_pass", "write_scene_settings",
 ]

@@ -21,6 +21,7 @@ import numpy as np
 from ..core import colorspace, pipeline
 from ..core.drawlist import draw_calls
 from ..core.scene import SceneError
+from ..runtime import bandprocs
 from .extract import build_draw_scene
 from .files import scene_arg
 from .pixels import bottom_first
@@ -66,14 +67,26 @@ def _render_evaluated(scene: Any, depsgraph: Any, progress: Callable[[float], No
                       should_cancel: Callable[[], bool] | None, until_draw: Any) -> pipeline.Frame:
     """The frame of ``scene`` as ``depsgraph`` evaluates it (the capture engine's, or a caller's)."""
     draw = build_draw_scene(scene, depsgraph)
-    calls = draw_calls(draw)
-    until_draw = checked_until_draw(until_draw, len(calls))
-    frame = pipeline.render_scene(draw, progress=progress, should_cancel=should_cancel, until_draw=until_draw,
-                                  calls=calls)
+    if until_draw is None:
+        frame = render_frame(draw, progress=progress, should_cancel=should_cancel)
+    else:
+        calls = draw_calls(draw)
+        until_draw = checked_until_draw(until_draw, len(calls))
+        frame = pipeline.render_scene(draw, progress=progress, should_cancel=should_cancel, until_draw=until_draw,
+                                      calls=calls)
     extra = [w for w in draw.warnings if w not in frame.warnings]
     frame.warnings[:0] = extra
     frame.warnings[:] = one_warning_per_cause(frame.warnings)
     return frame
+
+
+def render_frame(draw: Any, progress: Callable[[float], None] | None = None,
+                 should_cancel: Callable[[], bool] | None = None) -> pipeline.Frame:
+    """A final frame of a DrawScene (F12, :func:`render`): :func:`pipeline.render_scene`'s frame, bit
+    for bit, drawn in two bands by this process and a helper process when the frame is large
+    (:func:`blendlib.runtime.bandprocs.final_renderer`: threads of one process wait on each
+    other's interpreter lock on frames of short array calls)."""
+    return bandprocs.final_renderer()(draw, progress=progress, should_cancel=should_cancel)
 
 
 def one_warning_per_cause(warnings: list[str]) -> list[str]:

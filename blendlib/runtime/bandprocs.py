@@ -5,7 +5,9 @@ calls are short enough that two rendering threads spend much of their time waiti
 profile of a two-thread frame shows the lock held most of the wall time, so a second thread
 gains little there). A band drawn by another process has a lock of its own.
 
-:class:`BandRenderer` keeps one helper process, started once and reused for every frame. Per
+:class:`BandRenderer` keeps one helper process, started once and reused for every frame: the
+viewport's scheduler has one, and final renders (F12, ``blendlib.render``, the CLI) share
+:func:`final_renderer`'s. Per
 frame the helper draws the top band and this process the bottom one, both through
 :func:`~blendlib.core.pipeline.render_scene`'s ``band`` (each does the whole vertex setup and
 draws only its rows). Pixels never depend on one another, so the joined frame equals
@@ -21,8 +23,9 @@ checked). The helper's rows come back through an anonymous shared file (``memfd_
 nothing named is left behind if either process dies. Its first byte is the stop flag, which
 the helper reads between chunks.
 
-Frames below :data:`MIN_PIXELS`, renders with other options, and machines where the helper
-cannot run (one core, Windows, a helper that failed) go to ``render_scene`` unchanged.
+Frames below :data:`MIN_PIXELS`, scenes over a renderer's triangle limit (final renders:
+:data:`FINAL_MAX_TRIANGLES`), renders with other options, and machines where the helper cannot
+run (one core, Windows, a helper that failed) go to ``render_scene`` unchanged.
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ import io
 import mmap
 import os
 import pickle
+import signal
 import subprocess
 import sys
 import tempfile
@@ -44,7 +48,7 @@ from multiprocessing.connection import Connection, wait
 
 import numpy as np
 
-from ..core import pipeline
+from ..core import merger, pipeline
 from ..core.records import Frame, RenderCancelled
 from ..core.scene import DrawScene, SceneError, SceneMemo, scene_parts
 from . import allocator
@@ -213,6 +217,8 @@ class _Helper:
         self.scene: DrawScene | None = None
         #: The scene parts the helper holds (a changed scene sends only its new parts).
         self.parts = _PartsWriter()
+        #: Whether the helper may hold a scene (a request was sent since the last "drop").
+        self.holding = False
 
     def poll_ready(self, timeout: float = 0.0) -> bool:
         """Whether the helper has started (read its hello if it has arrived)."""
@@ -269,8 +275,8 @@ class _HelperBand:
 
 
 class BandRenderer:
-    """:func:`~blendlib.core.pipeline.render_scene` for viewport frames, large ones split in two
-    bands drawn at once by this process and a helper process (see the module docstring).
+    """:func:`~blendlib.core.pipeline.render_scene` for viewport and final frames, large ones split
+    in two bands drawn at once by this process and a helper process (see the module docstring).
 
     Call it as ``render_scene`` (``should_cancel`` and ``progress`` are honoured; any other
     option renders in this process). ``start=False`` defers starting the helper to the first
@@ -285,8 +291,19 @@ class BandRenderer:
     camera: change a scene by building a new one, never by writing into its arrays.
     """
 
-    def __init__(self, min_pixels: int = MIN_PIXELS, start: bool = True):
+    def __init__(self, min_pixels: int = MIN_PIXELS, start: bool = True, max_triangles: int | None = None,
+                 keep_scene: bool = True):
         self.min_pixels = int(min_pixels)
+        #: Scenes of more triangles render in this process (None: no limit): each band does the
+        #: whole vertex setup, and the scene is pickled for the helper.
+        self.max_triangles = max_triangles
+        #: Whether the helper (and this renderer's memo) keep the last scene after a frame: the
+        #: viewport's next frame is mostly the same scene; final renders build a new scene each
+        #: time, so :func:`final_renderer` frees it (an idle helper holds nothing of it).
+        self.keep_scene = keep_scene
+        #: The next request asks the helper to forget its blend tables kept from earlier frames
+        #: (:meth:`forget_tables`).
+        self._forget_tables = False
         #: Share of the rows drawn here (the bottom band), tuned frame by frame; frames started
         #: by :meth:`begin` keep a share of their own (the helper has a head start there).
         self.fraction = 0.5
@@ -342,6 +359,19 @@ class BandRenderer:
             self._helper.close()
             self._helper = None
 
+    @property
+    def helper_pid(self) -> int | None:
+        """The helper's process id while it runs (the benchmark adds its CPU time), else None."""
+        helper = self._helper
+        return helper.proc.pid if helper is not None and helper.proc.poll() is None else None
+
+    def forget_tables(self) -> None:
+        """Clear this process's kept blend tables (:data:`~blendlib.core.merger.RECENT_TABLES`) and
+        have the helper clear its own before the next frame: that frame is drawn from scratch, as
+        the first of a session is (the benchmark)."""
+        merger.RECENT_TABLES.clear()
+        self._forget_tables = True
+
     def wait_ready(self, timeout: float = 30.0) -> bool:
         """Block until the helper has started (tests, the benchmark); False if it cannot run."""
         if self._helper is None and self.failure is None and not self._closed:
@@ -386,7 +416,7 @@ class BandRenderer:
     def __call__(self, scene: DrawScene, *, should_cancel: Callable[[], bool] | None = None,
                  progress: Callable[[float], None] | None = None, **options) -> Frame:
         width, height = int(scene.camera.width), int(scene.camera.height)
-        if options or height < 2 or not self._lock.acquire(blocking=False):
+        if options or height < 2 or self._too_many_triangles(scene) or not self._lock.acquire(blocking=False):
             return pipeline.render_scene(scene, should_cancel=should_cancel, progress=progress, **options)
         try:
             memo = self._memo_for(scene)
@@ -404,7 +434,31 @@ class BandRenderer:
             # A small frame, no helper, or it stopped during this frame: the frame in this process.
             return pipeline.render_scene(scene, should_cancel=should_cancel, progress=progress, memo=memo)
         finally:
+            if not self.keep_scene:
+                self._release_scene()
             self._lock.release()
+
+    def _too_many_triangles(self, scene: DrawScene) -> bool:
+        return (self.max_triangles is not None
+                and sum(r.mesh.triangle_count for r in scene.renderers) > self.max_triangles)
+
+    def _release_scene(self) -> None:
+        """Free the last scene here and in the helper (``keep_scene`` False): the memo goes, and
+        the helper is told to drop its scene, memo and parts (it answers nothing; the next
+        request sends a scene whole)."""
+        self._memo = None
+        self._memo_scene = None
+        helper = self._helper
+        if helper is None or not helper.holding or self._pending is not None:
+            return
+        try:
+            helper.conn.send_bytes(helper.parts.dumps(("drop",), None))
+        except (OSError, ValueError) as exc:
+            self._fail(f"helper process stopped: {exc}")
+            return
+        helper.scene = None
+        helper.parts = _PartsWriter()
+        helper.holding = False
 
     def _memo_for(self, scene: DrawScene) -> SceneMemo:
         """The memo of renders of ``scene``'s template: whole while frames differ in their camera
@@ -423,16 +477,18 @@ class BandRenderer:
         cut = min(max(int(round(fraction * height)), 1), height - 1)
         buffer = helper.reserve(_band_bytes(height - cut, width))
         buffer[0] = 0  # the stop flag
+        forget, self._forget_tables = self._forget_tables, False
         if _same_but_camera(scene, helper.scene):
-            request = ("view", scene.camera, cut, height, BAND_CHUNK_CANDIDATES)
+            request = ("view", scene.camera, cut, height, BAND_CHUNK_CANDIDATES, forget)
         else:
-            request = ("scene", scene, cut, height, BAND_CHUNK_CANDIDATES)
+            request = ("scene", scene, cut, height, BAND_CHUNK_CANDIDATES, forget)
         try:
             helper.conn.send_bytes(helper.parts.dumps(request, scene if request[0] == "scene" else None))
         except (OSError, ValueError) as exc:
             self._fail(f"helper process stopped: {exc}")
             return None
         helper.scene = scene
+        helper.holding = True
         return _HelperBand(scene, cut, buffer, time.perf_counter(), begun)
 
     def _drop_pending(self, helper: _Helper) -> None:
@@ -508,6 +564,57 @@ class BandRenderer:
         except (OSError, ValueError, EOFError, pickle.UnpicklingError):
             self._fail(f"helper process exited with code {helper.proc.poll()}")
             return None
+        except BaseException:
+            # Interrupted while the helper draws (KeyboardInterrupt, an error in should_cancel):
+            # its answer must not be taken for the next frame's. Stop it and collect the answer.
+            self._abandon(helper)
+            raise
+
+    def _abandon(self, helper: _Helper, timeout: float = 2.0) -> None:
+        """Stop the helper's band and read its answer (a helper that does not answer within
+        ``timeout`` seconds is ended, and not used again)."""
+        try:
+            if helper.buffer is not None:
+                helper.buffer[0] = 1
+            if helper.conn.poll(timeout):
+                reply = _receive(helper.conn)
+                if reply[0] == "error":
+                    helper.scene = None
+                return
+        except (OSError, ValueError, EOFError, pickle.UnpicklingError):
+            pass
+        self._fail("helper process did not answer after an interrupted frame")
+
+
+#: Final renders of scenes with more triangles stay in one process: the vertex setup done in both
+#: bands and the pickled meshes outweigh the half frame saved (docs/benchmark.md, "Why the
+#: constants are what they are": 300k triangles gain, 1M lose).
+FINAL_MAX_TRIANGLES = 400_000
+
+_final: list[BandRenderer] = []
+_final_lock = threading.Lock()
+
+
+def final_renderer() -> BandRenderer:
+    """The process's renderer of final frames (F12, ``blendlib.render``, the CLI): one
+    :class:`BandRenderer`, made on first use, whose helper starts with the first frame of
+    :data:`MIN_PIXELS` or more (that frame renders here while it starts) and is reused after.
+    Scenes over :data:`FINAL_MAX_TRIANGLES` render in this process; the helper keeps nothing of
+    a scene after its frame. :func:`close_final_renderer` ends the helper (else it ends with
+    this process)."""
+    with _final_lock:
+        if not _final or _final[0]._closed:
+            _final[:] = [BandRenderer(start=False, max_triangles=FINAL_MAX_TRIANGLES, keep_scene=False)]
+        return _final[0]
+
+
+def close_final_renderer() -> None:
+    """End :func:`final_renderer`'s helper, if one runs (the add-on's unregister); a later final
+    render makes a new renderer."""
+    with _final_lock:
+        renderers, _final[:] = list(_final), []
+    for renderer in renderers:
+        renderer.close()
 
 
 def balanced_fraction(fraction: float, cut: int, height: int, own_s: float, helper_s: float,
@@ -526,13 +633,18 @@ def balanced_fraction(fraction: float, cut: int, height: int, own_s: float, help
 
 
 def serve(conn_fd: int, fd: int) -> int:
-    """The helper's loop: read ("scene", scene, y0, y1, chunk) or ("view", camera, y0, y1, chunk)
-    requests (the latter: the last scene seen through ``camera``) from the connection on
-    descriptor ``conn_fd``, draw band [y0, y1) into the shared file ``fd``, answer ("ok", seconds
-    since the request arrived), ("cancelled",), ("error", line) or ("failed", line). Returns 0
-    when the parent closes its end, whether it waits for a request or answers one."""
+    """The helper's loop: read ("scene", scene, y0, y1, chunk, forget) or ("view", camera, y0, y1,
+    chunk, forget) requests (the latter: the last scene seen through ``camera``; ``forget``: clear
+    the kept blend tables first) from the connection on descriptor ``conn_fd``, draw band
+    [y0, y1) into the shared file ``fd``, answer ("ok", seconds since the request arrived),
+    ("cancelled",), ("error", line) or ("failed", line). A ("drop",) request frees the scene,
+    its memo and parts and is not answered. Returns 0 when the parent closes its end, whether it
+    waits for a request or answers one."""
     allocator.keep_freed_memory()  # every frame allocates the same arrays again (allocator.py)
     os.dup2(2, 1)  # anything printed goes to stderr, never into the parent's own output
+    # Ctrl+C in a terminal reaches the whole process group: the parent handles it and stops this
+    # band through the stop flag (or closes its end, which ends this loop).
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     conn = Connection(conn_fd)
     try:
         _send(conn, ("ready",))
@@ -547,9 +659,16 @@ def serve(conn_fd: int, fd: int) -> int:
             conn.poll(None)  # until the request's first bytes (or the end) arrive
             arrived = time.perf_counter()
             data = conn.recv_bytes()
-        except EOFError:
+        except (EOFError, OSError):  # the parent closed its end, or died (connection reset)
             return 0
-        kind, content, y0, y1, chunk = parts.loads(data)
+        request = parts.loads(data)
+        if request[0] == "drop":
+            scene, memo = None, SceneMemo()
+            parts.parts.clear()
+            continue
+        kind, content, y0, y1, chunk, forget = request
+        if forget:
+            merger.RECENT_TABLES.clear()
         try:
             if kind == "scene":
                 scene = content

@@ -1,13 +1,15 @@
 """How a call is measured: wall and CPU time, the process's resident-memory peak, traced allocations.
 
-CPU use is the process CPU time (all threads) over the wall time of the same call: 2.0 means
-both cores busy. The resident peak of a render: :func:`reset_peak` (``/proc/self/clear_refs`` ←
-5) just before it and ``VmHWM`` after it; "peak RSS over the RSS before the render" is what it
-needs on top of the Blender process and its input scene.
+CPU use is the process CPU time (all threads; a render's helper process added:
+:func:`process_cpu_s`) over the wall time of the same call: 2.0 means both cores busy. The
+resident peak of a render: :func:`reset_peak` (``/proc/self/clear_refs`` ← 5) just before it and
+``VmHWM`` after it; "peak RSS over the RSS before the render" is what it needs on top of the
+Blender process and its input scene.
 """
 
 from __future__ import annotations
 
+import os
 import statistics
 import time
 
@@ -23,6 +25,19 @@ class Timer:
     def __exit__(self, *exc):
         self.wall = time.perf_counter() - self.t0
         self.cpu = time.process_time() - self.cpu0
+
+
+def process_cpu_s(pid: int | None) -> float:
+    """CPU seconds (user + system, all threads) another process has used so far, from
+    ``/proc/PID/stat``; 0.0 for None or where the system cannot tell."""
+    if pid is None:
+        return 0.0
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            fields = f.read().rsplit(")", 1)[1].split()  # after the command name, which may hold spaces
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError):
+        return 0.0
 
 
 def median(values):

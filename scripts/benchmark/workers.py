@@ -24,7 +24,7 @@ import traceback
 from pathlib import Path
 
 from scripts.benchmark.cases import REPO
-from scripts.benchmark.timing import Timer, median, proc_status, reset_peak, traced_peak_mb
+from scripts.benchmark.timing import Timer, median, proc_status, process_cpu_s, reset_peak, traced_peak_mb
 
 #: Timed series of ProjectWorker.explain (medians), in their alternation order.
 EXPLAIN_TIMES = ("plain_s", "drawlist_s", "pixel_s", "capture_s", "step_s", "analyze_s", "advised_s")
@@ -133,27 +133,48 @@ class ProjectWorker:
             kwargs["chunk_candidates"] = self.opts["chunk_candidates"]
         return kwargs
 
+    def final(self):
+        """What renders a final frame: F12's renderer (:func:`blendlib.blender.render_frame`, large
+        frames in two bands with a helper process, started here once, untimed, as in a session
+        after its first render), or ``render_scene`` with the given ``workers`` /
+        ``chunk_candidates``."""
+        from blendlib.core.pipeline import render_scene
+        from blendlib.runtime import bandprocs
+
+        kwargs = self._kwargs()
+        if kwargs:
+            return None, lambda draw: render_scene(draw, **kwargs)
+        bands = bandprocs.final_renderer()
+        bands.wait_ready()
+        return bands, bands
+
     def run(self, first: bool = False) -> dict:
         import numpy as np
 
         from blendlib import blender
         from blendlib.core import merger
-        from blendlib.core.pipeline import render_scene
 
-        kwargs = self._kwargs()
+        bands, render = self.final()
         with Timer() as te:
             draw = blender.build_draw_scene(self.scene)
-        # A render from scratch: no blend tables kept from the previous run (the viewport and
-        # explain series keep them, as an interactive session does).
+        # A render from scratch: no blend tables kept from the previous run, here or in the
+        # helper (the viewport and explain series keep them, as an interactive session does).
         merger.RECENT_TABLES.clear()
+        if bands is not None:
+            bands.forget_tables()
         can_peak = reset_peak()
         rss0 = proc_status().get("VmRSS", 0)
+        helper = None if bands is None else bands.helper_pid
+        helper_cpu0 = process_cpu_s(helper)
+        split0 = 0 if bands is None else bands.split_frames
         with Timer() as tr:
-            frame = render_scene(draw, **kwargs)
+            frame = render(draw)
+        helper_cpu = process_cpu_s(helper) - helper_cpu0
         peak = proc_status().get("VmHWM", 0) if can_peak else 0
         out = {
             "extract_s": te.wall, "render_s": tr.wall, "total_s": te.wall + tr.wall,
-            "cpu_ratio": tr.cpu / tr.wall if tr.wall > 0 else 0.0,
+            "cpu_ratio": (tr.cpu + helper_cpu) / tr.wall if tr.wall > 0 else 0.0,
+            "split": bands is not None and bands.split_frames > split0,  # drawn in two bands
             "rss_peak_mb": max(0, peak - rss0) / 2**20, "rss_mb": peak / 2**20,
             "triangles": int(sum(r.mesh.triangle_count for r in draw.renderers)),
         }

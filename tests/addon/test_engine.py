@@ -15,6 +15,7 @@ from addon.engine.render import result_arrays
 from blendlib import blender, render
 from blendlib.core import colorspace
 from blendlib.formats import images
+from blendlib.runtime import bandprocs
 from tests.support.blender_fixtures import add_cube, add_plane, empty_scene, unlit_material
 
 
@@ -61,6 +62,27 @@ def test_engine_write_still_equals_blendlib_render(tmp_path, color_space, hdr):
     scene.render.filepath = str(tmp_path / "still.exr")
     bpy.ops.render.render(write_still=True)
     np.testing.assert_array_equal(images.load(tmp_path / "still.exr"), expected)
+
+
+def test_large_f12_frames_are_drawn_in_two_bands_and_equal_one_render(tmp_path):
+    """F12 of a frame of MIN_PIXELS or more goes through the final renderer's helper process
+    (two bands) and writes the very frame one render_scene draws; unregistering ends the helper."""
+    scene = glass_scene()
+    scene.render.resolution_x, scene.render.resolution_y = 640, 360
+    assert 640 * 360 >= bandprocs.MIN_PIXELS
+    bands = bandprocs.final_renderer()
+    assert bands.wait_ready(30.0), bands.failure
+    before = bands.split_frames
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    scene.render.image_settings.color_depth = "32"
+    scene.render.filepath = str(tmp_path / "bands.exr")
+    assert bpy.ops.render.render(write_still=True) == {"FINISHED"}
+    assert bands.split_frames == before + 1
+    expected = blendlib.render_scene(blender.draw_scene(scene))
+    np.testing.assert_array_equal(images.load(tmp_path / "bands.exr"), blender.linear_rgba(expected, opaque=True))
+    helper = bands._helper.proc
+    addon.unregister()
+    assert bands._closed and helper.wait(timeout=30.0) == 0
 
 
 def test_render_final_uses_modifier_render_levels_like_f12(tmp_path):
@@ -111,13 +133,13 @@ def test_engine_cancel_writes_nothing(tmp_path, monkeypatch):
     scene = glass_scene()
     scene.render.filepath = str(tmp_path / "cancel.png")
     calls = []
-    original = blendlib.render_scene
+    original = blendlib.blender.render_frame
 
     def cancelling(draw, progress=None, should_cancel=None):
         calls.append(should_cancel)
         return original(draw, progress=progress, should_cancel=lambda: True)
 
-    monkeypatch.setattr(blendlib, "render_scene", cancelling)
+    monkeypatch.setattr(blendlib.blender, "render_frame", cancelling)
     with pytest.raises(RuntimeError, match="cancelled"):
         bpy.ops.render.render(write_still=True)
     assert calls and callable(calls[0])  # the engine passes its test_break

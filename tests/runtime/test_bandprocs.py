@@ -317,3 +317,95 @@ def test_close_ends_the_helper_and_frames_go_on_here():
     draw = scene_at(1)
     assert_same_frame(renderer(draw), render_scene(draw))
     assert renderer.split_frames == 0
+
+
+def test_final_renders_split_and_leave_no_scene_in_either_process(monkeypatch):
+    """A renderer that keeps no scene (final renders): the frame equals render_scene, then the
+    memo is gone here and the helper has dropped the scene, so the same scene again is sent
+    whole and a bare view request is refused by the helper."""
+    sent, _ = recorded_requests(monkeypatch)
+    renderer = BandRenderer(min_pixels=0, keep_scene=False)
+    try:
+        assert renderer.wait_ready(WAIT)
+        draw = scene_at(9, 96, 64)
+        for _ in range(2):
+            assert_same_frame(renderer(draw), render_scene(draw))
+        assert renderer.split_frames == 2
+        assert sent == ["scene", "drop", "scene", "drop"]
+        assert renderer._memo is None and not renderer._helper.holding
+        helper = renderer._helper
+        helper.conn.send_bytes(helper.parts.dumps(("view", draw.camera, 1, 64, 4096, False), None))
+        assert helper.conn.poll(WAIT)
+        assert bandprocs._receive(helper.conn) == ("failed", "RuntimeError: a view request before any scene")
+    finally:
+        renderer.close()
+
+
+def test_scenes_over_the_triangle_limit_render_in_this_process():
+    draw = scene_at(12, 96, 64)
+    triangles = sum(r.mesh.triangle_count for r in draw.renderers)
+    renderer = BandRenderer(min_pixels=0, max_triangles=triangles - 1)
+    try:
+        assert renderer.wait_ready(WAIT)
+        assert_same_frame(renderer(draw), render_scene(draw))
+        assert renderer.split_frames == 0
+        renderer.max_triangles = triangles  # at the limit: split
+        assert_same_frame(renderer(draw), render_scene(draw))
+        assert renderer.split_frames == 1
+    finally:
+        renderer.close()
+
+
+def test_forget_tables_clears_them_here_and_asks_the_helper_once(bands, monkeypatch):
+    from blendlib.core import merger
+
+    requests = []
+    real = bandprocs._PartsWriter.dumps
+    monkeypatch.setattr(bandprocs._PartsWriter, "dumps",
+                        lambda self, request, scene: requests.append(request) or real(self, request, scene))
+    draw = scene_at(1)
+    bands(draw)
+    bands.forget_tables()
+    assert not merger.RECENT_TABLES._tables
+    for _ in range(2):
+        assert_same_frame(bands(draw), render_scene(draw))
+    assert [r[-1] for r in requests] == [False, True, False]
+
+
+def test_an_interrupted_wait_collects_the_helpers_answer(bands, monkeypatch):
+    """KeyboardInterrupt while waiting for the helper's band: its answer is read then, so the
+    next frame joins its own band, not the interrupted one's."""
+    draw = scene_at(7, 160, 120)
+    real_wait = bandprocs.wait
+    interrupts = [1]
+
+    def interrupted(connections, timeout):
+        if interrupts:
+            interrupts.pop()
+            raise KeyboardInterrupt
+        return real_wait(connections, timeout)
+
+    monkeypatch.setattr(bandprocs, "wait", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        bands(draw)
+    assert bands.failure is None
+    other = scene_at(3, 160, 120)
+    before = bands.split_frames
+    assert_same_frame(bands(other), render_scene(other))
+    assert bands.split_frames == before + 1
+
+
+def test_final_renderer_is_one_per_process_until_closed():
+    renderer = bandprocs.final_renderer()
+    try:
+        assert bandprocs.final_renderer() is renderer
+        assert renderer.max_triangles == bandprocs.FINAL_MAX_TRIANGLES and not renderer.keep_scene
+        assert renderer.min_pixels == bandprocs.MIN_PIXELS
+    finally:
+        bandprocs.close_final_renderer()
+    assert renderer._closed
+    again = bandprocs.final_renderer()
+    try:
+        assert again is not renderer and not again._closed
+    finally:
+        bandprocs.close_final_renderer()
