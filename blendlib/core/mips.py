@@ -223,8 +223,41 @@ def quad_lod(setup: TriangleSetup, tri: np.ndarray, pix: np.ndarray, width: int,
     if not first.all():
         runs = np.cumsum(first) - 1
         at = np.flatnonzero(first)
-        return _quad_lod_at(setup, tri[at], x0[at], y0[at], material, size)[runs]
-    return _quad_lod_at(setup, tri, x0, y0, material, size)
+        return _quad_lods(setup, tri[at], x0[at], y0[at], width, material, size)[runs]
+    return _quad_lods(setup, tri, x0, y0, width, material, size)
+
+
+#: Fewer quads than this are computed as they come (finding the shared ones costs more).
+SHARED_QUADS_MIN = 1024
+
+
+def _quad_lods(setup: TriangleSetup, tri: np.ndarray, x0: np.ndarray, y0: np.ndarray, width: int,
+               material: Material, size: tuple[int, int]) -> np.ndarray:
+    """:func:`_quad_lod_at` of (triangle, quad) pairs ``tri``, ``x0``, ``y0`` (N,) int64, each
+    pair computed once where it comes again: a quad's two rows come one after the other in a
+    triangle's rows, so most quads come twice. Each quad records the last entry that wrote it
+    (which one does not matter); an entry whose recorded one has its triangle takes that one's
+    λ, the others are computed."""
+    n = tri.size
+    if n < SHARED_QUADS_MIN:
+        return _quad_lod_at(setup, tri, x0, y0, material, size)
+    quad = (y0 >> 1) * ((width + 1) >> 1) + (x0 >> 1)
+    low = int(quad.min())
+    quad -= low
+    holder_of = np.empty(int(quad.max()) + 1, dtype=np.int64)  # only entries written here are read
+    own = np.arange(n, dtype=np.int64)
+    holder_of[quad] = own
+    holder = holder_of[quad]
+    shared = holder != own
+    shared &= np.take(tri, holder) == tri
+    if not shared.any():
+        return _quad_lod_at(setup, tri, x0, y0, material, size)
+    mine = np.flatnonzero(~shared)
+    lod = np.empty(n, dtype=np.float64)
+    lod[mine] = _quad_lod_at(setup, tri[mine], x0[mine], y0[mine], material, size)
+    taken = np.flatnonzero(shared)
+    lod[taken] = lod[holder[taken]]
+    return lod
 
 
 def _quad_lod_at(setup: TriangleSetup, tri: np.ndarray, x0: np.ndarray, y0: np.ndarray, material: Material,

@@ -542,6 +542,29 @@ def test_quad_lod_evaluates_the_triangle_plane_which_gives_each_fragment_its_own
         assert np.array_equal(u, expected[0]) and np.array_equal(v, expected[1])
 
 
+def test_quad_lod_computes_a_quad_met_again_once_and_gives_every_fragment_its_quads_value(monkeypatch):
+    """A quad's two rows come one after the other in a triangle's rows: its λ is computed once
+    (with the quads of other triangles apart) and every fragment gets exactly the λ of its own
+    (triangle, quad), as the reference computes it per fragment."""
+    from blendlib.core import raster, vertex
+
+    scene = mip_sweep(TextureFilter.Trilinear)
+    r = scene.renderers[0]
+    setup = vertex.setup_triangles(r.mesh, r.matrix_world, scene.camera)
+    rows = raster.coverage_rows(setup, vertex.cull_select(setup, Cull.Back), 120, 80)
+    frags = raster.rasterize_rows(rows, 0, rows.count, 120)
+    x, y = frags.pix % 120, frags.pix // 120
+    expected = mips._quad_lod_at(setup, frags.tri, x & ~1, y & ~1, r.material, (64, 64))
+    computed = []
+    real = mips._quad_lod_at
+    monkeypatch.setattr(mips, "_quad_lod_at", lambda setup, tri, *a: computed.append(tri.size) or real(setup, tri, *a))
+    got = mips.quad_lod(setup, frags.tri, frags.pix, 120, r.material, (64, 64))
+    np.testing.assert_array_equal(got, expected)
+    quads = np.unique(np.stack([frags.tri, x & ~1, y & ~1]), axis=1).shape[1]
+    assert frags.count > 2 * mips.SHARED_QUADS_MIN  # about two fragments a run: quads are shared
+    assert quads <= sum(computed) <= quads + quads // 8, (quads, computed, frags.count)
+
+
 def test_trilinear_blends_two_levels_by_the_lod_fraction():
     """GL_LINEAR_MIPMAP_LINEAR: (1 − f)·level d + f·level d+1 with d = floor λ, f = λ − d; the
     nearest-level filters take level ceil(λ + ½) − 1."""
