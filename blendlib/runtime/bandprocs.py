@@ -203,6 +203,9 @@ class _Helper:
             self.proc = subprocess.Popen(
                 [sys.executable, "-m", "blendlib.runtime.bandprocs", str(theirs.fileno()), str(self.fd)],
                 stdin=subprocess.DEVNULL, pass_fds=(theirs.fileno(), self.fd), env=env,
+                # Its own session: a terminal's Ctrl+C goes to the parent's process group only
+                # (the parent stops the helper's band itself), even while the helper starts.
+                start_new_session=True,
             )
         except OSError:
             self.conn.close()
@@ -219,6 +222,9 @@ class _Helper:
         self.parts = _PartsWriter()
         #: Whether the helper may hold a scene (a request was sent since the last "drop").
         self.holding = False
+        #: Whether a request was sent whose answer has not been read: nothing else may be sent
+        #: or read until it is (:meth:`BandRenderer._abandon`).
+        self.in_flight = False
 
     def poll_ready(self, timeout: float = 0.0) -> bool:
         """Whether the helper has started (read its hello if it has arrived)."""
@@ -380,19 +386,28 @@ class BandRenderer:
 
     def close(self, timeout: float = 5.0) -> None:
         """End the helper process (idempotent); later frames render in this process. Waits up
-        to ``timeout`` seconds for a frame in progress (cancel it first)."""
+        to ``timeout`` seconds for a frame in progress on another thread; if it is still going
+        then, the helper's band of it is stopped (the frame fails as cancelled) and that thread
+        ends the helper when it is done with it."""
         self._closed = True
-        locked = self._lock.acquire(timeout=timeout)
+        if not self._lock.acquire(timeout=timeout):
+            helper = self._helper
+            if helper is not None and helper.buffer is not None and not helper.closed:
+                helper.buffer[0] = 1
+            return
         try:
-            if self._pending is not None:
-                self._pending.buffer[0] = 1  # a band nobody will collect: stop it
-                self._pending = None
-            if self._helper is not None:
-                self._helper.close()
-                self._helper = None
+            self._close_helper()
         finally:
-            if locked:
-                self._lock.release()
+            self._lock.release()
+
+    def _close_helper(self) -> None:
+        """End the helper (the lock held): a band nobody will collect is stopped first."""
+        if self._pending is not None:
+            self._pending.buffer[0] = 1
+            self._pending = None
+        if self._helper is not None:
+            self._helper.close()
+            self._helper = None
 
     def begin(self, scene: DrawScene) -> bool:
         """Start the helper on its band of ``scene`` now; the call ``self(scene)`` with this very
@@ -411,7 +426,11 @@ class BandRenderer:
             self._pending = self._request(helper, scene, self.begun_fraction, begun=True)
             return self._pending is not None
         finally:
-            self._lock.release()
+            try:
+                if self._closed:  # close() came from another thread meanwhile
+                    self._close_helper()
+            finally:
+                self._lock.release()
 
     def __call__(self, scene: DrawScene, *, should_cancel: Callable[[], bool] | None = None,
                  progress: Callable[[float], None] | None = None, **options) -> Frame:
@@ -434,9 +453,22 @@ class BandRenderer:
             # A small frame, no helper, or it stopped during this frame: the frame in this process.
             return pipeline.render_scene(scene, should_cancel=should_cancel, progress=progress, memo=memo)
         finally:
-            if not self.keep_scene:
-                self._release_scene()
-            self._lock.release()
+            try:
+                self._settle()
+            finally:
+                self._lock.release()
+
+    def _settle(self) -> None:
+        """After a frame, whatever ended it (the lock held): collect a band sent and not collected
+        (an interrupt between sending it and joining it), drop the scene when it is not kept, end
+        the helper when :meth:`close` came from another thread meanwhile."""
+        helper = self._helper
+        if helper is not None and helper.in_flight and self._pending is None:
+            self._abandon(helper)
+        if not self.keep_scene:
+            self._release_scene()
+        if self._closed:
+            self._close_helper()
 
     def _too_many_triangles(self, scene: DrawScene) -> bool:
         return (self.max_triangles is not None
@@ -449,13 +481,16 @@ class BandRenderer:
         self._memo = None
         self._memo_scene = None
         helper = self._helper
-        if helper is None or not helper.holding or self._pending is not None:
+        if helper is None or not helper.holding or helper.in_flight or self._pending is not None:
             return
         try:
             helper.conn.send_bytes(helper.parts.dumps(("drop",), None))
         except (OSError, ValueError) as exc:
             self._fail(f"helper process stopped: {exc}")
             return
+        except BaseException:  # interrupted mid-message: the stream is out of step
+            self._fail("interrupted while writing to the helper process")
+            raise
         helper.scene = None
         helper.parts = _PartsWriter()
         helper.holding = False
@@ -482,11 +517,16 @@ class BandRenderer:
             request = ("view", scene.camera, cut, height, BAND_CHUNK_CANDIDATES, forget)
         else:
             request = ("scene", scene, cut, height, BAND_CHUNK_CANDIDATES, forget)
+        message = helper.parts.dumps(request, scene if request[0] == "scene" else None)
+        helper.in_flight = True
         try:
-            helper.conn.send_bytes(helper.parts.dumps(request, scene if request[0] == "scene" else None))
+            helper.conn.send_bytes(message)
         except (OSError, ValueError) as exc:
             self._fail(f"helper process stopped: {exc}")
             return None
+        except BaseException:  # interrupted mid-message: the stream is out of step
+            self._fail("interrupted while writing to the helper process")
+            raise
         helper.scene = scene
         helper.holding = True
         return _HelperBand(scene, cut, buffer, time.perf_counter(), begun)
@@ -560,7 +600,9 @@ class BandRenderer:
                     raise EOFError
                 if buffer is not None and should_cancel is not None and buffer[0] == 0 and should_cancel():
                     buffer[0] = 1
-            return _receive(helper.conn)  # EOFError when the helper died (its end closed)
+            reply = _receive(helper.conn)  # EOFError when the helper died (its end closed)
+            helper.in_flight = False
+            return reply
         except (OSError, ValueError, EOFError, pickle.UnpicklingError):
             self._fail(f"helper process exited with code {helper.proc.poll()}")
             return None
@@ -578,11 +620,15 @@ class BandRenderer:
                 helper.buffer[0] = 1
             if helper.conn.poll(timeout):
                 reply = _receive(helper.conn)
+                helper.in_flight = False
                 if reply[0] == "error":
                     helper.scene = None
                 return
         except (OSError, ValueError, EOFError, pickle.UnpicklingError):
             pass
+        except BaseException:  # interrupted again: its answer is still unread, so it goes
+            self._fail("helper process ended after an interrupted frame")
+            raise
         self._fail("helper process did not answer after an interrupted frame")
 
 
@@ -614,7 +660,7 @@ def close_final_renderer() -> None:
     with _final_lock:
         renderers, _final[:] = list(_final), []
     for renderer in renderers:
-        renderer.close()
+        renderer.close(timeout=0.0)  # a frame in progress ends the helper itself
 
 
 def balanced_fraction(fraction: float, cut: int, height: int, own_s: float, helper_s: float,
@@ -662,9 +708,11 @@ def serve(conn_fd: int, fd: int) -> int:
         except (EOFError, OSError):  # the parent closed its end, or died (connection reset)
             return 0
         request = parts.loads(data)
-        if request[0] == "drop":
-            scene, memo = None, SceneMemo()
+        if request[0] == "drop":  # idle until the next request: hold nothing of the last scene
+            scene = content = request = data = None
+            memo = SceneMemo()
             parts.parts.clear()
+            allocator.give_back_freed_memory()
             continue
         kind, content, y0, y1, chunk, forget = request
         if forget:

@@ -389,10 +389,93 @@ def test_an_interrupted_wait_collects_the_helpers_answer(bands, monkeypatch):
     with pytest.raises(KeyboardInterrupt):
         bands(draw)
     assert bands.failure is None
-    other = scene_at(3, 160, 120)
+    assert_in_step_after_an_interrupt(bands)
+
+
+def assert_in_step_after_an_interrupt(bands) -> None:
+    """The next frames are split and equal render_scene, and no answer is left unread."""
     before = bands.split_frames
-    assert_same_frame(bands(other), render_scene(other))
-    assert bands.split_frames == before + 1
+    for seed in (3, 5):
+        other = scene_at(seed, 160, 120)
+        assert_same_frame(bands(other), render_scene(other))
+        assert not bands._helper.conn.poll(0.2)
+    assert bands.split_frames == before + 2
+
+
+def test_an_interrupt_between_sending_a_band_and_joining_it_collects_the_answer(bands, monkeypatch):
+    real_join = BandRenderer._join
+    interrupts = [1]
+
+    def interrupted(self, *args):
+        if interrupts:
+            interrupts.pop()
+            raise KeyboardInterrupt
+        return real_join(self, *args)
+
+    monkeypatch.setattr(BandRenderer, "_join", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        bands(scene_at(7, 160, 120))
+    assert bands.failure is None and not bands._helper.in_flight
+    assert_in_step_after_an_interrupt(bands)
+
+
+def test_a_second_interrupt_while_collecting_the_answer_ends_the_helper(monkeypatch):
+    """Interrupted while waiting, then again while the answer is collected: the answer is unread,
+    so the helper is ended and later frames render here."""
+    renderer = BandRenderer(min_pixels=0)
+    try:
+        assert renderer.wait_ready(WAIT)
+        proc = renderer._helper.proc
+        conn_class = type(renderer._helper.conn)
+
+        def interrupt(*args, **kwargs):
+            raise KeyboardInterrupt
+
+        monkeypatch.setattr(bandprocs, "wait", interrupt)
+        monkeypatch.setattr(conn_class, "poll", interrupt)
+        draw = scene_at(7, 160, 120)
+        with pytest.raises(KeyboardInterrupt):
+            renderer(draw)
+        monkeypatch.undo()
+        assert renderer._helper is None and "interrupted" in renderer.failure
+        assert proc.wait(timeout=WAIT) is not None
+        assert_same_frame(renderer(draw), render_scene(draw))
+        assert renderer.split_frames == 0
+    finally:
+        renderer.close()
+
+
+def test_the_helper_runs_in_its_own_session_and_ignores_sigint(bands):
+    import signal
+
+    pid = bands.helper_pid
+    assert os.getsid(pid) != os.getsid(0)  # a terminal's Ctrl+C reaches this process group only
+    os.kill(pid, signal.SIGINT)
+    draw = scene_at(4, 160, 120)
+    before = bands.split_frames
+    assert_same_frame(bands(draw), render_scene(draw))
+    assert bands.split_frames == before + 1 and bands.helper_pid == pid
+
+
+def test_close_from_another_call_during_a_frame_stops_it_and_the_frame_ends_the_helper():
+    """close() while a frame holds the renderer (here from the frame's own should_cancel, as a
+    second thread would): it returns at once, the helper's band stops, the frame fails as
+    cancelled and ends the helper."""
+    renderer = BandRenderer(min_pixels=0)
+    assert renderer.wait_ready(WAIT)
+    proc = renderer._helper.proc
+    calls = []
+
+    def closing() -> bool:
+        if not calls:
+            renderer.close(timeout=0.0)
+        calls.append(1)
+        return False
+
+    with pytest.raises(RenderCancelled):
+        renderer(scene_at(7, 640, 480), should_cancel=closing)
+    assert renderer._helper is None
+    assert proc.wait(timeout=WAIT) == 0
 
 
 def test_final_renderer_is_one_per_process_until_closed():
