@@ -58,9 +58,10 @@ from . import allocator
 #: are what they are").
 MIN_PIXELS = 200_000
 
-#: Fragments per chunk in a band render. Smaller than ``render_scene``'s default: with no other
-#: thread contending for the interpreter lock, arrays that stay in the core's own 1 MB L2 cache
-#: pay (docs/benchmark.md, "Why the constants are what they are").
+#: Fragments per chunk in a viewport band render. Smaller than ``render_scene``'s default: with
+#: no other thread contending for the interpreter lock, arrays that stay in the core's own 1 MB
+#: L2 cache pay on viewport-sized frames (docs/benchmark.md, "Why the constants are what they
+#: are"); final renders keep the default (:func:`final_renderer`).
 BAND_CHUNK_CANDIDATES = 1 << 15
 
 #: Bytes before the pixel data in the shared file; byte 0 is the stop flag the helper polls
@@ -298,8 +299,10 @@ class BandRenderer:
     """
 
     def __init__(self, min_pixels: int = MIN_PIXELS, start: bool = True, max_triangles: int | None = None,
-                 keep_scene: bool = True):
+                 keep_scene: bool = True, chunk_candidates: int = BAND_CHUNK_CANDIDATES):
         self.min_pixels = int(min_pixels)
+        #: Fragments per chunk in both bands.
+        self.chunk_candidates = int(chunk_candidates)
         #: Scenes of more triangles render in this process (None: no limit): each band does the
         #: whole vertex setup, and the scene is pickled for the helper.
         self.max_triangles = max_triangles
@@ -514,9 +517,9 @@ class BandRenderer:
         buffer[0] = 0  # the stop flag
         forget, self._forget_tables = self._forget_tables, False
         if _same_but_camera(scene, helper.scene):
-            request = ("view", scene.camera, cut, height, BAND_CHUNK_CANDIDATES, forget)
+            request = ("view", scene.camera, cut, height, self.chunk_candidates, forget)
         else:
-            request = ("scene", scene, cut, height, BAND_CHUNK_CANDIDATES, forget)
+            request = ("scene", scene, cut, height, self.chunk_candidates, forget)
         message = helper.parts.dumps(request, scene if request[0] == "scene" else None)
         helper.in_flight = True
         try:
@@ -553,7 +556,7 @@ class BandRenderer:
         depth = np.empty((height, width), dtype=np.float32)
         stencil = np.empty((height, width), dtype=np.uint8)
         try:
-            own = pipeline.render_scene(scene, band=(0, cut), workers=1, chunk_candidates=BAND_CHUNK_CANDIDATES,
+            own = pipeline.render_scene(scene, band=(0, cut), workers=1, chunk_candidates=self.chunk_candidates,
                                         should_cancel=should_cancel, out=(color[top:], depth[top:], stencil[top:]),
                                         progress=None if progress is None else lambda f: progress(0.5 * f),
                                         memo=memo)
@@ -650,7 +653,10 @@ def final_renderer() -> BandRenderer:
     this process)."""
     with _final_lock:
         if not _final or _final[0]._closed:
-            _final[:] = [BandRenderer(start=False, max_triangles=FINAL_MAX_TRIANGLES, keep_scene=False)]
+            # Chunks of render_scene's default size: on final frames 32k chunks lost (S2's fifty
+            # planes 465 → 745 ms, blend_modes, lights, alpha_test), where the viewport's gained.
+            _final[:] = [BandRenderer(start=False, max_triangles=FINAL_MAX_TRIANGLES, keep_scene=False,
+                                      chunk_candidates=pipeline.CHUNK_CANDIDATES)]
         return _final[0]
 
 

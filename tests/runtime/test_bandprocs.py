@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from blendlib import RenderCancelled, SceneError, render_scene
+from blendlib.core.pipeline import CHUNK_CANDIDATES
 from blendlib.core.scene import reuse_unchanged, scene_parts
 from blendlib.runtime import bandprocs
 from blendlib.runtime.bandprocs import BandRenderer, balanced_fraction
@@ -341,6 +342,23 @@ def test_final_renders_split_and_leave_no_scene_in_either_process(monkeypatch):
         renderer.close()
 
 
+def test_both_bands_draw_chunks_of_the_renderers_size(monkeypatch):
+    sizes, requests = [], []
+    real_render, real_dumps = bandprocs.pipeline.render_scene, bandprocs._PartsWriter.dumps
+    monkeypatch.setattr(bandprocs.pipeline, "render_scene",
+                        lambda scene, **kw: sizes.append(kw.get("chunk_candidates")) or real_render(scene, **kw))
+    monkeypatch.setattr(bandprocs._PartsWriter, "dumps",
+                        lambda self, request, scene: requests.append(request) or real_dumps(self, request, scene))
+    renderer = BandRenderer(min_pixels=0, chunk_candidates=5000)
+    try:
+        assert renderer.wait_ready(WAIT)
+        draw = scene_at(6, 96, 64)
+        assert_same_frame(renderer(draw), render_scene(draw))
+        assert renderer.split_frames == 1 and sizes == [5000] and requests[0][4] == 5000
+    finally:
+        renderer.close()
+
+
 def test_scenes_over_the_triangle_limit_render_in_this_process():
     draw = scene_at(12, 96, 64)
     triangles = sum(r.mesh.triangle_count for r in draw.renderers)
@@ -483,6 +501,8 @@ def test_final_renderer_is_one_per_process_until_closed():
     try:
         assert bandprocs.final_renderer() is renderer
         assert renderer.max_triangles == bandprocs.FINAL_MAX_TRIANGLES and not renderer.keep_scene
+        assert renderer.chunk_candidates == CHUNK_CANDIDATES  # render_scene's, not the viewport's
+        assert BandRenderer(start=False).chunk_candidates == bandprocs.BAND_CHUNK_CANDIDATES < CHUNK_CANDIDATES
         assert renderer.min_pixels == bandprocs.MIN_PIXELS
     finally:
         bandprocs.close_final_renderer()
