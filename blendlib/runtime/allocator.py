@@ -29,18 +29,24 @@ MMAP_THRESHOLD = 32 << 20
 TRIM_THRESHOLD = 1 << 30
 
 
+def _glibc():
+    """This process's C library when it is glibc (the functions below are glibc's), else None."""
+    if platform.system() != "Linux" or platform.libc_ver()[0] != "glibc":
+        return None
+    try:
+        return ctypes.CDLL(None)
+    except OSError:
+        return None
+
+
 def keep_freed_memory() -> bool:
     """Make glibc keep freed memory for reuse (:data:`MMAP_THRESHOLD`, :data:`TRIM_THRESHOLD`).
 
     Returns whether the settings took (False on other C libraries, where nothing changes).
     Call it early in a process this project owns, before large allocations.
     """
-    if platform.system() != "Linux" or platform.libc_ver()[0] != "glibc":
-        return False
-    try:
-        libc = ctypes.CDLL(None)
-        mallopt = libc.mallopt
-    except (OSError, AttributeError):
+    mallopt = getattr(_glibc(), "mallopt", None)
+    if mallopt is None:
         return False
     mallopt.argtypes = (ctypes.c_int, ctypes.c_int)
     mallopt.restype = ctypes.c_int
@@ -51,11 +57,8 @@ def give_back_freed_memory() -> bool:
     """Return the heap's free memory to the system now (glibc's ``malloc_trim(0)``), e.g. when a
     process that keeps freed memory (:func:`keep_freed_memory`) goes idle. Returns whether glibc
     gave any back (False on other C libraries, where nothing happens)."""
-    if platform.system() != "Linux" or platform.libc_ver()[0] != "glibc":
-        return False
-    try:
-        trim = ctypes.CDLL(None).malloc_trim
-    except (OSError, AttributeError):
+    trim = getattr(_glibc(), "malloc_trim", None)
+    if trim is None:
         return False
     trim.argtypes = (ctypes.c_size_t,)
     trim.restype = ctypes.c_int

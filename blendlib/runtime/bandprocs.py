@@ -26,6 +26,11 @@ the helper reads between chunks.
 Frames below :data:`MIN_PIXELS`, scenes over a renderer's triangle limit (final renders:
 :data:`FINAL_MAX_TRIANGLES`), renders with other options, and machines where the helper cannot
 run (one core, Windows, a helper that failed) go to ``render_scene`` unchanged.
+
+One concern in one module, over 700 lines: both ends of one wire protocol — the parent's
+requests (:class:`BandRenderer`, :class:`_PartsWriter`) and the helper's loop that answers them
+(:func:`serve`, :class:`_PartsReader`) — kept side by side, because a message changed on one end
+must change on the other in the same edit.
 """
 
 from __future__ import annotations
@@ -235,6 +240,15 @@ class _Helper:
             except (OSError, EOFError, pickle.UnpicklingError):
                 self.ready = False
         return self.ready and self.proc.poll() is None
+
+    def read_reply(self):
+        """The answer to the request in flight (EOFError when the helper died, its end closed).
+        After an error answer the helper holds no scene: the next frame sends it whole."""
+        reply = _receive(self.conn)
+        self.in_flight = False
+        if reply[0] == "error":
+            self.scene = None
+        return reply
 
     def reserve(self, size: int) -> mmap.mmap:
         """The shared file grown to at least ``size`` bytes, mapped here."""
@@ -486,14 +500,8 @@ class BandRenderer:
         helper = self._helper
         if helper is None or not helper.holding or helper.in_flight or self._pending is not None:
             return
-        try:
-            helper.conn.send_bytes(helper.parts.dumps(("drop",), None))
-        except (OSError, ValueError) as exc:
-            self._fail(f"helper process stopped: {exc}")
+        if not self._write(helper, helper.parts.dumps(("drop",), None)):
             return
-        except BaseException:  # interrupted mid-message: the stream is out of step
-            self._fail("interrupted while writing to the helper process")
-            raise
         helper.scene = None
         helper.parts = _PartsWriter()
         helper.holding = False
@@ -522,26 +530,32 @@ class BandRenderer:
             request = ("scene", scene, cut, height, self.chunk_candidates, forget)
         message = helper.parts.dumps(request, scene if request[0] == "scene" else None)
         helper.in_flight = True
-        try:
-            helper.conn.send_bytes(message)
-        except (OSError, ValueError) as exc:
-            self._fail(f"helper process stopped: {exc}")
+        if not self._write(helper, message):
             return None
-        except BaseException:  # interrupted mid-message: the stream is out of step
-            self._fail("interrupted while writing to the helper process")
-            raise
         helper.scene = scene
         helper.holding = True
         return _HelperBand(scene, cut, buffer, time.perf_counter(), begun)
+
+    def _write(self, helper: _Helper, message: bytes) -> bool:
+        """Send ``message`` to the helper; False when it stopped (it is not used again). An
+        interrupt in the middle of the message leaves the stream out of step: the helper is
+        ended, and the interrupt goes on."""
+        try:
+            helper.conn.send_bytes(message)
+            return True
+        except (OSError, ValueError) as exc:
+            self._fail(f"helper process stopped: {exc}")
+            return False
+        except BaseException:
+            self._fail("interrupted while writing to the helper process")
+            raise
 
     def _drop_pending(self, helper: _Helper) -> None:
         """Stop and collect a band requested by :meth:`begin` that no call came for."""
         band, self._pending = self._pending, None
         if band is not None:
             band.buffer[0] = 1
-            reply = self._reply(helper, None)
-            if reply is not None and reply[0] == "error":
-                helper.scene = None
+            self._reply(helper, None)
 
     def _join(self, helper: _Helper, band: _HelperBand, should_cancel: Callable[[], bool] | None,
               progress: Callable[[float], None] | None, memo: SceneMemo) -> Frame | None:
@@ -572,7 +586,6 @@ class BandRenderer:
         if reply[0] == "cancelled":
             raise RenderCancelled("render cancelled")
         if reply[0] == "error":
-            helper.scene = None  # it holds no scene after an error
             raise SceneError(reply[1])
         if reply[0] != "ok":
             self._fail(f"helper process failed: {reply[1]}")
@@ -603,9 +616,7 @@ class BandRenderer:
                     raise EOFError
                 if buffer is not None and should_cancel is not None and buffer[0] == 0 and should_cancel():
                     buffer[0] = 1
-            reply = _receive(helper.conn)  # EOFError when the helper died (its end closed)
-            helper.in_flight = False
-            return reply
+            return helper.read_reply()
         except (OSError, ValueError, EOFError, pickle.UnpicklingError):
             self._fail(f"helper process exited with code {helper.proc.poll()}")
             return None
@@ -622,10 +633,7 @@ class BandRenderer:
             if helper.buffer is not None:
                 helper.buffer[0] = 1
             if helper.conn.poll(timeout):
-                reply = _receive(helper.conn)
-                helper.in_flight = False
-                if reply[0] == "error":
-                    helper.scene = None
+                helper.read_reply()
                 return
         except (OSError, ValueError, EOFError, pickle.UnpicklingError):
             pass

@@ -159,9 +159,10 @@ class ProjectWorker:
             draw = blender.build_draw_scene(self.scene)
         # A render from scratch: no blend tables kept from the previous run, here or in the
         # helper (the viewport and explain series keep them, as an interactive session does).
-        merger.RECENT_TABLES.clear()
-        if bands is not None:
-            bands.forget_tables()
+        if bands is None:
+            merger.RECENT_TABLES.clear()
+        else:
+            bands.forget_tables()  # this process's tables and, before the next band, the helper's
         can_peak = reset_peak()
         rss0 = proc_status().get("VmRSS", 0)
         helper = None if bands is None else bands.helper_pid
