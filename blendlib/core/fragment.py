@@ -186,7 +186,7 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
             flat &= corners_flat
     any_varying = not bool(np.all(flat))
     of_row = None  # (P,) int64: each row's row in the chunk, when rows were cut (below)
-    if state.dark_skip and positions is not None and n >= ROW_REACH_MIN_RUN * length.size:
+    if state.dark_skip and not state.observed and positions is not None and n >= ROW_REACH_MIN_RUN * length.size:
         # The parts of rows out of the ForwardAdd light's reach are cut off before they are
         # rasterised (they hold fragments _dark would drop).
         spans = _reached_spans(setup, rows, start, stop, state, positions, run_of_row,
@@ -326,7 +326,7 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
             if state.mips is not None and uv is not None:  # one LOD per 2x2 quad (§7, "Mipmaps")
                 lod = mips.quad_lod(setup, frags.tri[at], frags.pix[at], state.width, material, texels.shape[:2])
             position = varying(positions, position_flat)
-            skip = None  # (M,) bool: fragments dropped before they are shaded
+            skip = None  # (M,) bool: fragments not shaded (dropped, or observed and only their alpha computed)
             if state.dark_skip and position is not None:
                 skip = _dark(state, position, frags.pix[at], [c[keep] for c in (normals, colors) if c is not None])
             color = None  # the vertex colours, when interpolated for the alpha first
@@ -342,8 +342,9 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
             sparse = False
             if skip is not None:
                 places = np.arange(n)[at]
-                dropped = np.zeros(n, dtype=bool)
-                dropped[places[skip]] = True
+                if not state.observed:  # observed, unlit fragments are merged and told of (rgb 0)
+                    dropped = np.zeros(n, dtype=bool)
+                    dropped[places[skip]] = True
                 sparse = int(np.count_nonzero(skip)) * SPARSE_SKIP_SHARE < skip.size
             if skip is None or sparse:
                 # Few to drop: all are shaded (a dropped fragment's colour is never read) rather
@@ -365,7 +366,18 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
                     return None if corners is None else raster.interpolate_runs(
                         w_lit, corners[keep], lit_counts, corner_flat[keep], channels_first=True).T
 
-                rgba[places[skip]] = 0.0
+                unlit = places[skip]
+                rgba[unlit] = 0.0
+                if state.observed:  # merged: their alpha as shading computes it (it reads no light)
+                    dim = np.flatnonzero(skip)
+                    dim_color = None
+                    if colors is not None:
+                        dim_color = (gather(color[:, 3], dim) if color is not None else raster.interpolate_runs(
+                            gather(w, dim, axis=1), colors[keep][:, :, 3:], _segment_sums(skip, run_counts),
+                            color_flat[keep])[:, 0])
+                    dim_alpha = None if uv is None else sample_at(
+                        gather(uv, dim, axis=1).T, None if lod is None else gather(lod, dim), (3,))[:, 0]
+                    rgba[unlit, 3] = shade.alpha_of(material, dim_alpha, dim_color, dim.size)
                 # Colours and positions are views of channels-first arrays: gathered along those.
                 scatter_rows(rgba, places[lit], shade_at(
                     None if uv is None else gather(uv, lit, axis=1).T, varying_lit(normals, normal_flat),
@@ -524,6 +536,8 @@ def _dark(state: DrawState, position: np.ndarray, pix: np.ndarray, corners: list
     triangles (``corners``: (K, 3, C) arrays) is not finite and bounded (their interpolated
     values, convex combinations of those, then might not give a colour of exactly 0)."""
     dark = lights.dark_fragments(state.lights.add, position[:, 0], position[:, 1], position[:, 2])
+    if state.observed and state.colors_read is not False:  # lit where the observer reads the colour
+        dark &= ~state.colors_read[pix]
     if state.dark_alpha is not None:
         # Indexing, not np.take: the alpha codes are a strided view of the colour buffer, which
         # np.take would first copy whole.

@@ -142,7 +142,8 @@ def render_scene(
                          keep_setups=keep_setups,
                          reads_depth=None if observer is None else observer.reads_depth,
                          reads_call=None if observer is None else observer.reads_call,
-                         reads_hidden=None if observer is None else observer.reads_hidden)
+                         reads_hidden=None if observer is None else observer.reads_hidden,
+                         colors_read=None if observer is None else observer.colors_read)
     try:
         _draw_all(frame, todo, should_cancel, progress, observer)
         color, depth, stencil = buf.output(pool, workers, band, out) if output else (None, None, None)
@@ -395,33 +396,39 @@ def _draw_band(frame: FrameContext, items: list[tuple[PreparedCall, raster.Rows]
         observer.snapshot_rows(index, frame.buf, y0, y1)
 
 
-def _shaded_chunks(frame: FrameContext, prepared: PreparedCall, rows: raster.Rows,
-                   state: DrawState) -> Iterator[tuple[int, int, ShadedFragments]]:
+def _shaded_chunks(frame: FrameContext, prepared: PreparedCall, rows: raster.Rows, state: DrawState,
+                   watched: np.ndarray | None = None) -> Iterator[tuple[int, int, ShadedFragments, bool]]:
     """``rows`` of a prepared call in chunks of :attr:`FrameContext.chunk_candidates`, in draw
-    order: (first row, end row, the chunk's shaded fragments) for each chunk holding any,
-    until the render's stop flag is set."""
+    order: (first row, end row, the chunk's shaded fragments, whether the observer is told of
+    them) for each chunk holding any, until the render's stop flag is set. With ``watched``
+    ((H,) bool buffer rows), a chunk in no watched row is shaded as an unobserved render shades
+    it (``state.unobserved``)."""
+    plain = None if watched is None or state.unobserved is None else replace(state.unobserved, zfloor=state.zfloor)
     for a, b in raster.row_chunks(rows, frame.chunk_candidates):
         if frame.stop_flag.is_set():
             return
-        if state.samples == 1:
-            shaded = prepared.shade(prepared.setup, rows, a, b, state)
+        seen = state.observed and (watched is None or bool(watched[rows.y[a:b]].any()))
+        used = state if seen or plain is None else plain
+        if used.samples == 1:
+            shaded = prepared.shade(prepared.setup, rows, a, b, used)
         else:
-            shaded = msaa.sampled_chunk(prepared.shade, prepared.setup, rows, a, b, state)
+            shaded = msaa.sampled_chunk(prepared.shade, prepared.setup, rows, a, b, used)
         if shaded is not None:
-            yield a, b, shaded
+            yield a, b, shaded, seen
 
 
 def _draw_chunks(frame: FrameContext, prepared: PreparedCall, rows: raster.Rows, state: DrawState,
                  observer: FrameObserver | None) -> None:
     """Raster, shade and merge ``rows`` of one prepared call, chunk by chunk in draw order, with
-    ``state`` (the call's, with the band's depth floors); the observer told of every fragment."""
+    ``state`` (the call's, with the band's depth floors); the observer told of every fragment
+    (of the chunks in its :attr:`.FrameObserver.watched_rows`)."""
     buf, p, tables = frame.buf, state.pass_state, prepared.tables
     if observer is not None and not state.observed:  # it reads no fragment, or none of this call's
         observer = None
     watched = None if observer is None else observer.watched_rows
-    for a, b, shaded in _shaded_chunks(frame, prepared, rows, state):
+    for _a, _b, shaded, seen in _shaded_chunks(frame, prepared, rows, state, watched):
         merged = shaded if shaded.alive is None else shaded.select(shaded.alive)
-        if observer is None or (watched is not None and not watched[rows.y[a:b]].any()):
+        if observer is None or not seen:
             _merge(buf, p, merged, tables)
             continue
         if shaded.coverage is not None and not shaded.coverage.all():  # observers see covering fragments only
@@ -457,7 +464,7 @@ def _draw_members(frame: FrameContext, prepared: PreparedCall, rows: raster.Rows
     and merge with its own pass, call after call."""
     members = prepared.members
     firsts = np.array([m.first for m in members], dtype=np.int64)
-    for a, b, shaded in _shaded_chunks(frame, prepared, rows, state):
+    for a, b, shaded, _seen in _shaded_chunks(frame, prepared, rows, state):
         member = np.searchsorted(firsts, rows.tri[a:b], side="right") - 1  # (R,) nondecreasing
         bounds = [0, *(np.flatnonzero(member[1:] != member[:-1]) + 1).tolist(), b - a]
         ends = np.cumsum(rows.length[a:b] if shaded.row_counts is None else shaded.row_counts).tolist()

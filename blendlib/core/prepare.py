@@ -53,6 +53,8 @@ class FrameContext:
     reads_call: Callable[[DrawCall], bool] | None = None
     #: ``reads_hidden(call)`` of the observer (:meth:`.records.FrameObserver.reads_hidden`), or None.
     reads_hidden: Callable[[DrawCall], bool] | None = None
+    #: ``colors_read(call)`` of the observer (:meth:`.records.FrameObserver.colors_read`), or None.
+    colors_read: Callable[[DrawCall], np.ndarray | bool] | None = None
     #: Buffer rows ``[y0, y1)`` (y from the bottom) this render draws, or None for all
     #: (:func:`.pipeline.render_scene`'s ``band``: one process's share of a frame).
     band: tuple[int, int] | None = None
@@ -323,18 +325,25 @@ def _draw_state(frame: FrameContext, call: DrawCall, setup, inputs: CallInputs,
             and not (frame.reads_depth is not None and frame.reads_depth(call))):
         zbound = raster.depth_upper_codes(setup, p.offset_factor, p.offset_units)
     material = call.renderer.material
-    observed = frame.observed and (frame.reads_call is None or frame.reads_call(call))
+    selected = vertex.cull_select(setup, p.cull) if selected is None else selected
     dark_skip, saturated = lights.dark_skip_applies(
         p, material, inputs.lights.add, 0.0 if inputs.texels is None else inputs.texels.peak(), frame.hdr,
-        frame.samples, observed)
-    state = DrawState(call, material, inputs.texels, inputs.lights, frame.color_space, frame.hdr,
-                      frame.width, observed=observed, zbound=zbound, mips=inputs.mips,
-                      samples=frame.samples, dark_skip=dark_skip,
+        frame.samples, False)
+    early = fragment.early_depth_applies(p, frame.samples, False)
+    plain = DrawState(call, material, inputs.texels, inputs.lights, frame.color_space, frame.hdr,
+                      frame.width, zbound=zbound, mips=inputs.mips, samples=frame.samples, dark_skip=dark_skip,
                       dark_alpha=frame.buf.color[:, 3] if saturated else None,
-                      early_depth=frame.buf.depth if fragment.early_depth_applies(
-                          p, frame.samples, observed and (frame.reads_hidden is None or frame.reads_hidden(call)))
-                      else None)
-    return state, vertex.cull_select(setup, p.cull) if selected is None else selected
+                      early_depth=frame.buf.depth if early else None)
+    if not (frame.observed and (frame.reads_call is None or frame.reads_call(call))):
+        return plain, selected
+    # Observed: every fragment is told of (no early depth test unless the observer reads written
+    # fragments only; no alpha first); unlit ones keep rgb 0 where their colour is not read.
+    hidden_unread = frame.reads_hidden is not None and not frame.reads_hidden(call)
+    colors_read = True if frame.colors_read is None else frame.colors_read(call)
+    state = replace(plain, observed=True, unobserved=plain, colors_read=colors_read,
+                    dark_skip=dark_skip and colors_read is not True, dark_alpha=None,
+                    early_depth=plain.early_depth if hidden_unread else None)
+    return state, selected
 
 
 def _prepare(frame: FrameContext, call: DrawCall, geometry: _Geometry, inputs: CallInputs, pool,

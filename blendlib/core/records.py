@@ -80,13 +80,23 @@ class DrawState:
     #: A ForwardAdd draw whose fragments out of its light's reach (attenuation exactly 0) change
     #: nothing, so they are dropped unshaded (:func:`.lights.dark_skip_applies`): everywhere when
     #: ``dark_alpha`` is None, else where it — the colour buffer's (H*W,) uint8 alpha codes, read
-    #: as each chunk is shaded — holds 255 (its pass adds to a saturated alpha). Never observed.
+    #: as each chunk is shaded — holds 255 (its pass adds to a saturated alpha). Observed, the
+    #: fragments are told of and merged, and those at pixels whose colours the observer does not
+    #: read (``colors_read``) are not lit: their rgb is 0 (their alpha computed as always), which
+    #: merges to the same stored values and outcomes as the exact colour (±0); ``dark_alpha`` None.
     dark_skip: bool = False
     dark_alpha: np.ndarray | None = None
+    #: Observed: where the observer reads the rgb of the call's fragments
+    #: (:meth:`.FrameObserver.colors_read`: True everywhere, False nowhere, or an (H*W,) bool mask).
+    colors_read: np.ndarray | bool = True
     #: The depth buffer ((H*W,) int64, read as each chunk is shaded) when fragments that fail the
     #: pass's depth test against it are dropped before they are shaded (an early depth test, as
     #: GPUs run one: :func:`.fragment.early_depth_applies`, docs/pipeline.md §8); None: not applicable.
     early_depth: np.ndarray | None = None
+    #: Observed: the same call's state as a render without an observer draws it (its shortcuts:
+    #: early depth test, alpha first, unlit fragments dropped), for chunks the observer is not
+    #: told of (:attr:`.FrameObserver.watched_rows`); None unobserved.
+    unobserved: DrawState | None = None
 
     @property
     def pass_state(self) -> Pass:
@@ -282,8 +292,16 @@ class FrameObserver:
         return True
 
     #: (H,) bool, the buffer rows (from the bottom) whose fragments :meth:`fragments` reads, or None
-    #: for all: chunks of fragments in no such row merge as if nothing observed them, unreported.
+    #: for all: chunks of fragments in no such row are drawn as if nothing observed them, unreported.
     watched_rows: np.ndarray | None = None
+
+    def colors_read(self, call: DrawCall) -> np.ndarray | bool:
+        """Where :meth:`fragments` reads the rgb of ``call``'s fragments (``ShadedFragments.colors``):
+        True at every pixel, False nowhere (it reads counts, pixels, depths, outcomes, alpha), or an
+        (H*W,) bool mask of window pixels (y from the bottom). Elsewhere a fragment whose exact
+        colour provably merges as another does (out of a ForwardAdd light's reach: rgb 0) may
+        carry that other rgb, its lighting not computed; alpha, outcomes and buffers stay exact."""
+        return True
 
     #: Draw calls (indices) after which :meth:`snapshot_rows` is called: snapshots taken band by
     #: band as the calls are drawn, without :attr:`exact_boundaries` (so in batches).

@@ -212,6 +212,9 @@ class _PairWatch(FrameObserver):
     def reads_hidden(self, call: DrawCall) -> bool:
         return False  # written fragments only
 
+    def colors_read(self, call: DrawCall) -> bool:
+        return False  # their depths and outcomes only
+
     def fragments(self, call, frags, outcome) -> None:
         key = self.watched.get(call.index)
         if key is None:

@@ -217,6 +217,9 @@ class FragmentCollector(FrameObserver):
     def reads_call(self, call: DrawCall) -> bool:
         return self.overdraw or call.index in self.sorted_calls
 
+    def colors_read(self, call: DrawCall) -> bool:
+        return call.index in self.sorted_calls  # the others' counts, depths and alpha only
+
     def draw_begin(self, call, buffers) -> None:
         if call.index == self.first_after_opaque:
             self.step1 = buffers.copy()

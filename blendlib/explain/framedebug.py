@@ -134,6 +134,9 @@ class _StatsObserver(FrameObserver):
         self.mark_draw = mark_draw
         self.mask: np.ndarray | None = None
 
+    def colors_read(self, call) -> bool:
+        return False  # counts, pixels and outcomes only
+
     def draw_begin(self, call, buffers):
         if call.index == self.mark_draw:
             self.mask = np.zeros(buffers.width * buffers.height, dtype=bool)
@@ -301,6 +304,9 @@ class _PixelObserver(FrameObserver):
         self.watched_rows = np.zeros(height, dtype=bool)  # chunks elsewhere are not reported
         self.watched_rows[targets // width] = True
         self.records: list[tuple] = []
+
+    def colors_read(self, call) -> np.ndarray:
+        return self.wanted  # the target pixels' colours only
 
     def fragments(self, call, frags: ShadedFragments, outcome: np.ndarray) -> None:
         hit = np.flatnonzero(frags.pix == self.single if self.single is not None else self.wanted[frags.pix])

@@ -345,6 +345,87 @@ def test_row_parts_out_of_a_lights_reach_are_cut_and_equal_the_reference(color_s
     assert kept_for_alpha["Veil"] > 1000 and kept_for_alpha["Wall"] == 0, kept_for_alpha
 
 
+def _count_unlit(monkeypatch) -> dict[tuple[str, bool], int]:
+    """Counts, by (renderer, whether the chunk is observed), the fragments ``fragment._dark``
+    leaves unlit."""
+    from blendlib.core import fragment
+
+    unlit: dict[tuple[str, bool], int] = {}
+    original = fragment._dark
+
+    def dark(state, position, pix, corners):
+        out = original(state, position, pix, corners)
+        key = (state.call.renderer.name, state.observed)
+        unlit[key] = unlit.get(key, 0) + (0 if out is None else int(out.sum()))
+        return out
+
+    monkeypatch.setattr(fragment, "_dark", dark)
+    return unlit
+
+
+@pytest.mark.parametrize("color_space,veil_colors", [(ColorSpace.Gamma, None), (ColorSpace.Linear, None),
+                                                      (ColorSpace.Gamma, VertexColor.Multiply),
+                                                      (ColorSpace.Linear, VertexColor.Particle)])
+def test_a_draw_list_leaves_fragments_out_of_reach_unlit_and_counts_them_as_the_reference(color_space, veil_colors,
+                                                                                          monkeypatch):
+    """A capture reads no colour (``colors_read`` False): the fragments a ForwardAdd light does not
+    reach are told of and merged with rgb 0 and their own alpha, their lighting not computed. The
+    counts of every draw equal the scalar reference's and the frame equals it too — the veil's
+    pass adds its source alpha to an unsaturated one, so a wrong alpha would show (with vertex
+    colours on the veil: their interpolated alpha)."""
+    from blendlib.explain import framedebug as fd
+    from tests.reference.scalar import FragmentLog
+
+    unlit = _count_unlit(monkeypatch)
+    scene = _reach_scene(color_space)
+    if veil_colors is not None:
+        *others, veil = scene.renderers
+        mesh = veil.mesh
+        colors = np.random.default_rng(5).uniform(0.2, 1.0, size=(2, 3, 4)).astype(np.float32)
+        mesh = type(mesh)(mesh.positions, mesh.triangles, mesh.normals, mesh.uvs, colors=colors)
+        veil = replace(veil, mesh=mesh, material=replace(veil.material, vertex_color=veil_colors))
+        scene = replace(scene, renderers=(*others, veil))
+    capture = fd.FrameCapture.capture(scene)
+    log = FragmentLog()
+    color, depth, _ = render_reference(scene, log=log)
+    counts = log.counts()
+    assert [(s.fragments, s.written) for s in capture.stats] == [counts.get(s.call.index, (0, 0))
+                                                                 for s in capture.stats]
+    assert np.array_equal(capture.frame.color, color) and np.array_equal(capture.frame.depth, depth)
+    assert unlit[("Floor", True)] > 10000 and unlit[("Wall", True)] > 5000 and unlit[("Veil", True)] > 1000, unlit
+    # The veil's alpha is what its pass adds: the fragments left unlit there change the stored alpha.
+    veil = [s for s in capture.stats
+            if s.call.renderer.name == "Veil" and s.call.state.light_mode is LightMode.ForwardAdd]
+    assert veil and all(s.written > 1000 for s in veil)
+
+
+def test_a_pixel_history_lights_its_own_pixels_and_draws_other_rows_unobserved(monkeypatch):
+    """A pixel history reads the colours at its pixels only: there every fragment keeps its exact
+    colour (as the scalar reference shades it), elsewhere in the chunks it is told of a fragment
+    out of a light's reach is left unlit, and chunks in none of its rows are drawn as an
+    unobserved render draws them (their unlit fragments dropped)."""
+    from blendlib.explain import framedebug as fd
+    from tests.reference.scalar import FragmentLog
+
+    unlit = _count_unlit(monkeypatch)
+    monkeypatch.setattr(fd, "render_scene", functools.partial(render_scene, chunk_candidates=400))  # many chunks
+    scene = _reach_scene(ColorSpace.Linear)
+    pixels = [(20, 100), (80, 110), (150, 100), (60, 70)]
+    histories, frame = fd.pixel_histories(scene, pixels)
+    log = FragmentLog()
+    color, _, _ = render_reference(scene, log=log)
+    assert np.array_equal(frame.color, color)
+    height = scene.camera.height
+    for history in histories:
+        ref = [r for r in log.fragments if (r[1], r[2]) == (history.x, height - 1 - history.y)]
+        assert [(f.call.index, f.triangle, f.depth_code, f.result) for f in history.fragments] == [
+            (r[0], r[3], r[4], r[6]) for r in ref]
+        assert [list(f.source) for f in history.fragments] == [list(r[5]) for r in ref]
+    adds = [f for h in histories for f in h.fragments if f.call.state.light_mode is LightMode.ForwardAdd]
+    assert sum(1 for f in adds if not any(f.source[:3])) >= 3  # pixels out of a light's reach among them
+    assert unlit.get(("Floor", True), 0) > 2000 and unlit.get(("Floor", False), 0) > 2000, unlit
+
+
 def _plane_scene(pass_list, light=None, lights_=(), lighting=Lighting.Lambert, color_space=ColorSpace.Gamma,
                  color=(0.5, 0.6, 0.7, 0.8), hdr=True):
     """A 4 x 4 quad facing a camera 4 units away (Gamma HDR: colours as authored, nothing clamped)."""
