@@ -308,22 +308,26 @@ def sample(texels: Texels, uv: np.ndarray, filt: TextureFilter, wrap: TextureWra
         return texels.fetch_channels(point_texel_index(texels, uv, wrap), channels).T
     h, w = texels.shape[:2]
     u, v = uv[:, 0], uv[:, 1]
-    finite = np.isfinite(u)
-    finite &= np.isfinite(v)
-    every_finite = bool(finite.all())
     with np.errstate(invalid="ignore", over="ignore"):
         fu = np.multiply(u, w)
         fu -= 0.5
         fv = np.multiply(v, h)
         fv -= 0.5
+        i0, j0 = np.floor(fu), np.floor(fv)
+        # The corners' extremes: finite only when every coordinate is (a NaN or an infinity
+        # carries through the floor into min or max), which spares a finiteness pass.
+        bounds = (i0.min(initial=0.0), i0.max(initial=0.0), j0.min(initial=0.0), j0.max(initial=0.0))
+        every_finite = all(math.isfinite(b) for b in bounds) or bool(np.all(np.isfinite(u) & np.isfinite(v)))
         if every_finite:
-            i0, j0 = np.floor(fu), np.floor(fv)
             au, av = np.subtract(fu, i0, out=fu), np.subtract(fv, j0, out=fv)
         else:
-            i0 = np.where(finite, np.floor(fu), 0.0)
-            j0 = np.where(finite, np.floor(fv), 0.0)
+            finite = np.isfinite(u)
+            finite &= np.isfinite(v)
+            i0 = np.where(finite, i0, 0.0)
+            j0 = np.where(finite, j0, 0.0)
             au = np.where(finite, fu - i0, 0.0)
             av = np.where(finite, fv - j0, 0.0)
+            bounds = None
     bu, bv = 1.0 - au, 1.0 - av
     out = np.empty((len(channels), u.size), np.float64)
     scratch = np.empty(u.size, np.float64)
@@ -348,7 +352,7 @@ def sample(texels: Texels, uv: np.ndarray, filt: TextureFilter, wrap: TextureWra
     if not varying:
         return out.T
     quads = texels.quads(wrap)
-    corner = None if quads is None else _quad_index(i0, j0, h, w, wrap)
+    corner = None if quads is None else _quad_index(i0, j0, h, w, wrap, bounds)
     if corner is not None:  # one gather of a texel's four neighbours per channel
         four = np.empty((u.size, 4), np.float64)
         for row, k in varying:
@@ -376,20 +380,25 @@ def sample(texels: Texels, uv: np.ndarray, filt: TextureFilter, wrap: TextureWra
     return out.T
 
 
-def _quad_index(i0: np.ndarray, j0: np.ndarray, h: int, w: int, wrap: TextureWrap) -> np.ndarray | None:
+def _quad_index(i0: np.ndarray, j0: np.ndarray, h: int, w: int, wrap: TextureWrap,
+                bounds: tuple[float, float, float, float] | None = None) -> np.ndarray | None:
     """Rows of :meth:`Texels.quads` for bilinear corners at float texel indices ``i0``, ``j0`` (N,)
     (integer-valued) → (N,) int64; None when an index is 2**52 or more from the texture (there
-    ``i0 + 1.0`` rounds and :func:`sample` wraps it as it falls)."""
+    ``i0 + 1.0`` rounds and :func:`sample` wraps it as it falls). ``bounds``: ``(i0.min(),
+    i0.max(), j0.min(), j0.max())`` (each with ``initial=0.0``) when known."""
     span = 2.0 ** 52
-    low = min(i0.min(initial=0.0), j0.min(initial=0.0))
-    high = max(i0.max(initial=0.0), j0.max(initial=0.0))
+    if bounds is None:
+        bounds = (i0.min(initial=0.0), i0.max(initial=0.0), j0.min(initial=0.0), j0.max(initial=0.0))
+    low, high = min(bounds[0], bounds[2]), max(bounds[1], bounds[3])
     if not (-span < low and high < span):
         return None
     if -1.0 <= low and high <= min(h, w) - 1.0:  # every corner's texels inside or on the border
-        row = j0.astype(np.int64)
-        column = i0.astype(np.int64)
-    else:
-        row, column = _extended(j0, h, wrap), _extended(i0, w, wrap)
+        # (j0 + 1) * (w + 1) + (i0 + 1) in float64: integers far below 2**53, so exact.
+        row = np.multiply(j0, float(w + 1))
+        row += i0
+        row += float(w + 2)
+        return row.astype(np.int64)
+    row, column = _extended(j0, h, wrap), _extended(i0, w, wrap)
     row += 1
     row *= w + 1
     row += column
