@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from blendlib import render_scene
-from blendlib.core import merger
+from blendlib.core import colorspace, merger
 from blendlib.core.merger import blending, ordering
 from blendlib.core.pipeline import BAND_PIXELS as PRODUCTION_BAND_PIXELS  # read before the tests' override
 from blendlib.core.scene import DrawScene
@@ -517,6 +517,42 @@ def test_per_fragment_blending_by_channel_equals_reference(src, dst, op, color_s
     scene = DrawScene(camera=scene.camera, color_space=color_space, renderers=(
         scene.renderers[0], sc.renderer(sc.quad(0, 0, W, H, z=1.0), top, name="Top")))
     _assert_equal_with_table(scene, monkeypatch, expect_table=False)
+
+
+def test_blend_results_stay_within_the_clamps_left_out():
+    """``_blend_ldr`` leaves out the clamp to [0, 1] of a channel's result where ``_clamps`` says
+    it cannot be needed: for every source and destination factor and op, over sources and
+    destinations in [0, 1] (their edges and the floats next to them among them), no result falls
+    below 0 where the low clamp is left out, nor above 1 where the high one is; and the codes
+    equal those of the full quantisation. The common cases leave clamps out: ``SrcAlpha
+    OneMinusSrcAlpha`` both, additive ``SrcAlpha One`` the low one, ``Blend Off`` both."""
+    rng = np.random.default_rng(11)
+    edges = np.array([0.0, 1.0, np.nextafter(1.0, 0.0), 5e-324, 0.5, np.nextafter(0.5, 1.0), 1 / 3, 2 / 3])
+    grid = np.stack(np.meshgrid(edges, edges, edges, edges, indexing="ij"), axis=-1).reshape(-1, 4)
+    s = np.concatenate([rng.uniform(0, 1, (20000, 4)), grid, grid[::-1]])
+    d = np.concatenate([rng.uniform(0, 1, (20000, 4)), grid[::-1], grid])
+    left_out = 0
+    for src in BlendFactor:
+        for dst in BlendFactor:
+            for op in BlendOp:
+                p = Pass(blend=True, src_blend=src, dst_blend=dst, blend_op=op)
+                result = blending._blend_channels(p, list(s.T), list(d.T))
+                for c in range(4):
+                    low, high = blending._clamps(p, c)
+                    v = np.broadcast_to(np.asarray(result[c], dtype=np.float64), (s.shape[0],))
+                    assert low or np.all(v >= 0.0), (src, dst, op, c)
+                    assert high or np.all(v <= 1.0), (src, dst, op, c)
+                    codes = colorspace.unorm_codes_in_place(v.copy(), low, high)
+                    assert np.array_equal(codes, colorspace.unorm_codes_in_place(v.copy())), (src, dst, op, c)
+                    left_out += (not low) + (not high)
+    assert left_out > 300
+    assert blending._clamps(Pass(blend=True, src_blend=BlendFactor.SrcAlpha,
+                                 dst_blend=BlendFactor.OneMinusSrcAlpha), 0) == (False, False)
+    assert blending._clamps(Pass(blend=True, src_blend=BlendFactor.SrcAlpha, dst_blend=BlendFactor.One), 0) == (
+        False, True)
+    assert blending._clamps(Pass(blend=True, src_blend=BlendFactor.One, dst_blend=BlendFactor.One,
+                                 blend_op=BlendOp.Sub), 3) == (True, False)
+    assert blending._clamps(Pass(), 0) == (False, False)
 
 
 def test_large_textures_are_not_examined_for_repeated_texels(monkeypatch):

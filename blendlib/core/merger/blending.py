@@ -201,6 +201,32 @@ def _channel_factor(f: BlendFactor, c: int, s: list, d: list):
     return 1.0 - base if f.value.startswith("OneMinus") else base
 
 
+#: Factor pairs (source, destination) whose sum is at most 1 — ``F`` and ``1 − F`` — or with a
+#: zero: ``Add`` of a source and a destination in [0, 1] weighted by them stays at or below 1.
+_WITHIN_ONE = frozenset({*((f, g) for a, b in ((BlendFactor.SrcColor, BlendFactor.OneMinusSrcColor),
+                                               (BlendFactor.SrcAlpha, BlendFactor.OneMinusSrcAlpha),
+                                               (BlendFactor.DstColor, BlendFactor.OneMinusDstColor),
+                                               (BlendFactor.DstAlpha, BlendFactor.OneMinusDstAlpha))
+                            for f, g in ((a, b), (b, a)))})
+
+
+def _clamps(p: Pass, c: int) -> tuple[bool, bool]:
+    """Whether channel ``c``'s blend result (3 = alpha) may fall below 0 and above 1, for a source
+    clamped into [0, 1] over a destination in [0, 1]: every factor lies in [0, 1], so ``Add`` is
+    at least 0 and ``Sub``/``RevSub`` at most 1; ``Min``/``Max`` pick one of the two; ``Add`` stays
+    at most 1 for factors ``F`` and ``1 − F`` (``fl(s·F) ≤ F``, ``fl(d·fl(1 − F)) ≤ fl(1 − F)``,
+    and ``F + fl(1 − F) ≤ 1 + 2⁻⁵⁴`` rounds to at most 1), or with a ``Zero`` factor. Without
+    blending the source is the result."""
+    if not p.blend:
+        return False, False
+    src, dst, op = p.alpha_factors if c == 3 else (p.src_blend, p.dst_blend, p.blend_op)
+    if op is BlendOp.Min or op is BlendOp.Max:
+        return False, False
+    if op is not BlendOp.Add:
+        return True, False
+    return False, not (src is BlendFactor.Zero or dst is BlendFactor.Zero or (src, dst) in _WITHIN_ONE)
+
+
 def _blend_ldr(buf: FrameBuffers, p: Pass, stored: np.ndarray, rgba: np.ndarray) -> np.ndarray:
     """:func:`blend_fragments` of an 8-bit buffer, one channel at a time on contiguous (N,)
     arrays: the operations of :func:`blend` and :meth:`FrameBuffers.encode`, element by element."""
@@ -224,8 +250,8 @@ def _blend_ldr(buf: FrameBuffers, p: Pass, stored: np.ndarray, rgba: np.ndarray)
     for c in range(4):
         if buf.linear and c < 3:
             out[:, c] = colorspace.quantize_encoded(result[c])
-        else:  # in place: each result row is this function's own array
-            out[:, c] = colorspace.unorm_codes_in_place(result[c])
+        else:  # in place: each result row is this function's own array; clamps only where needed
+            out[:, c] = colorspace.unorm_codes_in_place(result[c], *_clamps(p, c))
     return out.view(stored.dtype).reshape(-1)
 
 
