@@ -80,11 +80,29 @@ def _first_float_with_code(k: int) -> float:
 ENCODE_THRESHOLDS = np.array([_first_float_with_code(k) for k in range(1, 256)], dtype=np.float64)
 
 
+#: Buckets of [0, 1] for :func:`quantize_encoded`: narrower than the closest two thresholds
+#: (1/(255 * 12.92) apart, on the linear segment near 0), so each holds at most one.
+ENCODE_BUCKETS = 4096
+_EDGES = np.arange(ENCODE_BUCKETS + 1, dtype=np.float64) / ENCODE_BUCKETS
+#: Per bucket ``[b/B, (b+1)/B)`` (and ``b = B`` for 1.0): the code at its lower edge (the
+#: thresholds at or below it), and the next threshold (infinite after the last).
+_BUCKET_CODE = np.searchsorted(ENCODE_THRESHOLDS, _EDGES, side="right").astype(np.uint8)
+_BUCKET_NEXT = np.append(ENCODE_THRESHOLDS, np.inf)[_BUCKET_CODE.astype(np.int64)]
+assert np.all(np.searchsorted(ENCODE_THRESHOLDS, _EDGES[1:], side="left")
+              - _BUCKET_CODE[:-1].astype(np.int64) <= 1), "a bucket holds two thresholds"
+
+
 def quantize_encoded(linear: np.ndarray) -> np.ndarray:
-    """Clamp linear values to [0, 1], encode to sRGB and quantise to 8-bit codes (uint8), bit-exact."""
+    """Clamp linear values to [0, 1], encode to sRGB and quantise to 8-bit codes (uint8), bit-exact:
+    the number of :data:`ENCODE_THRESHOLDS` at or below the value (a NaN counts as 1.0, code 255).
+    The value's bucket (``v * 4096``: exact, a power of two) gives the count at its lower edge,
+    and one comparison adds the one threshold a bucket may hold above that edge."""
     v = np.asarray(linear, dtype=np.float64)
-    v = np.minimum(np.maximum(v, 0.0), 1.0)
-    return np.searchsorted(ENCODE_THRESHOLDS, v, side="right").astype(np.uint8)
+    v = np.fmax(np.fmin(v, 1.0), 0.0)  # fmin takes 1.0 over a NaN
+    bucket = np.multiply(v, float(ENCODE_BUCKETS)).astype(np.intp)  # v >= 0: truncation is the floor
+    code = np.take(_BUCKET_CODE, bucket)
+    code += np.greater_equal(v, np.take(_BUCKET_NEXT, bucket))
+    return code
 
 
 def decode_fast(values: np.ndarray) -> np.ndarray:
@@ -99,11 +117,14 @@ def quantize_unorm(values: np.ndarray) -> np.ndarray:
     return unorm_codes_in_place(np.array(values, dtype=np.float64)).astype(np.uint8)
 
 
-def unorm_codes_in_place(v: np.ndarray) -> np.ndarray:
+def unorm_codes_in_place(v: np.ndarray, low: bool = True, high: bool = True) -> np.ndarray:
     """:func:`quantize_unorm`'s codes as float64 values, computed in ``v`` (float64, overwritten),
-    for a caller that owns ``v`` and stores the codes itself."""
-    np.maximum(v, 0.0, out=v)
-    np.minimum(v, 1.0, out=v)
+    for a caller that owns ``v`` and stores the codes itself. ``low=False`` / ``high=False``: the
+    caller knows no value is below 0 / above 1 (a NaN stays NaN either way), so that clamp is left out."""
+    if low:
+        np.maximum(v, 0.0, out=v)
+    if high:
+        np.minimum(v, 1.0, out=v)
     v *= 255.0
     v += 0.5
     return np.floor(v, out=v)

@@ -1,0 +1,50 @@
+"""The sRGB quantisation of the Linear colour space's 8-bit writes (docs/pipeline.md §7, §8): the
+stored code of a linear value is ``floor(encode(clamp01(v)) * 255 + 0.5)`` with the sRGB encoding
+``1.055 v^(1/2.4) − 0.055`` (``12.92 v`` up to 0.0031308), as the scalar reference writes it."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from blendlib.core import colorspace
+
+
+def _code(v: float) -> int:
+    """The scalar definition, with Python's ``**`` (C ``pow``)."""
+    v = min(max(v, 0.0), 1.0)
+    e = v * 12.92 if v <= 0.0031308 else 1.055 * v ** (1.0 / 2.4) - 0.055
+    return math.floor(e * 255 + 0.5)
+
+
+def test_quantize_encoded_equals_the_scalar_definition_at_every_code_boundary():
+    """Every value next to a code boundary (found from the definition by bisection, not from the
+    module's tables), the buckets' edges and random values in and beyond [0, 1]: the same codes."""
+    boundaries = []
+    for k in range(1, 256):  # the smallest float64 of code k
+        lo, hi = 0, int(np.float64(1.0).view(np.int64))
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            if _code(float(np.int64(mid).view(np.float64))) >= k:
+                hi = mid
+            else:
+                lo = mid
+        boundaries.append(float(np.int64(hi).view(np.float64)))
+    b = np.array(boundaries)
+    edges = np.arange(colorspace.ENCODE_BUCKETS + 1) / colorspace.ENCODE_BUCKETS
+    rng = np.random.default_rng(3)
+    values = np.concatenate([b, np.nextafter(b, 0.0), np.nextafter(b, 2.0), edges, np.nextafter(edges, -1.0),
+                             np.nextafter(edges, 2.0), rng.uniform(-0.2, 1.2, 20000), rng.uniform(0.0, 0.004, 5000),
+                             [0.0, -0.0, 1.0, 5e-324, -5e-324, 2.0, -3.0, np.inf, -np.inf]])
+    got = colorspace.quantize_encoded(values)
+    assert got.dtype == np.uint8
+    assert got.tolist() == [_code(float(v)) for v in values]
+    assert colorspace.quantize_encoded(np.array([np.nan])).tolist() == [255]  # as clamping leaves it: 1.0
+
+
+def test_quantize_encoded_keeps_the_shape():
+    v = np.random.default_rng(4).uniform(0, 1, (7, 5, 3))
+    got = colorspace.quantize_encoded(v)
+    assert got.shape == (7, 5, 3)
+    assert got.reshape(-1).tolist() == [_code(float(x)) for x in v.reshape(-1)]
