@@ -132,7 +132,8 @@ def test_help_lists_every_option():
                    "--blend-dir", "--workers", "--chunk-candidates", "--profile", "--no-explain", "--from-json",
                    "--log"):
         assert option in proc.stdout
-    assert "S1,S2,S2p,S3,S4,S5,S6,msaa,scaling" in proc.stdout and "project,opengl,eevee,workbench" in proc.stdout
+    assert "S1,S2,S2p,S3,S4,S5,S6,msaa,linear,scaling" in proc.stdout
+    assert "project,opengl,eevee,workbench" in proc.stdout
 
 
 def test_plot_has_one_panel_per_kind_of_figure(tmp_path):
@@ -357,6 +358,24 @@ def test_s5_s6_and_msaa_cases():
              setup={}, median={"project": dict(render_s=2.5, extract_s=0.1, peak_mb=1.0, cpu_ratio=1.0)}),
     ])
     assert _by_measure(tg)["S1 4x render / S1 render"] == ("<= 4x", "5.0x", False)
+
+
+def test_linear_cases_are_s5_and_s6_in_linear_colour_space():
+    """The linear group: S5 and S6 again in Unity's Linear colour space (render only), and a built
+    case's DrawScene is Linear."""
+    from blendlib import blender
+    from blendlib.core.vocabulary import ColorSpace
+    from scripts.benchmark import scenes
+
+    planned = {c["id"]: c for c in cases.plan_cases("linear")}
+    assert list(planned) == ["S5 linear", "S6 linear"]
+    for sid, case in zip(("S5", "S6"), planned.values(), strict=True):
+        assert case["color_space"] == "Linear" and case["base"] == sid and case["group"] == "linear"
+        assert "explain" not in case and "viewport" not in case
+    scene = scenes.build_case(dict(kind="particles", count=40, width=32, height=18, color_space="Linear"))
+    assert blender.build_draw_scene(scene).color_space is ColorSpace.Linear
+    scene = scenes.build_case(dict(kind="particles", count=40, width=32, height=18))
+    assert blender.build_draw_scene(scene).color_space is ColorSpace.Gamma
 
 
 def test_particle_scene_is_unitys_legacy_particles():

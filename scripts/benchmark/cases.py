@@ -20,7 +20,7 @@ BLEND_DIR = REPO / "blend_files"
 #: list through OpenGL (Mesa llvmpipe), Blender's EEVEE (1 sample) and Workbench.
 BACKENDS = ("project", "opengl", "eevee", "workbench")
 #: Every scene group the command line can select (``--scenes``), in run order.
-SCENE_GROUPS = ("S1", "S2", "S2p", "S3", "S4", "S5", "S6", "msaa", "scaling")
+SCENE_GROUPS = ("S1", "S2", "S2p", "S3", "S4", "S5", "S6", "msaa", "linear", "scaling")
 #: Scene groups whose project worker also times the frame debugger and the sorted reference
 #: against a plain render.
 EXPLAIN_GROUPS = ("S1", "S2", "S2p", "S3", "S5", "S6")
@@ -79,6 +79,11 @@ def plan_cases(scenes: str, *, quick: bool = False, blend_dir: Path | str = BLEN
         for base in [c for c in plan_cases("S1,S2", quick=quick, explain=False)]:
             cases.append(dict(base, id=f"{base['id']} 4x", group="msaa", msaa=4, base=base["id"],
                               label=f"{base['label']}, 4x MSAA"))
+    if "LINEAR" in wanted:  # Unity's colour space for 3D projects: 8-bit writes sRGB-encode per fragment
+        for base in [c for c in plan_cases("S5,S6", quick=quick, explain=False)]:
+            base.pop("viewport", None)
+            cases.append(dict(base, id=f"{base['id']} linear", group="linear", color_space="Linear",
+                              base=base["id"], label=f"{base['label']}, Linear colour space"))
     if "SCALING" in wanted:
         tris = [2_000, 8_000, 32_000] if quick else [10_000, 30_000, 100_000, 300_000, 1_000_000]
         for t in tris:

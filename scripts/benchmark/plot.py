@@ -34,7 +34,7 @@ def write_plot(results: list[dict], path: Path, title: str) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     tri = _scaling_series(results, "scale-tris", "triangles")
     res = _scaling_series(results, "scale-res", "covered_px")
-    bars = [r for r in results if r["case"]["group"] in ("S1", "S2", "S2p", "S3", "S4", "S5", "S6", "msaa")]
+    bars = [r for r in results if r["case"]["group"] in ("S1", "S2", "S2p", "S3", "S4", "S5", "S6", "msaa", "linear")]
     explained = [r for r in results if r.get("explain")]
     viewports = [r for r in results if r.get("viewport")]
     panels = []

@@ -25,6 +25,7 @@ def build_case(case: dict):
         bpy.ops.wm.open_mainfile(filepath=case["path"], load_ui=False)
         scene = bpy.data.scenes[case["scene"]] if case.get("scene") else bpy.context.scene
         _render_settings(scene, case["width"], case["height"])
+        _unity_settings(scene, case)
         return scene
 
     scene = scenekit.empty_file()
@@ -36,12 +37,22 @@ def build_case(case: dict):
     if case["kind"] not in builders:
         raise ValueError(f"unknown case kind {case['kind']!r}")
     builders[case["kind"]](scene, case, case["width"], case["height"])
-    if case.get("msaa", 1) > 1:
-        from blendlib import blender
-
-        blender.write_scene_settings(scene, msaa=int(case["msaa"]))
+    _unity_settings(scene, case)
     bpy.context.view_layer.update()
     return scene
+
+
+def _unity_settings(scene, case: dict) -> None:
+    """The case's MSAA samples (``msaa``) and colour space (``color_space``) in the scene's Unity settings."""
+    from blendlib import blender
+
+    values = {}
+    if case.get("msaa", 1) > 1:
+        values["msaa"] = int(case["msaa"])
+    if case.get("color_space"):
+        values["color_space"] = case["color_space"]
+    if values:
+        blender.write_scene_settings(scene, **values)
 
 
 def _render_settings(scene, width: int, height: int) -> None:
