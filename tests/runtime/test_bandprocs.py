@@ -269,6 +269,35 @@ def test_scene_errors_come_back_as_scene_errors(bands):
     assert_same_frame(bands(draw), render_scene(draw))  # the helper serves on
 
 
+class _NaNWhenUnpickled(np.ndarray):
+    """A finite matrix here that arrives as NaN in the helper: a scene only the helper refuses."""
+
+    def __reduce__(self):
+        return np.full, (self.shape, np.nan)
+
+
+def test_an_error_answer_from_the_helper_alone_is_raised_and_the_scene_sent_again(bands, monkeypatch):
+    """The helper refuses a scene this process accepted: the frame raises the helper's SceneError,
+    the helper is not failed, and it holds no scene after the refusal — the same scene through
+    another camera is sent whole (refused again, not a view of a scene it never took), and a good
+    frame after splits and equals render_scene."""
+    sent, _ = recorded_requests(monkeypatch)
+    draw = scene_at(7)
+    poisoned = dataclasses.replace(draw.renderers[0],
+                                   matrix_world=np.asarray(draw.renderers[0].matrix_world).view(_NaNWhenUnpickled))
+    bad = dataclasses.replace(draw, renderers=(poisoned, *draw.renderers[1:]))
+    render_scene(bad)  # this process accepts it
+    with pytest.raises(SceneError, match="matrix_world"):
+        bands(bad)
+    moved_bad = dataclasses.replace(bad, camera=moved(bad.camera, 0.05))
+    with pytest.raises(SceneError, match="matrix_world"):
+        bands(moved_bad)
+    assert sent == ["scene", "scene"] and bands.failure is None
+    before = bands.split_frames
+    assert_same_frame(bands(draw), render_scene(draw))
+    assert bands.split_frames == before + 1
+
+
 def test_cancel_stops_both_bands_and_the_helper_serves_on(bands):
     draw = scene_at(7, 160, 120)
     calls = []
