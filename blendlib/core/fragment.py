@@ -375,8 +375,10 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
                         dim_color = (gather(color[:, 3], dim) if color is not None else raster.interpolate_runs(
                             gather(w, dim, axis=1), colors[keep][:, :, 3:], _segment_sums(skip, run_counts),
                             color_flat[keep])[:, 0])
-                    dim_alpha = None if uv is None else sample_at(
-                        gather(uv, dim, axis=1).T, None if lod is None else gather(lod, dim), (3,))[:, 0]
+                    # A textured mesh without UVs samples at (0, 0), as shade_at does (lod is None then).
+                    dim_alpha = None if texels is None else sample_at(
+                        np.zeros((dim.size, 2), dtype=np.float64) if uv is None else gather(uv, dim, axis=1).T,
+                        None if lod is None else gather(lod, dim), (3,))[:, 0]
                     rgba[unlit, 3] = shade.alpha_of(material, dim_alpha, dim_color, dim.size)
                 # Colours and positions are views of channels-first arrays: gathered along those.
                 scatter_rows(rgba, places[lit], shade_at(

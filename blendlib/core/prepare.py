@@ -340,6 +340,8 @@ def _draw_state(frame: FrameContext, call: DrawCall, setup, inputs: CallInputs,
     # fragments only; no alpha first); unlit ones keep rgb 0 where their colour is not read.
     hidden_unread = frame.reads_hidden is not None and not frame.reads_hidden(call)
     colors_read = True if frame.colors_read is None else frame.colors_read(call)
+    if not isinstance(colors_read, np.ndarray):
+        colors_read = bool(colors_read)  # True / False as such, whatever the observer returned
     state = replace(plain, observed=True, unobserved=plain, colors_read=colors_read,
                     dark_skip=dark_skip and colors_read is not True, dark_alpha=None,
                     early_depth=plain.early_depth if hidden_unread else None)

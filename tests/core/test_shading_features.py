@@ -399,6 +399,59 @@ def test_a_draw_list_leaves_fragments_out_of_reach_unlit_and_counts_them_as_the_
     assert veil and all(s.written > 1000 for s in veil)
 
 
+def test_unreached_fragments_of_a_textured_mesh_without_uvs_keep_the_texels_alpha(monkeypatch):
+    """A mesh without UVs samples its texture at (0, 0) (§7): under a capture, the alpha of its
+    fragments left unlit includes that texel's alpha (the floor's pass adds it to an unsaturated
+    one), and the counts and frame equal the scalar reference."""
+    from blendlib.explain import framedebug as fd
+    from tests.reference.scalar import FragmentLog
+
+    unlit = _count_unlit(monkeypatch)
+    scene = _reach_scene(ColorSpace.Gamma)
+    floor, *others = scene.renderers
+    mesh = floor.mesh
+    bare = type(mesh)(mesh.positions, mesh.triangles, mesh.normals, None)
+    pixels = np.random.default_rng(6).uniform(0.3, 1.0, (8, 8, 4)).astype(np.float32)
+    pixels[..., 3] = 0.1  # far from saturating under the floor's three additive passes
+    faint = replace(floor.material, main_tex=Texture(pixels, name="faint"))
+    scene = replace(scene, renderers=(replace(floor, mesh=bare, material=faint), *others))
+    capture = fd.FrameCapture.capture(scene)
+    log = FragmentLog()
+    color, depth, _ = render_reference(scene, log=log)
+    counts = log.counts()
+    assert [(s.fragments, s.written) for s in capture.stats] == [counts.get(s.call.index, (0, 0))
+                                                                 for s in capture.stats]
+    assert np.array_equal(capture.frame.color, color) and np.array_equal(capture.frame.depth, depth)
+    assert unlit[("Floor", True)] > 10000, unlit
+
+
+def test_colors_read_may_be_a_numpy_bool(monkeypatch):
+    """An observer's ``colors_read`` answered with numpy's booleans means what True and False do."""
+    from blendlib.core.records import FrameObserver
+
+    class Counting(FrameObserver):
+        exact_boundaries = False
+
+        def __init__(self, answer):
+            self.answer, self.count = answer, 0
+
+        def colors_read(self, call):
+            return self.answer
+
+        def fragments(self, call, frags, outcome):
+            self.count += frags.count
+
+    unlit = _count_unlit(monkeypatch)
+    scene = _reach_scene(ColorSpace.Gamma)
+    plain = _core(scene)
+    for answer, dark in ((np.False_, True), (np.True_, False)):
+        unlit.clear()
+        observer = Counting(answer)
+        frame = _core(scene, observer=observer)
+        assert np.array_equal(frame.color, plain.color) and observer.count > 0
+        assert (unlit.get(("Floor", True), 0) > 10000) == dark, (answer, unlit)
+
+
 def test_a_pixel_history_lights_its_own_pixels_and_draws_other_rows_unobserved(monkeypatch):
     """A pixel history reads the colours at its pixels only: there every fragment keeps its exact
     colour (as the scalar reference shades it), elsewhere in the chunks it is told of a fragment
