@@ -19,19 +19,12 @@ def _code(v: float) -> int:
 
 
 def test_quantize_encoded_equals_the_scalar_definition_at_every_code_boundary():
-    """Every value next to a code boundary (found from the definition by bisection, not from the
-    module's tables), the buckets' edges and random values in and beyond [0, 1]: the same codes."""
-    boundaries = []
-    for k in range(1, 256):  # the smallest float64 of code k
-        lo, hi = 0, int(np.float64(1.0).view(np.int64))
-        while hi - lo > 1:
-            mid = (lo + hi) // 2
-            if _code(float(np.int64(mid).view(np.float64))) >= k:
-                hi = mid
-            else:
-                lo = mid
-        boundaries.append(float(np.int64(hi).view(np.float64)))
-    b = np.array(boundaries)
+    """Every code threshold and the floats beside it (the module's thresholds as probe points; the
+    expected codes come from the definition alone), the buckets' edges and random values in and
+    beyond [0, 1]: the same codes."""
+    b = colorspace.ENCODE_THRESHOLDS
+    assert [_code(float(t)) for t in b] == list(range(1, 256))
+    assert [_code(float(np.nextafter(t, 0.0))) for t in b] == list(range(0, 255))  # each the first of its code
     edges = np.arange(colorspace.ENCODE_BUCKETS + 1) / colorspace.ENCODE_BUCKETS
     rng = np.random.default_rng(3)
     values = np.concatenate([b, np.nextafter(b, 0.0), np.nextafter(b, 2.0), edges, np.nextafter(edges, -1.0),

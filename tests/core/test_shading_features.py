@@ -345,6 +345,22 @@ def test_row_parts_out_of_a_lights_reach_are_cut_and_equal_the_reference(color_s
     assert kept_for_alpha["Veil"] > 1000 and kept_for_alpha["Wall"] == 0, kept_for_alpha
 
 
+def _capture_equal_to_reference(scene):
+    """A frame debugger capture of ``scene`` whose per-draw counts and frame equal the scalar
+    reference's."""
+    from blendlib.explain import framedebug as fd
+    from tests.reference.scalar import FragmentLog
+
+    capture = fd.FrameCapture.capture(scene)
+    log = FragmentLog()
+    color, depth, _ = render_reference(scene, log=log)
+    counts = log.counts()
+    assert [(s.fragments, s.written) for s in capture.stats] == [counts.get(s.call.index, (0, 0))
+                                                                 for s in capture.stats]
+    assert np.array_equal(capture.frame.color, color) and np.array_equal(capture.frame.depth, depth)
+    return capture
+
+
 def _count_unlit(monkeypatch) -> dict[tuple[str, bool], int]:
     """Counts, by (renderer, whether the chunk is observed), the fragments ``fragment._dark``
     leaves unlit."""
@@ -373,8 +389,6 @@ def test_a_draw_list_leaves_fragments_out_of_reach_unlit_and_counts_them_as_the_
     counts of every draw equal the scalar reference's and the frame equals it too — the veil's
     pass adds its source alpha to an unsaturated one, so a wrong alpha would show (with vertex
     colours on the veil: their interpolated alpha)."""
-    from blendlib.explain import framedebug as fd
-    from tests.reference.scalar import FragmentLog
 
     unlit = _count_unlit(monkeypatch)
     scene = _reach_scene(color_space)
@@ -385,13 +399,7 @@ def test_a_draw_list_leaves_fragments_out_of_reach_unlit_and_counts_them_as_the_
         mesh = type(mesh)(mesh.positions, mesh.triangles, mesh.normals, mesh.uvs, colors=colors)
         veil = replace(veil, mesh=mesh, material=replace(veil.material, vertex_color=veil_colors))
         scene = replace(scene, renderers=(*others, veil))
-    capture = fd.FrameCapture.capture(scene)
-    log = FragmentLog()
-    color, depth, _ = render_reference(scene, log=log)
-    counts = log.counts()
-    assert [(s.fragments, s.written) for s in capture.stats] == [counts.get(s.call.index, (0, 0))
-                                                                 for s in capture.stats]
-    assert np.array_equal(capture.frame.color, color) and np.array_equal(capture.frame.depth, depth)
+    capture = _capture_equal_to_reference(scene)
     assert unlit[("Floor", True)] > 10000 and unlit[("Wall", True)] > 5000 and unlit[("Veil", True)] > 1000, unlit
     # The veil's alpha is what its pass adds: the fragments left unlit there change the stored alpha.
     veil = [s for s in capture.stats
@@ -403,8 +411,6 @@ def test_unreached_fragments_of_a_textured_mesh_without_uvs_keep_the_texels_alph
     """A mesh without UVs samples its texture at (0, 0) (§7): under a capture, the alpha of its
     fragments left unlit includes that texel's alpha (the floor's pass adds it to an unsaturated
     one), and the counts and frame equal the scalar reference."""
-    from blendlib.explain import framedebug as fd
-    from tests.reference.scalar import FragmentLog
 
     unlit = _count_unlit(monkeypatch)
     scene = _reach_scene(ColorSpace.Gamma)
@@ -415,13 +421,7 @@ def test_unreached_fragments_of_a_textured_mesh_without_uvs_keep_the_texels_alph
     pixels[..., 3] = 0.1  # far from saturating under the floor's three additive passes
     faint = replace(floor.material, main_tex=Texture(pixels, name="faint"))
     scene = replace(scene, renderers=(replace(floor, mesh=bare, material=faint), *others))
-    capture = fd.FrameCapture.capture(scene)
-    log = FragmentLog()
-    color, depth, _ = render_reference(scene, log=log)
-    counts = log.counts()
-    assert [(s.fragments, s.written) for s in capture.stats] == [counts.get(s.call.index, (0, 0))
-                                                                 for s in capture.stats]
-    assert np.array_equal(capture.frame.color, color) and np.array_equal(capture.frame.depth, depth)
+    _capture_equal_to_reference(scene)
     assert unlit[("Floor", True)] > 10000, unlit
 
 
