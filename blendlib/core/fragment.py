@@ -370,11 +370,8 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
                 rgba[unlit] = 0.0
                 if state.observed:  # merged: their alpha as shading computes it (it reads no light)
                     dim = np.flatnonzero(skip)
-                    dim_color = None
-                    if colors is not None:
-                        dim_color = (gather(color[:, 3], dim) if color is not None else raster.interpolate_runs(
-                            gather(w, dim, axis=1), colors[keep][:, :, 3:], _segment_sums(skip, run_counts),
-                            color_flat[keep])[:, 0])
+                    dim_color = None if colors is None else raster.interpolate_runs(  # observed: no alpha first
+                        gather(w, dim, axis=1), colors[keep][:, :, 3:], run_counts - lit_counts, color_flat[keep])[:, 0]
                     # A textured mesh without UVs samples at (0, 0), as shade_at does (lod is None then).
                     dim_alpha = None if texels is None else sample_at(
                         np.zeros((dim.size, 2), dtype=np.float64) if uv is None else gather(uv, dim, axis=1).T,

@@ -181,7 +181,8 @@ def dark_skip_applies(p: Pass, material: Material, light: AddLight | None, textu
     writes none; with an alpha ``Add`` and destination factor ``One``, when the source alpha factor
     is ``Zero``, else only where the stored alpha is already 1 (a non-negative addition saturates). Not with stencil,
     ZWrite, an outline colour, MSAA (per-sample coverage), an HDR buffer (no saturation) or an
-    observer (it is told of every fragment)."""
+    ``observed`` draw whose every fragment's colour the observer reads (under an observer that
+    does not, the unreached fragments are merged with rgb 0 instead of dropped: DrawState.dark_skip)."""
     if (light is None or not light.positional or hdr or samples != 1 or observed or p.stencil or p.zwrite
             or p.outline_color is not None or material.lighting is Lighting.Unlit or not p.blend
             or p.blend_op is not BlendOp.Add or p.dst_blend is not BlendFactor.One):

@@ -326,9 +326,9 @@ def _draw_state(frame: FrameContext, call: DrawCall, setup, inputs: CallInputs,
         zbound = raster.depth_upper_codes(setup, p.offset_factor, p.offset_units)
     material = call.renderer.material
     selected = vertex.cull_select(setup, p.cull) if selected is None else selected
-    dark_skip, saturated = lights.dark_skip_applies(
-        p, material, inputs.lights.add, 0.0 if inputs.texels is None else inputs.texels.peak(), frame.hdr,
-        frame.samples, False)
+    peak = 0.0 if inputs.texels is None else inputs.texels.peak()
+    dark_skip, saturated = lights.dark_skip_applies(p, material, inputs.lights.add, peak, frame.hdr, frame.samples,
+                                                    False)
     early = fragment.early_depth_applies(p, frame.samples, False)
     plain = DrawState(call, material, inputs.texels, inputs.lights, frame.color_space, frame.hdr,
                       frame.width, zbound=zbound, mips=inputs.mips, samples=frame.samples, dark_skip=dark_skip,
@@ -342,9 +342,11 @@ def _draw_state(frame: FrameContext, call: DrawCall, setup, inputs: CallInputs,
     colors_read = True if frame.colors_read is None else frame.colors_read(call)
     if not isinstance(colors_read, np.ndarray):
         colors_read = bool(colors_read)  # True / False as such, whatever the observer returned
-    state = replace(plain, observed=True, unobserved=plain, colors_read=colors_read,
-                    dark_skip=dark_skip and colors_read is not True, dark_alpha=None,
-                    early_depth=plain.early_depth if hidden_unread else None)
+    observed_dark, _ = lights.dark_skip_applies(p, material, inputs.lights.add, peak, frame.hdr, frame.samples,
+                                                colors_read is True)
+    state = replace(plain, observed=True, unobserved=plain, colors_read=colors_read, dark_skip=observed_dark,
+                    dark_alpha=None, early_depth=frame.buf.depth if fragment.early_depth_applies(
+                        p, frame.samples, not hidden_unread) else None)
     return state, selected
 
 

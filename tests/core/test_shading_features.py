@@ -177,21 +177,11 @@ def test_light_sweeps_drop_unreached_fragments_and_equal_the_reference(color_spa
     """The light sweep (a floor and a sphere under point and spot lights whose ranges end on the
     floor) drops fragments no light reaches — on the opaque floor, and on the transparent sphere
     only where its stored alpha is saturated — and still equals the scalar reference bit for bit."""
-    from blendlib.core import fragment
     from tests.reference.feature_sweeps import light_sweep
 
-    dropped: dict[str, int] = {}
-    original = fragment._dark
-
-    def dark(state, position, pix, corners):
-        out = original(state, position, pix, corners)
-        name = state.call.renderer.name
-        dropped[name] = dropped.get(name, 0) + (0 if out is None else int(out.sum()))
-        return out
-
-    monkeypatch.setattr(fragment, "_dark", dark)
+    dropped = _count_unlit(monkeypatch)
     _assert_equal_to_reference(light_sweep(color_space))
-    assert dropped["Floor"] > 500 and "Unlit" not in dropped
+    assert dropped[("Floor", False)] > 500 and not any(name == "Unlit" for name, _ in dropped)
     dropped.clear()
     _core(light_sweep(color_space, hdr=True))
     assert not dropped  # HDR: alpha does not saturate, nothing is dropped
