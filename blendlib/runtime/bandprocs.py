@@ -74,6 +74,12 @@ BAND_CHUNK_CANDIDATES = 1 << 15
 _HEAD = 64
 #: How often a waiting render polls ``should_cancel`` (seconds).
 _POLL_S = 0.01
+#: A helper that dropped its scene (after a final frame) gives the heap it freed back to the
+#: system once it has waited this long for the next request: frames that follow one another (an
+#: animation, repeated F12, the benchmark) reuse its pages instead of faulting fresh zeroed ones
+#: in, and an idle helper still holds little (docs/benchmark.md, "Why the constants are what
+#: they are").
+IDLE_TRIM_S = 2.0
 
 
 def _band_bytes(rows: int, width: int) -> int:
@@ -108,9 +114,11 @@ class _PartsWriter:
     After :func:`~blendlib.core.scene.reuse_unchanged` a changed scene shares most parts with
     the last one: such a request carries the changed parts only (pickling a template's meshes
     again was a noticeable share of the viewport's reduced frame), and the helper's memo keeps what it
-    derived from the rest. A message is: the numbers the helper may forget, then each new part
-    as (number, part) with the parts it holds as numbers, then the request. The numbers kept are
-    those of the parts of the last scene sent, on both sides.
+    derived from the rest. A message is: the numbers the helper may forget and a count, then each
+    new part as (number, part) with the parts it holds as numbers, then the request. A request that
+    sends none of the parts the helper holds has the count -1 and one plain pickle (first number,
+    new parts, request). The numbers kept are those of the parts of the last scene sent, on both
+    sides.
     """
 
     def __init__(self) -> None:
@@ -131,12 +139,23 @@ class _PartsWriter:
         alive = {id(p) for p in parts}
         forget = [] if scene is None else [n for key, (_, n) in numbers.items() if key not in alive]
         new = [p for p in parts if id(p) not in numbers]
-        pickle.Pickler(out, protocol=pickle.HIGHEST_PROTOCOL).dump((forget, len(new)))
-        for part in new:
-            Pickler(out, protocol=pickle.HIGHEST_PROTOCOL).dump((self._next, part))
-            numbers[id(part)] = (part, self._next)
-            self._next += 1
-        Pickler(out, protocol=pickle.HIGHEST_PROTOCOL).dump(request)
+        if len(new) == len(parts):
+            # Nothing the helper holds is sent (a final frame's new scene, a view): one plain
+            # pickle, without a persistent_id call per object pickled (most of a small scene's
+            # pickling time); the new parts' numbers travel with them.
+            first = self._next
+            for part in new:
+                numbers[id(part)] = (part, self._next)
+                self._next += 1
+            pickle.Pickler(out, protocol=pickle.HIGHEST_PROTOCOL).dump((forget, -1))
+            pickle.Pickler(out, protocol=pickle.HIGHEST_PROTOCOL).dump((first, new, request))
+        else:
+            pickle.Pickler(out, protocol=pickle.HIGHEST_PROTOCOL).dump((forget, len(new)))
+            for part in new:
+                Pickler(out, protocol=pickle.HIGHEST_PROTOCOL).dump((self._next, part))
+                numbers[id(part)] = (part, self._next)
+                self._next += 1
+            Pickler(out, protocol=pickle.HIGHEST_PROTOCOL).dump(request)
         if scene is not None:
             self._numbers = {key: hit for key, hit in numbers.items() if key in alive}
         return out.getvalue()
@@ -162,6 +181,10 @@ class _PartsReader:
         forget, count = pickle.Unpickler(stream).load()
         for number in forget:
             parts.pop(number, None)
+        if count < 0:  # one plain pickle: the new parts (numbered from ``first``) and the request
+            first, new, request = pickle.Unpickler(stream).load()
+            parts.update(enumerate(new, start=first))
+            return request
         for _ in range(count):
             number, part = Unpickler(stream).load()
             parts[number] = part
@@ -692,14 +715,24 @@ def balanced_fraction(fraction: float, cut: int, height: int, own_s: float, help
     return min(max(0.5 * fraction + 0.5 * target / height, 0.05), 0.95)
 
 
+def _await_request(conn: Connection, trim_after: float | None) -> None:
+    """Wait until the next request (or the end of the connection) arrives on ``conn``. With
+    ``trim_after`` (seconds), the heap this process freed goes back to the system
+    (:func:`.allocator.give_back_freed_memory`) once that long passes without one."""
+    if trim_after is not None and not conn.poll(trim_after):
+        allocator.give_back_freed_memory()
+    conn.poll(None)
+
+
 def serve(conn_fd: int, fd: int) -> int:
     """The helper's loop: read ("scene", scene, y0, y1, chunk, forget) or ("view", camera, y0, y1,
     chunk, forget) requests (the latter: the last scene seen through ``camera``; ``forget``: clear
     the kept blend tables first) from the connection on descriptor ``conn_fd``, draw band
     [y0, y1) into the shared file ``fd``, answer ("ok", seconds since the request arrived),
     ("cancelled",), ("error", line) or ("failed", line). A ("drop",) request frees the scene,
-    its memo and parts and is not answered. Returns 0 when the parent closes its end, whether it
-    waits for a request or answers one."""
+    its memo and parts and is not answered; the heap they leave free goes back to the system
+    when no request follows within :data:`IDLE_TRIM_S`. Returns 0 when the parent closes its end,
+    whether it waits for a request or answers one."""
     allocator.keep_freed_memory()  # every frame allocates the same arrays again (allocator.py)
     os.dup2(2, 1)  # anything printed goes to stderr, never into the parent's own output
     # Ctrl+C in a terminal reaches the whole process group: the parent handles it and stops this
@@ -714,9 +747,11 @@ def serve(conn_fd: int, fd: int) -> int:
     scene: DrawScene | None = None
     memo = SceneMemo()
     parts = _PartsReader()
+    trim_after = None  # seconds idle after a drop before the freed heap goes back
     while True:
         try:
-            conn.poll(None)  # until the request's first bytes (or the end) arrive
+            _await_request(conn, trim_after)  # until the request's first bytes (or the end) arrive
+            trim_after = None
             arrived = time.perf_counter()
             data = conn.recv_bytes()
         except (EOFError, OSError):  # the parent closed its end, or died (connection reset)
@@ -726,7 +761,7 @@ def serve(conn_fd: int, fd: int) -> int:
             scene = content = request = data = None
             memo = SceneMemo()
             parts.parts.clear()
-            allocator.give_back_freed_memory()
+            trim_after = IDLE_TRIM_S
             continue
         kind, content, y0, y1, chunk, forget = request
         if forget:

@@ -11,6 +11,9 @@ import dataclasses
 import io
 import os
 import pickle
+import threading
+import time
+from multiprocessing import Pipe
 
 import numpy as np
 import pytest
@@ -101,13 +104,14 @@ def test_changed_scenes_send_only_their_new_parts(bands, monkeypatch):
                         lambda self, request, scene: messages.append(real(self, request, scene)) or messages[-1])
 
     def new_parts() -> tuple[list[int], int]:
-        return pickle.Unpickler(io.BytesIO(messages[-1])).load()  # (numbers forgotten, parts sent)
+        return parts_sent(messages[-1])
 
     first = scene_at(8)  # four renderers, three textured
     assert len(first.renderers) == 4
     assert_same_frame(bands(first), render_scene(first))
     parts = len(scene_parts(first))
     assert new_parts()[1] == parts  # every part, the earlier tests' parts forgotten
+    assert pickle.Unpickler(io.BytesIO(messages[-1])).load()[1] == -1  # in one plain pickle: none held
     # Extracted again (all new objects, equal content), one object moved: one new renderer.
     again = pickle.loads(pickle.dumps(first))
     r0 = again.renderers[0]
@@ -140,6 +144,15 @@ def test_changed_scenes_send_only_their_new_parts(bands, monkeypatch):
     assert new_parts()[1] == 0 and len(new_parts()[0]) >= 1
     assert_same_frame(bands(reshaped), render_scene(reshaped))
     assert new_parts() == ([], len(new_parts_of(reshaped.renderers[-1], fewer)))
+
+
+def parts_sent(message: bytes) -> tuple[list[int], int]:
+    """(numbers the helper may forget, parts sent) of a request message, in either form."""
+    stream = io.BytesIO(message)
+    forgotten, count = pickle.Unpickler(stream).load()
+    if count < 0:  # one plain pickle of (first number, new parts, request)
+        count = len(pickle.Unpickler(stream).load()[1])
+    return forgotten, count
 
 
 def new_parts_of(renderer, scene) -> list[object]:
@@ -367,6 +380,61 @@ def test_final_renders_split_and_leave_no_scene_in_either_process(monkeypatch):
         helper.conn.send_bytes(helper.parts.dumps(("view", draw.camera, 1, 64, 4096, False), None))
         assert helper.conn.poll(WAIT)
         assert bandprocs._receive(helper.conn) == ("failed", "RuntimeError: a view request before any scene")
+    finally:
+        renderer.close()
+
+
+def test_waiting_after_a_drop_gives_the_freed_heap_back_only_when_idle(monkeypatch):
+    """_await_request: a request that arrives within the idle time finds the freed heap kept;
+    once that time passes without one, the heap goes back to the system, once; without a drop
+    before the wait (no idle time given), never."""
+    trims = []
+    monkeypatch.setattr(bandprocs.allocator, "give_back_freed_memory", lambda: trims.append(1) or True)
+    ours, theirs = Pipe()
+    try:
+        theirs.send_bytes(b"waiting")
+        bandprocs._await_request(ours, 30.0)  # a request already there: at once, nothing given back
+        assert trims == [] and ours.recv_bytes() == b"waiting"
+        threading.Timer(0.3, theirs.send_bytes, (b"late",)).start()
+        bandprocs._await_request(ours, 0.05)
+        assert trims == [1] and ours.recv_bytes() == b"late"
+        threading.Timer(0.2, theirs.send_bytes, (b"no drop before",)).start()
+        bandprocs._await_request(ours, None)
+        assert trims == [1] and ours.recv_bytes() == b"no drop before"
+    finally:
+        ours.close()
+        theirs.close()
+
+
+def _helper_stat(pid: int) -> tuple[int, float]:
+    """(minor page faults so far, resident MiB) of process ``pid``, from /proc."""
+    faults = int(open(f"/proc/{pid}/stat").read().rsplit(")", 1)[1].split()[7])
+    rss = next(int(line.split()[1]) for line in open(f"/proc/{pid}/status") if line.startswith("VmRSS:"))
+    return faults, rss / 1024
+
+
+@pytest.mark.skipif(not os.path.exists("/proc/self/stat"), reason="reads the helper's page faults from /proc")
+def test_final_frames_in_a_row_reuse_the_helpers_heap_and_an_idle_helper_gives_it_back():
+    """After a final frame the helper drops its scene but keeps the heap it freed while the next
+    frame follows within IDLE_TRIM_S: that frame's arrays reuse its pages (few page faults, where
+    the first frame faulted its heap in: each fault a zeroed page). Idle past that time, the heap
+    goes back to the system: the helper's resident memory falls."""
+    renderer = BandRenderer(min_pixels=0, keep_scene=False)
+    try:
+        assert renderer.wait_ready(WAIT)
+        draw = scene_at(9, 960, 540)
+        pid = renderer.helper_pid
+        faults = []
+        for _ in range(3):
+            before = _helper_stat(pid)[0]
+            assert_same_frame(renderer(draw), render_scene(draw))
+            faults.append(_helper_stat(pid)[0] - before)
+        assert faults[0] > 1000 and min(faults[1:]) * 4 < faults[0], faults
+        held = _helper_stat(pid)[1]
+        deadline = time.monotonic() + bandprocs.IDLE_TRIM_S + 10.0
+        while _helper_stat(pid)[1] > held - 5.0 and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert _helper_stat(pid)[1] <= held - 5.0, (held, _helper_stat(pid)[1])
     finally:
         renderer.close()
 
