@@ -88,8 +88,8 @@ _EDGES = np.arange(ENCODE_BUCKETS + 1, dtype=np.float64) / ENCODE_BUCKETS
 #: thresholds at or below it), and the next threshold (infinite after the last).
 _BUCKET_CODE = np.searchsorted(ENCODE_THRESHOLDS, _EDGES, side="right").astype(np.uint8)
 _BUCKET_NEXT = np.append(ENCODE_THRESHOLDS, np.inf)[_BUCKET_CODE.astype(np.int64)]
-assert np.all(np.searchsorted(ENCODE_THRESHOLDS, _EDGES[1:], side="left")
-              - _BUCKET_CODE[:-1].astype(np.int64) <= 1), "a bucket holds two thresholds"
+assert (np.searchsorted(ENCODE_THRESHOLDS, _EDGES[1:], side="left")
+              - _BUCKET_CODE[:-1].astype(np.int64) <= 1).all(), "a bucket holds two thresholds"
 
 
 def quantize_encoded(linear: np.ndarray) -> np.ndarray:
@@ -100,8 +100,8 @@ def quantize_encoded(linear: np.ndarray) -> np.ndarray:
     v = np.asarray(linear, dtype=np.float64)
     v = np.fmax(np.fmin(v, 1.0), 0.0)  # fmin takes 1.0 over a NaN
     bucket = np.multiply(v, float(ENCODE_BUCKETS)).astype(np.intp)  # v >= 0: truncation is the floor
-    code = np.take(_BUCKET_CODE, bucket)
-    code += np.greater_equal(v, np.take(_BUCKET_NEXT, bucket))
+    code = _BUCKET_CODE.take(bucket)
+    code += np.greater_equal(v, _BUCKET_NEXT.take(bucket))
     return code
 
 

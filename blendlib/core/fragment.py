@@ -96,7 +96,7 @@ def alpha_test(rgba: np.ndarray | None, ids: np.ndarray | None, palette: np.ndar
     if ids is None:
         alpha = rgba[:, 3]
     elif rgba is None:
-        alpha = np.take(palette[:, 3], ids)
+        alpha = palette[:, 3].take(ids)
     else:
         alpha = np.where(ids >= 0, palette[np.maximum(ids, 0), 3], rgba[:, 3])
     return alpha_passes(alpha, cutoff, comp)
@@ -148,8 +148,8 @@ def _segment_sums(values: np.ndarray, counts: np.ndarray) -> np.ndarray:
     """(K,) int64: the sums of ``values`` (N,) over consecutive segments of ``counts`` (K,) int64
     (sum N; zero-length segments sum to 0)."""
     running = np.zeros(values.size + 1, dtype=np.int64)
-    np.cumsum(values, out=running[1:])
-    return np.diff(np.take(running, np.cumsum(counts)), prepend=0)
+    values.cumsum(out=running[1:])
+    return np.diff(running.take(counts.cumsum()), prepend=0)
 
 
 def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedFragments | None:
@@ -171,7 +171,7 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
     row_src = setup.src[rows.tri[start:stop]]
     first = np.ones(row_src.size, dtype=bool)
     first[1:] = row_src[1:] != row_src[:-1]
-    run_of_row = np.cumsum(first) - 1
+    run_of_row = first.cumsum() - 1
     tris = row_src[first]  # (K,) the source triangles of this chunk
     uvs = setup.uvs_of(tris) if texels is not None and setup.object_uvs is not None else None
     normals = setup.world_normals_of(tris) if setup.object_normals is not None else None
@@ -184,7 +184,7 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
     for corners_flat in (uv_flat, normal_flat, color_flat, position_flat):
         if corners_flat is not None:
             flat &= corners_flat
-    any_varying = not bool(np.all(flat))
+    any_varying = not bool(flat.all())
     of_row = None  # (P,) int64: each row's row in the chunk, when rows were cut (below)
     if state.dark_skip and not state.observed and positions is not None and n >= ROW_REACH_MIN_RUN * length.size:
         # The parts of rows out of the ForwardAdd light's reach are cut off before they are
@@ -197,10 +197,10 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
             if reached.size == 0:
                 return None
             rows = rows.take_rows(reached + start)
-            rows.x0 = np.take(x0, reached)
-            rows.length = np.take(x1, reached) - rows.x0
+            rows.x0 = x0.take(reached)
+            rows.length = x1.take(reached) - rows.x0
             of_row = reached
-            start, stop, run_of_row = 0, rows.count, np.take(run_of_row, of_row)
+            start, stop, run_of_row = 0, rows.count, run_of_row.take(of_row)
             length = rows.length
             n = int(length.sum())
     want_depth = state.depth_needed(rows, start, stop)
@@ -236,7 +236,7 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
         for constant in (normal_flat, color_flat):
             if constant is not None:
                 candidates = candidates & constant
-        if np.any(candidates):
+        if candidates.any():
             groups = _texel_groups(state, candidates, normals, colors, counts)
             tabled = candidates
     rgba = np.empty((n, 4), dtype=np.float64)
@@ -245,7 +245,7 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
     tabled_count = 0  # fragments with an id
     row_flat = flat[run_of_row]
     dropped = None  # (N,) bool: fragments dropped before merging (out of a light's reach, alpha first)
-    constant = None if not any_varying else np.repeat(row_flat, length)
+    constant = None if not any_varying else row_flat.repeat(length)
 
     def sample_at(uv: np.ndarray, lod: np.ndarray | None, channels: tuple[int, ...]) -> np.ndarray:
         """The texture's ``channels`` (M, C) at mesh coordinates ``uv`` (M, 2), through the mip
@@ -269,7 +269,7 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
     def first_corner(corners: np.ndarray | None, index: np.ndarray) -> np.ndarray | None:
         return None if corners is None else corners[index, 0]
 
-    if np.any(flat):
+    if flat.any():
         # Constant inputs: a flat-UV triangle samples at level 0 with or without mipmaps (§7).
         const_tris = np.nonzero(flat)[0]
         const_colors = shade_at(first_corner(uvs, const_tris), first_corner(normals, const_tris),
@@ -280,11 +280,11 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
         palettes.append(const_colors)
         slot = np.full(tris.size, -1, dtype=np.int32)
         slot[const_tris] = inverse.reshape(-1)
-        ids = np.repeat(slot[run_of_row], length)
+        ids = slot[run_of_row].repeat(length)
         tabled_count = n if not any_varying else int(counts[flat].sum())
     if any_varying:
         # Varying fragments are exactly those of the non-flat triangles: whole runs.
-        every = not np.any(flat)  # e.g. a smooth mesh: no masked copies needed
+        every = not flat.any()  # e.g. a smooth mesh: no masked copies needed
         keep = slice(None) if every else ~flat
         at = slice(None) if every else np.flatnonzero(~constant)  # their places in the chunk
         # Columns by np.take: fancy indexing along the second axis costs several times more.
@@ -295,13 +295,13 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
         if groups is not None:
             palette_normals, palette_colors, group = groups
             first_texel, of_texel = texels.distinct()
-            by_texel = np.repeat(tabled[keep], counts[keep])
+            by_texel = tabled[keep].repeat(counts[keep])
             every_texel = bool(by_texel.all())
             u, v = (uv[0], uv[1]) if every_texel else (uv[0][by_texel], uv[1][by_texel])
             u, v = shade.texture_uv_of(material, u, v)
-            texel = np.take(of_texel, shade.point_texel_index_of(texels, u, v, material.main_tex_wrap))
+            texel = of_texel.take(shade.point_texel_index_of(texels, u, v, material.main_tex_wrap))
             base = (sum(part.shape[0] for part in palettes) + group * first_texel.size).astype(np.int32)  # (K,)
-            texel += np.repeat(base[tabled], counts[tabled])
+            texel += base[tabled].repeat(counts[tabled])
             tabled_count += int(counts[tabled].sum())
             places = np.arange(n)[at]  # of the non-flat fragments, in the chunk
             if ids is None and every and every_texel:
@@ -393,10 +393,10 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
                 rgba = None  # every colour comes from the palette
         else:
             if tabled_count == n:
-                rgba = np.take(palette, ids, axis=0)
+                rgba = palette.take(ids, axis=0)
             else:
                 tabled_at = ids >= 0
-                rgba[tabled_at] = np.take(palette, ids[tabled_at], axis=0)
+                rgba[tabled_at] = palette.take(ids[tabled_at], axis=0)
             ids = palette = None
     alive = alpha_test(rgba, ids, palette, material.cutoff, p.alpha_test_comp) if p.alpha_test else None
     if dropped is not None:
@@ -405,8 +405,8 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
     if state.observed:  # source triangles only when an observer reads them (and only those it reads)
         def triangle_fn(index: np.ndarray | None) -> np.ndarray:
             if index is None:
-                return np.repeat(row_src, length)
-            return np.take(row_src, np.searchsorted(np.cumsum(length), index, side="right"))
+                return row_src.repeat(length)
+            return row_src.take(np.searchsorted(length.cumsum(), index, side="right"))
     disjoint = raster.rows_disjoint(rows, start, stop, state.width)
     depth_fn = None
     if depth is None and state.observed:
@@ -415,13 +415,13 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
                 with_bary = frags if frags.bary is not None else raster.rasterize_rows(rows, start, stop, state.width)
                 return raster.interpolate(setup, with_bary, p.offset_factor, p.offset_units, weights=False)[0]
             # Rasterise only the rows holding fragments ``index``, then pick them out.
-            ends = np.cumsum(length)
+            ends = length.cumsum()
             row = np.searchsorted(ends, index, side="right")
             used, which = np.unique(row, return_inverse=True)
             sub = rows.take_rows(start + used)
             codes = raster.interpolate(setup, raster.rasterize_rows(sub, 0, sub.count, state.width),
                                        p.offset_factor, p.offset_units, weights=False)[0]
-            sub_first = np.cumsum(sub.length) - sub.length
+            sub_first = sub.length.cumsum() - sub.length
             return codes[sub_first[which.reshape(-1)] + (index - (ends - length)[row])]
     if of_row is not None:  # the counts of the chunk's rows, of which these are the parts kept
         length = np.bincount(of_row, weights=length, minlength=chunk_rows).astype(np.int64)
@@ -466,12 +466,12 @@ def _reached_spans(setup, rows, start: int, stop: int, state: DrawState, positio
     count = stop - start
     ends = raster.row_end_fragments(rows, start, stop, state.width)
     weights = raster.interpolate(setup, ends, weights=True, depth=False)[1]  # (3, 2R): first pixels, then last
-    world = np.take(positions, np.concatenate([run_of_row, run_of_row]), axis=0)  # (2R, 3 corners, 3)
+    world = positions.take(np.concatenate([run_of_row, run_of_row]), axis=0)  # (2R, 3 corners, 3)
     # Interpolated as the fragments' positions are: each end a run of one fragment.
     at = raster.interpolate_runs(weights, world, np.ones(2 * count, dtype=np.int64), raster.flat_corners(world))
     scale = float(np.abs(positions).max(initial=0.0))
     t_lo, t_hi = lights.segments_reach(state.lights.add, at[:count], at[count:], scale)
-    iw = np.take(setup.iw, ends.tri, axis=0)  # (2R, 3) 1/w at the triangle's vertices
+    iw = setup.iw.take(ends.tri, axis=0)  # (2R, 3) 1/w at the triangle's vertices
     b = ends.bary
     s = b[0] * iw[:, 0]
     s += b[1] * iw[:, 1]
@@ -523,7 +523,7 @@ def _unsaturated(alpha: np.ndarray, width: int, rows) -> np.ndarray:
         pix = raster.rasterize_rows(rows, 0, rows.count, width, bary=False).pix
         return _segment_sums(alpha[pix] != 255, rows.length) > 0  # not np.take: see _dark
     running = np.zeros((y_hi - y_lo, x_hi - x_lo + 1), dtype=np.int32)
-    np.cumsum(alpha.reshape(-1, width)[y_lo:y_hi, x_lo:x_hi] != 255, axis=1, out=running[:, 1:])
+    (alpha.reshape(-1, width)[y_lo:y_hi, x_lo:x_hi] != 255).cumsum(axis=1, out=running[:, 1:])
     at = y - y_lo
     return running[at, x1 - x_lo] != running[at, x0 - x_lo]
 
@@ -549,7 +549,7 @@ def _dark(state: DrawState, position: np.ndarray, pix: np.ndarray, corners: list
 def _bounded(corners: list[np.ndarray]) -> bool:
     """Whether every value of ``corners`` (normals, colours) is finite and at most
     :data:`.lights.DARK_SKIP_PEAK` in magnitude (then so are values interpolated from them)."""
-    return all(bool(np.all(np.abs(values) <= lights.DARK_SKIP_PEAK)) for values in corners)
+    return all(bool((np.abs(values) <= lights.DARK_SKIP_PEAK).all()) for values in corners)
 
 
 def shade_colourless_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedFragments | None:
@@ -593,8 +593,8 @@ def shade_constant_chunk(setup, rows, start: int, stop: int, state: DrawState, c
     disjoint = raster.rows_disjoint(rows, start, stop, state.width)
     if palette is None:
         return ShadedFragments(frags.pix, depth, None, None, None, None, None, disjoint)
-    ids = raster.run_expander(length, n)(np.take(color_id, rows.tri[start:stop]))
+    ids = raster.run_expander(length, n)(color_id.take(rows.tri[start:stop]))
     rgba, chunk_palette = None, palette
     if not table_pays(p, state.hdr, state.color_space is ColorSpace.Linear, palette, n):
-        rgba, ids, chunk_palette = np.take(palette, ids, axis=0), None, None  # blended one by one
+        rgba, ids, chunk_palette = palette.take(ids, axis=0), None, None  # blended one by one
     return ShadedFragments(frags.pix, depth, rgba, ids, chunk_palette, None, None, disjoint)

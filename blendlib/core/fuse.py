@@ -103,7 +103,7 @@ def _concatenated(group: list[PreparedCall]) -> tuple[object, raster.Rows, np.nd
     positions = first.state.lights.positional and first.setup.object_normals is not None
     setup = vertex.concatenate_setups([pr.setup for pr in group], positions=positions)
     counts = np.array([pr.setup.count for pr in group], dtype=np.int64)
-    offsets = np.cumsum(counts) - counts
+    offsets = counts.cumsum() - counts
     rows = raster.join_rows([pr.rows for pr in group], offsets)
     selected = np.concatenate([pr.selected + o for pr, o in zip(group, offsets, strict=True)])
     return setup, rows, selected, offsets
@@ -118,7 +118,7 @@ def _fused(group: list[tuple[PreparedCall, np.ndarray]]) -> PreparedCall:
     for _, color in group:
         entries.setdefault(color.tobytes(), len(entries))
     palette = np.array([np.frombuffer(b, dtype=np.float64) for b in entries], dtype=np.float64)
-    color_id = np.repeat(np.array([entries[c.tobytes()] for _, c in group], dtype=np.int32), counts)
+    color_id = np.array([entries[c.tobytes()] for _, c in group], dtype=np.int32).repeat(counts)
     first = group[0][0]
     zbounds = [pr.state.zbound for pr, _ in group]
     zbound = None if any(z is None for z in zbounds) else np.concatenate(zbounds)

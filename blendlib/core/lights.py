@@ -155,7 +155,7 @@ def light_terms(light: AddLight, px: np.ndarray, py: np.ndarray,
     with np.errstate(divide="ignore", invalid="ignore"):
         unit = [np.divide(np.negative(v), length) for v in (dx, dy, dz)]
     at_lamp = length == 0.0
-    if np.any(at_lamp):
+    if at_lamp.any():
         for v in unit:
             v[at_lamp] = 0.0
     atten = falloff(np.divide(d2, light.range2))

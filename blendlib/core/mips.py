@@ -175,7 +175,7 @@ def _texture_uvs_at(setup: TriangleSetup, tri: np.ndarray, corners: np.ndarray, 
     clipped = None
     if setup.weights is not None:
         clipped = setup.clipped[tri]
-        clipped = clipped if np.any(clipped) else None
+        clipped = clipped if clipped.any() else None
         wts = None if clipped is None else setup.weights[tri[clipped]]  # (M, 3 vertices, 3 source corners)
     out = []
     for step_x, step_y in steps:
@@ -221,7 +221,7 @@ def quad_lod(setup: TriangleSetup, tri: np.ndarray, pix: np.ndarray, width: int,
         same &= y0[1:] == y0[:-1]
         first[1:] = ~same
     if not first.all():
-        runs = np.cumsum(first) - 1
+        runs = first.cumsum() - 1
         at = np.flatnonzero(first)
         return _quad_lods(setup, tri[at], x0[at], y0[at], width, material, size)[runs]
     return _quad_lods(setup, tri, x0, y0, width, material, size)
@@ -249,7 +249,7 @@ def _quad_lods(setup: TriangleSetup, tri: np.ndarray, x0: np.ndarray, y0: np.nda
     holder_of[quad] = own
     holder = holder_of[quad]
     shared = holder != own
-    shared &= np.take(tri, holder) == tri
+    shared &= tri.take(holder) == tri
     if not shared.any():
         return _quad_lod_at(setup, tri, x0, y0, material, size)
     mine = np.flatnonzero(~shared)

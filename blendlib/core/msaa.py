@@ -58,7 +58,7 @@ def _row_edges(setup: TriangleSetup, rows, start: int, stop: int) -> tuple:
     each (R,) int64."""
     tri = rows.tri[start:stop]
     swap = rows.swap[start:stop]
-    X = np.take(setup.X, tri, axis=0)
+    X = setup.X.take(tri, axis=0)
     ax = X[:, 0]
     bx = np.where(swap, X[:, 2], X[:, 1])
     cx = np.where(swap, X[:, 1], X[:, 2])
@@ -73,15 +73,15 @@ def _fragment_rows(rows, start: int, stop: int, index: np.ndarray | None):
     """The candidates of rows ``[start, stop)`` (all, or those at positions ``index``): their x
     (K,) int64 and a function expanding per-row values (R, ...) of the slice to them."""
     length = rows.length[start:stop]
-    first = np.cumsum(length) - length
+    first = length.cumsum() - length
     if index is None:
         n = int(length.sum())
         expand = raster.run_expander(length, n)
         x = np.arange(n, dtype=np.int64)
         x += expand(rows.x0[start:stop] - first)
         return x, expand
-    row = np.searchsorted(np.cumsum(length), index, side="right")
-    return np.take(rows.x0[start:stop] - first, row) + index, lambda values: np.take(values, row, axis=0)
+    row = np.searchsorted(length.cumsum(), index, side="right")
+    return (rows.x0[start:stop] - first).take(row) + index, lambda values: values.take(row, axis=0)
 
 
 def _masks(x: np.ndarray, x0: np.ndarray, x1: np.ndarray, samples: int) -> np.ndarray:
@@ -109,8 +109,8 @@ def coverage(rows, start: int, stop: int, samples: int, index: np.ndarray | None
     mask = np.full(x.size, (1 << samples) - 1, dtype=np.uint8)
     edge = np.flatnonzero(inner)
     if edge.size:
-        row = np.searchsorted(np.cumsum(rows.length[sl]), edge, side="right")
-        mask[edge] = _masks(np.take(x, edge), np.take(x0, row, axis=0), np.take(x1, row, axis=0), samples)
+        row = np.searchsorted(rows.length[sl].cumsum(), edge, side="right")
+        mask[edge] = _masks(x.take(edge), x0.take(row, axis=0), x1.take(row, axis=0), samples)
     return mask
 
 
@@ -134,14 +134,14 @@ def sample_depth(setup: TriangleSetup, rows, start: int, stop: int, samples: int
     tri = expand(rows.tri[sl])
     swap = expand(rows.swap[sl])[:, None]
     zw = setup.zw
-    z0, z1, z2 = (np.take(zw[:, k], tri)[:, None] for k in range(3))
+    z0, z1, z2 = (zw[:, k].take(tri)[:, None] for k in range(3))
     # Barycentrics in the triangle's own vertex order (a clockwise triangle was covered as
     # (v0, v2, v1)), as raster.rasterize_rows maps them.
     z = (ea / farea) * z0
     z += (np.where(swap, ec, eb) / farea) * z1
     z += (np.where(swap, eb, ec) / farea) * z2
     if offset_factor != 0.0 or offset_units != 0.0:
-        z += (float(offset_factor) * np.take(setup.slope(), tri) + float(offset_units) * 2.0**-24)[:, None]
+        z += (float(offset_factor) * setup.slope().take(tri) + float(offset_units) * 2.0**-24)[:, None]
     np.maximum(z, 0.0, out=z)
     np.minimum(z, 1.0, out=z)
     z *= DEPTH_MAX
@@ -214,15 +214,15 @@ def merge_samples(buf: FrameBuffers, p: Pass, frags, tables=None, outcome: np.nd
         """Fragments ``frag`` (None: all) to their samples ``sample`` (an int: one plane, or (K,)
         each its own): one layer of distinct samples (``every_sample``: the outcome of each is
         that of all its samples)."""
-        target = pix if frag is None else np.take(pix, frag)
+        target = pix if frag is None else pix.take(frag)
         target = target + sample * plane
         codes = None if outcome is None else np.empty(target.size, dtype=np.int8)
         if frag is None:
             apply_layer(buf, p, target, None if depth is None else depth[:, sample], rgba, ids, lut, codes)
         else:
             apply_layer(buf, p, target, None if depth is None else depth[frag, sample],
-                        None if rgba is None else np.take(rgba, frag, axis=0),
-                        None if ids is None else np.take(ids, frag), lut, codes)
+                        None if rgba is None else rgba.take(frag, axis=0),
+                        None if ids is None else ids.take(frag), lut, codes)
         if outcome is not None:
             at = slice(None) if frag is None else frag
             if every_sample:
@@ -234,14 +234,14 @@ def merge_samples(buf: FrameBuffers, p: Pass, frags, tables=None, outcome: np.nd
         """Fragments ``idx`` (None: all; distinct pixels), each to its covered samples, all in one
         layer: their uniform pixels are spread first; those covering every sample may leave their
         pixel uniform again."""
-        ipix = pix if idx is None else np.take(pix, idx)
-        imask = mask if idx is None else np.take(mask, idx)
+        ipix = pix if idx is None else pix.take(idx)
+        imask = mask if idx is None else mask.take(idx)
         spread = buf.uniform[ipix] & (imask != 0)
         if spread.any():
             buf.spread(ipix[spread])
         which, sample = np.nonzero(mask_bits(imask, n))  # fragment by fragment, samples ascending
         if which.size:
-            apply(which if idx is None else np.take(idx, which), sample)
+            apply(which if idx is None else idx.take(which), sample)
         covers = imask == full
         if covers.any():
             buf.rejoin(ipix[covers])
@@ -250,7 +250,7 @@ def merge_samples(buf: FrameBuffers, p: Pass, frags, tables=None, outcome: np.nd
         """Fragments ``idx`` (distinct uniform pixels, some samples covered, a pass whose samples
         all pass alike): every covered sample gets the same result, so each is blended once, at
         its lowest covered sample, and the result copied to its other covered samples."""
-        ipix, imask = np.take(pix, idx), np.take(mask, idx)
+        ipix, imask = pix.take(idx), mask.take(idx)
         buf.spread(ipix)
         lowest = _LOWEST_BIT[imask]
         apply(idx, lowest)
@@ -276,8 +276,8 @@ def merge_samples(buf: FrameBuffers, p: Pass, frags, tables=None, outcome: np.nd
         if not alike:
             per_sample(sel)
             continue
-        lpix = pix if sel is None else np.take(pix, sel)
-        lmask = mask if sel is None else np.take(mask, sel)
+        lpix = pix if sel is None else pix.take(sel)
+        lmask = mask if sel is None else mask.take(sel)
         uniform = buf.uniform[lpix]
         once = (lmask == full) & uniform
         if once.all():

@@ -99,7 +99,7 @@ def _normalised(*v: np.ndarray) -> list[np.ndarray]:
     zero = length == 0.0
     with np.errstate(divide="ignore", invalid="ignore"):
         out = [np.divide(c, length) for c in v]
-    if np.any(zero):
+    if zero.any():
         for c in out:
             c[zero] = 0.0
     return out
@@ -191,7 +191,7 @@ def outline_clip(mesh: Mesh, matrix_world: np.ndarray, camera: Camera, p: Pass,
     dx *= facing
     dy *= facing
     none = length == 0.0
-    if np.any(none):
+    if none.any():
         dx[none] = 0.0
         dy[none] = 0.0
     clip[0] += dx

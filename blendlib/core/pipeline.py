@@ -467,7 +467,7 @@ def _draw_members(frame: FrameContext, prepared: PreparedCall, rows: raster.Rows
     for a, b, shaded, _seen in _shaded_chunks(frame, prepared, rows, state):
         member = np.searchsorted(firsts, rows.tri[a:b], side="right") - 1  # (R,) nondecreasing
         bounds = [0, *(np.flatnonzero(member[1:] != member[:-1]) + 1).tolist(), b - a]
-        ends = np.cumsum(rows.length[a:b] if shaded.row_counts is None else shaded.row_counts).tolist()
+        ends = (rows.length[a:b] if shaded.row_counts is None else shaded.row_counts).cumsum().tolist()
         for lo, hi in zip(bounds[:-1], bounds[1:], strict=False):
             f0, f1 = (ends[lo - 1] if lo else 0), ends[hi - 1]
             if f1 > f0:

@@ -73,7 +73,7 @@ class Rows:
 
     def take_rows(self, index: np.ndarray) -> Rows:
         """The rows at positions ``index`` (int), in that order."""
-        return self.each_field(lambda _, v: np.take(v, index, axis=0))
+        return self.each_field(lambda _, v: v.take(index, axis=0))
 
     def split_bands(self, bands: int, height: int) -> list[Rows]:
         """Split into up to ``bands`` horizontal screen bands of about equal fragment counts.
@@ -114,7 +114,7 @@ def band_cuts(parts: list[Rows], bands: int, height: int) -> np.ndarray | None:
     total = per_y.sum()
     if total == 0:
         return None
-    return np.searchsorted(np.cumsum(per_y), total * np.arange(1, bands) / bands, side="right")
+    return np.searchsorted(per_y.cumsum(), total * np.arange(1, bands) / bands, side="right")
 
 
 def coverage_rows(
@@ -170,8 +170,8 @@ def coverage_rows_many(passes: list[tuple[TriangleSetup, np.ndarray]], width: in
     if len(passes) == 1:
         return [_coverage_rows(passes[0][0], passes[0][1], width, height, band, samples)]
     counts = np.array([sel.size for _, sel in passes], dtype=np.int64)
-    offsets = np.concatenate([[0], np.cumsum(counts)])
-    gathered = [np.concatenate([np.take(getattr(setup, name), sel, axis=0) for setup, sel in passes])
+    offsets = np.concatenate([[0], counts.cumsum()])
+    gathered = [np.concatenate([getattr(setup, name).take(sel, axis=0) for setup, sel in passes])
                 for name in ("X", "Y", "area2")]
     # Rows come out labelled with their position in the concatenation: ascending, so each
     # pass's rows are one contiguous range; the labels then become the pass's own triangles.
@@ -183,7 +183,7 @@ def coverage_rows_many(passes: list[tuple[TriangleSetup, np.ndarray]], width: in
     for k in range(len(passes)):
         a, b = int(cuts[k]), int(cuts[k + 1])
         part = rows.each_field(lambda _, v, a=a, b=b: v[a:b])
-        part.tri = np.take(local, part.tri)
+        part.tri = local.take(part.tri)
         out.append(part)
     return out
 
@@ -191,8 +191,8 @@ def coverage_rows_many(passes: list[tuple[TriangleSetup, np.ndarray]], width: in
 def _coverage_rows(setup: TriangleSetup, selected: np.ndarray, width: int, height: int,
                    band: tuple[int, int] | None = None, samples: np.ndarray | None = None) -> Rows:
     """:func:`coverage_rows` for one contiguous part."""
-    return _spans(np.take(setup.X, selected, axis=0), np.take(setup.Y, selected, axis=0),
-                  np.take(setup.area2, selected), selected, width, height, band, samples)
+    return _spans(setup.X.take(selected, axis=0), setup.Y.take(selected, axis=0),
+                  setup.area2.take(selected), selected, width, height, band, samples)
 
 
 def _spans(X: np.ndarray, Y: np.ndarray, area2: np.ndarray, selected: np.ndarray, width: int,
@@ -233,9 +233,9 @@ def _spans(X: np.ndarray, Y: np.ndarray, area2: np.ndarray, selected: np.ndarray
     y_lo = np.maximum(-((oy_hi - y_min) >> _SHIFT), row_lo)
     y_hi = np.minimum((y_max - oy_lo) >> _SHIFT, row_hi - 1)
     has = (x_lo <= x_hi) & (y_lo <= y_hi)
-    if not np.all(has):
+    if not has.all():
         index = np.flatnonzero(has)
-        X, Y = np.take(X, index, axis=0), np.take(Y, index, axis=0)
+        X, Y = X.take(index, axis=0), Y.take(index, axis=0)
         selected, area2, x_lo, x_hi, y_lo, y_hi, x_min, x_max, y_min, y_max = (
             gather(v, index) for v in (selected, area2, x_lo, x_hi, y_lo, y_hi, x_min, x_max, y_min, y_max))
     swap = area2 < 0
@@ -247,10 +247,10 @@ def _spans(X: np.ndarray, Y: np.ndarray, area2: np.ndarray, selected: np.ndarray
     cy = np.where(swap, Y[:, 1], Y[:, 2])
     nrows = y_hi - y_lo + 1
     total = int(nrows.sum())
-    starts = np.cumsum(nrows) - nrows
+    starts = nrows.cumsum() - nrows
     # Per-triangle values are expanded to rows through one row -> triangle index and gathers
     # (np.repeat copies run by run: slow with counts of one or two, the common case).
-    of_row = np.repeat(np.arange(nrows.size, dtype=np.int64), nrows)
+    of_row = np.arange(nrows.size, dtype=np.int64).repeat(nrows)
 
     def each(per_triangle: np.ndarray) -> np.ndarray:
         return gather(per_triangle, of_row)
@@ -294,7 +294,7 @@ def _spans(X: np.ndarray, Y: np.ndarray, area2: np.ndarray, selected: np.ndarray
         np.minimum(x1, q, out=x1, where=dy > 0)
         np.negative(q, out=q)
         np.maximum(x0, q, out=x0, where=dy < 0)
-        if not np.all(dy_t):  # horizontal edges: the row is empty when the pixel centre row fails them
+        if not dy_t.all():  # horizontal edges: the row is empty when the pixel centre row fails them
             empty = np.flatnonzero((dy == 0) & (num < 0))
             x1[empty] = x0[empty] - 1
         dy_rows.append(dy)
@@ -343,7 +343,7 @@ def _sample_spans(ax, ay, bx, by, cx, cy, x_lo: np.ndarray, x_hi: np.ndarray, y:
         if edge < 2:
             c_rows.append(c)
             dy_rows.append(dy)
-        flat = None if np.all(dy_t) else dy == 0
+        flat = None if dy_t.all() else dy == 0
         den = each(SUBPIXEL * np.maximum(np.abs(dy_t), 1))
         edges.append((dy > 0, dy < 0, flat, each(dx_t).astype(work), dy.astype(work),
                       (c - each(bias_t + HALF * dy_t)).astype(work), den.astype(work)))
@@ -378,10 +378,10 @@ def _sample_spans(ax, ay, bx, by, cx, cy, x_lo: np.ndarray, x_hi: np.ndarray, y:
         y, lo, hi, of_row = (gather(v, keep) for v in (y, lo, hi, of_row))
         c_rows = [gather(v, keep) for v in c_rows]
         dy_rows = [gather(v, keep) for v in dy_rows]
-        spans = np.take(spans, keep, axis=1)
+        spans = spans.take(keep, axis=1)
 
     def per_row(per_triangle: np.ndarray) -> np.ndarray:
-        return np.take(each(per_triangle), of_row)
+        return each(per_triangle).take(of_row)
 
     return Rows(tri=per_row(selected), y=y, x0=lo, length=hi - lo + 1, c0=c_rows[0], c1=c_rows[1],
                 dy0=dy_rows[0], dy1=dy_rows[1], swap=per_row(swap), area=per_row(np.abs(area2)),
@@ -392,7 +392,7 @@ def row_chunks(rows: Rows, max_candidates: int) -> list[tuple[int, int]]:
     """Split rows into consecutive ranges of at most ``max_candidates`` candidates (at least one row)."""
     if rows.count == 0:
         return []
-    ends = np.cumsum(rows.length)
+    ends = rows.length.cumsum()
     total = int(ends[-1])
     if total == 0:
         return []
@@ -433,7 +433,7 @@ class Fragments:
             # Rows of a few pixels: one gather is cheaper. Indexing, not np.take, which would
             # first copy a strided column (zw[:, k]) of every setup triangle to contiguous memory.
             return per_triangle[self.tri]
-        return np.repeat(per_triangle[self.row_tri], self.row_length, axis=0)
+        return per_triangle[self.row_tri].repeat(self.row_length, axis=0)
 
 
 #: Runs at least this long on average are expanded with ``np.repeat``, shorter ones by a gather
@@ -449,9 +449,9 @@ def run_expander(counts: np.ndarray, n: int) -> Callable[[np.ndarray], np.ndarra
     runs (small triangles, rows of a few pixels; :data:`REPEAT_MIN_RUN`) one element -> run index
     once and a gather per expansion."""
     if counts.size * REPEAT_MIN_RUN > n:
-        run = np.repeat(np.arange(counts.size, dtype=np.int64), counts)
+        run = np.arange(counts.size, dtype=np.int64).repeat(counts)
         return lambda values: gather(values, run, axis=0)
-    return lambda values: np.repeat(values, counts, axis=0)
+    return lambda values: values.repeat(counts, axis=0)
 
 
 def rasterize_rows(rows: Rows, start: int, stop: int, width: int, bary: bool = True) -> Fragments:
@@ -463,7 +463,7 @@ def rasterize_rows(rows: Rows, start: int, stop: int, width: int, bary: bool = T
     n = int(length.sum())
     sl = slice(start, stop)
     # A fragment's pixel is its index in the chunk plus its row's (first pixel - first index).
-    first = np.cumsum(length) - length
+    first = length.cumsum() - length
     each = run_expander(length, n)
     pix = np.arange(n, dtype=np.int64)
     pix += each(rows.y[sl] * width + rows.x0[sl] - first)
@@ -482,7 +482,7 @@ def rasterize_rows(rows: Rows, start: int, stop: int, width: int, bary: bool = T
     weights = np.empty((3, n), dtype=np.float64)
     np.divide(ea, farea, out=weights[0])
     swap = each(rows.swap[sl])
-    if np.any(swap):
+    if swap.any():
         weights[1] = np.where(swap, ec, eb) / farea
         weights[2] = np.where(swap, eb, ec) / farea
     else:
@@ -548,7 +548,7 @@ def interpolate(
     np.divide(t2, s, out=p[2])
     if setup.weights is not None:
         clipped = each(setup.clipped)
-        if np.any(clipped):
+        if clipped.any():
             w = setup.weights[t[clipped]]  # (M, 3 vertices, 3 source corners)
             pc = p[:, clipped]
             p[:, clipped] = ((pc[0][:, None] * w[:, 0] + pc[1][:, None] * w[:, 1]) + pc[2][:, None] * w[:, 2]).T
@@ -568,7 +568,7 @@ def rows_disjoint(rows: Rows, start: int, stop: int, width: int) -> bool:
     order = np.argsort(first, kind="stable")
     begin = first[order]
     end = begin + rows.length[sl][order]
-    return bool(np.all(begin[1:] >= end[:-1]))
+    return bool((begin[1:] >= end[:-1]).all())
 
 
 def flat_corners(corners: np.ndarray) -> np.ndarray:
@@ -604,7 +604,7 @@ def interpolate_runs(weights: np.ndarray, corners: np.ndarray, counts: np.ndarra
         np.multiply(weights[0], expand(corners[:, 0, c]), out=acc)
         acc += weights[1] * expand(corners[:, 1, c])
         acc += weights[2] * expand(corners[:, 2, c])
-    if np.any(flat):
-        keep = np.repeat(flat, counts)
-        out[:, keep] = np.repeat(corners[flat, 0], counts[flat], axis=0).T
+    if flat.any():
+        keep = flat.repeat(counts)
+        out[:, keep] = corners[flat, 0].repeat(counts[flat], axis=0).T
     return out if channels_first else np.ascontiguousarray(out.T)

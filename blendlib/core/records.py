@@ -125,7 +125,7 @@ class DrawState:
         bound = self.zbound[rows.tri[start:stop]]
         floor = self.zfloor[rows.y[start:stop]]
         trivial = bound < floor if p.ztest is CompareFunction.Less else bound <= floor
-        return not bool(np.all(trivial))
+        return not bool(trivial.all())
 
 
 @dataclass(eq=False)
@@ -195,10 +195,10 @@ class ShadedFragments:
         if self.ids is None:
             return self.rgba
         if self.rgba is None:
-            return np.take(self.palette, self.ids, axis=0)
+            return self.palette.take(self.ids, axis=0)
         out = self.rgba.copy()
         tabled = self.ids >= 0
-        out[tabled] = np.take(self.palette, self.ids[tabled], axis=0)
+        out[tabled] = self.palette.take(self.ids[tabled], axis=0)
         return out
 
     def span(self, lo: int, hi: int) -> ShadedFragments:
@@ -215,14 +215,14 @@ class ShadedFragments:
         index = np.flatnonzero(keep) if keep.dtype == bool else keep
 
         def take(a):
-            return None if a is None else np.take(a, index, axis=0)
+            return None if a is None else a.take(index, axis=0)
 
         def deferred(stored, fn):
             # A deferred value of the selection asks for the selected fragments only (a pixel
             # history reads a handful of each chunk).
             if stored is not None or fn is None:
                 return None
-            return lambda sub: fn(index if sub is None else np.take(index, sub))
+            return lambda sub: fn(index if sub is None else index.take(sub))
 
         depth_fn = deferred(self.stored_depth, self.depth_fn)
         triangle_fn = deferred(self.stored_triangle, self.triangle_fn)

@@ -280,7 +280,7 @@ def validate_scene(scene: DrawScene, memo: SceneMemo | None = None) -> list[str]
         )
     for name in ("view_matrix", "projection"):
         m = np.asarray(getattr(cam, name), dtype=np.float64)
-        if m.shape != (4, 4) or not np.all(np.isfinite(m)):
+        if m.shape != (4, 4) or not np.isfinite(m).all():
             raise SceneError(f"camera: {name} must be a finite 4x4 matrix")
     if not all(math.isfinite(c) for c in scene.clear_color):
         raise SceneError("scene: clear_color is not finite")
@@ -295,7 +295,7 @@ def validate_scene(scene: DrawScene, memo: SceneMemo | None = None) -> list[str]
 def _validate_light(light: ForwardLight) -> None:
     numbers = np.array([*light.position, *light.axis, *light.color, light.intensity, light.range,
                         light.spot_angle], dtype=np.float64)
-    if not np.all(np.isfinite(numbers)):
+    if not np.isfinite(numbers).all():
         raise SceneError(f"light {light.name!r}: its position, direction, colour and values must be finite")
     if light.intensity < 0 or light.range <= 0 or not 0 < light.spot_angle < 180:
         raise SceneError(f"light {light.name!r}: intensity must be 0 or more, range more than 0 and the spot "
@@ -311,10 +311,10 @@ def _validate_renderer(r: Renderer) -> list[str]:
     label = f"object {r.name!r} slot {r.slot}"
     mesh = r.mesh
     m = np.asarray(r.matrix_world, dtype=np.float64)
-    if m.shape != (4, 4) or not np.all(np.isfinite(m)):
+    if m.shape != (4, 4) or not np.isfinite(m).all():
         raise SceneError(f"{label}: matrix_world must be a finite 4x4 matrix")
     center = np.asarray(r.bounds_center, dtype=np.float64)
-    if center.shape != (3,) or not np.all(np.isfinite(center)):
+    if center.shape != (3,) or not np.isfinite(center).all():
         raise SceneError(f"{label}: bounds_center must be a finite 3-vector (it is the sort point)")
     pos, tri = np.asarray(mesh.positions), np.asarray(mesh.triangles)
     if pos.ndim != 2 or pos.shape[1] != 3:

@@ -178,7 +178,7 @@ class Texels:
             return out
         # Whole texels gathered as one uint32 each (fancy indexing of (N, 4) rows is slower),
         # then one table per channel.
-        c = np.take(self.codes.view(np.uint32).reshape(-1), index).view(np.uint8).reshape(-1, 4)
+        c = self.codes.view(np.uint32).reshape(-1).take(index).view(np.uint8).reshape(-1, 4)
         luts = (self.lut_rgb, self.lut_rgb, self.lut_rgb, self.lut_alpha)
         for row, k in enumerate(channels):
             gather(luts[k], c[:, k], out=out[row])
@@ -317,7 +317,7 @@ def sample(texels: Texels, uv: np.ndarray, filt: TextureFilter, wrap: TextureWra
         # The corners' extremes: finite only when every coordinate is (a NaN or an infinity
         # carries through the floor into min or max), which spares a finiteness pass.
         bounds = (i0.min(initial=0.0), i0.max(initial=0.0), j0.min(initial=0.0), j0.max(initial=0.0))
-        every_finite = all(math.isfinite(b) for b in bounds) or bool(np.all(np.isfinite(u) & np.isfinite(v)))
+        every_finite = all(math.isfinite(b) for b in bounds) or bool((np.isfinite(u) & np.isfinite(v)).all())
         if every_finite:
             au, av = np.subtract(fu, i0, out=fu), np.subtract(fv, j0, out=fv)
         else:
@@ -480,8 +480,8 @@ def texel_palette(
     equal bit for bit)."""
     first, _ = texels.distinct()
     tex = np.tile(texels.fetch(first), (normals.shape[0], 1))
-    color = None if colors is None else np.repeat(colors, first.size, axis=0)
-    return shade_texels(material, tex, lights, color_space, np.repeat(normals, first.size, axis=0), color,
+    color = None if colors is None else colors.repeat(first.size, axis=0)
+    return shade_texels(material, tex, lights, color_space, normals.repeat(first.size, axis=0), color,
                         outline=outline)
 
 
@@ -496,7 +496,7 @@ def _unit_normals(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarra
     np.multiply(nz, nz, out=scratch)
     length += scratch
     np.sqrt(length, out=length)
-    if np.all(length > 0):
+    if (length > 0).all():
         return tuple(np.divide(v, length) for v in (nx, ny, nz))
     safe = length > 0  # a zero normal shades as n = 0
     divisor = np.where(safe, length, 1.0)

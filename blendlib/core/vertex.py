@@ -117,28 +117,28 @@ class TriangleSetup:
         """World-space corner positions (K, 3, 3) float64 of source triangles ``src`` (K,): §1's
         ``((M[i][0]*x + M[i][1]*y) + M[i][2]*z) + M[i][3]``."""
         if self.world_corners is not None:
-            return np.take(self.world_corners, src, axis=0)
+            return self.world_corners.take(src, axis=0)
         positions, triangles, matrix = self.placement
         # np.take gathers whole rows: many times faster than fancy indexing of (K, 3[, C]) arrays.
-        corner_vertices = np.take(np.asarray(triangles), src, axis=0).reshape(-1)
-        corners = np.take(np.asarray(positions, dtype=np.float64), corner_vertices, axis=0)  # (3K, 3)
+        corner_vertices = np.asarray(triangles).take(src, axis=0).reshape(-1)
+        corners = np.asarray(positions, dtype=np.float64).take(corner_vertices, axis=0)  # (3K, 3)
         cols = np.ascontiguousarray(corners.T)
         out = _affine_rows(np.asarray(matrix, dtype=np.float64)[:3], cols[0], cols[1], cols[2], 3)
         return out.T.reshape(-1, 3, 3)
 
     def colors_of(self, src: np.ndarray) -> np.ndarray:
         """Shading-space corner vertex colours (K, 3, 4) float64 of source triangles ``src`` (K,)."""
-        return np.take(self.object_colors, src, axis=0)
+        return self.object_colors.take(src, axis=0)
 
     def world_normals_of(self, src: np.ndarray) -> np.ndarray:
         """World-space corner normals (K, 3, 3) float64 of source triangles ``src`` (K,)."""
         if self.normal_matrix is None:
-            return np.take(self.object_normals, src, axis=0)
-        return _world_normals(np.take(self.object_normals, src, axis=0), self.normal_matrix)
+            return self.object_normals.take(src, axis=0)
+        return _world_normals(self.object_normals.take(src, axis=0), self.normal_matrix)
 
     def uvs_of(self, src: np.ndarray) -> np.ndarray:
         """Corner UVs (K, 3, 2) float64 of source triangles ``src`` (K,)."""
-        return np.take(self.object_uvs, src, axis=0).astype(np.float64, copy=False)
+        return self.object_uvs.take(src, axis=0).astype(np.float64, copy=False)
 
     @property
     def count(self) -> int:
@@ -249,9 +249,9 @@ def _clip_polygons(tri: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         flags = np.empty((m, 2 * _MAX_POLY), dtype=bool)
         flags[:, 0::2] = emit_a
         flags[:, 1::2] = emit_i
-        pos = np.cumsum(flags, axis=1) - 1
+        pos = flags.cumsum(axis=1) - 1
         count = flags.sum(axis=1)
-        if np.any(count > _MAX_POLY):  # cannot happen for convex input; guard against float surprises
+        if (count > _MAX_POLY).any():  # cannot happen for convex input; guard against float surprises
             raise AssertionError("clipped polygon exceeds nine vertices")
         out = np.zeros_like(poly)
         rows, cols = np.nonzero(flags)
@@ -352,8 +352,8 @@ def setup_renderers(items: list[SetupInput], camera: Camera, pool=None, parts: i
                  else np.arange(3 * item.mesh.triangle_count, dtype=np.int64).reshape(-1, 3) for item in items]
     v_counts = np.array([v.shape[0] for v in vertices], dtype=np.int64)
     t_counts = np.array([t.shape[0] for t in triangles], dtype=np.int64)
-    v_offsets = np.concatenate([[0], np.cumsum(v_counts)])
-    t_offsets = np.concatenate([[0], np.cumsum(t_counts)])
+    v_offsets = np.concatenate([[0], v_counts.cumsum()])
+    t_offsets = np.concatenate([[0], t_counts.cumsum()])
     v_count, t_count = int(v_offsets[-1]), int(t_offsets[-1])
     programs = [(int(v_offsets[k]), int(v_offsets[k + 1]), outline_clip(item.mesh, item.matrix_world, camera,
                                                                           item.program, item.width_factors))
@@ -385,7 +385,7 @@ def setup_renderers(items: list[SetupInput], camera: Camera, pool=None, parts: i
 
     # Many renderers: each vertex's matrix entries (16, V), so that the affine rows are one set
     # of array operations for all of them (the same products and sums as _affine_rows).
-    entries = None if len(items) == 1 else np.repeat(mvps.reshape(-1, 16).T, v_counts, axis=1).reshape(4, 4, -1)
+    entries = None if len(items) == 1 else mvps.reshape(-1, 16).T.repeat(v_counts, axis=1).reshape(4, 4, -1)
 
     def vertex_part(lo: int, hi: int) -> None:
         p = pos_columns[:, lo:hi]
@@ -419,7 +419,7 @@ def setup_renderers(items: list[SetupInput], camera: Camera, pool=None, parts: i
 
     def triangle_part(lo: int, hi: int) -> None:
         a, b, c = corners[0, lo:hi], corners[1, lo:hi], corners[2, lo:hi]
-        ca, cb, cc = np.take(outcode_v, a), np.take(outcode_v, b), np.take(outcode_v, c)
+        ca, cb, cc = outcode_v.take(a), outcode_v.take(b), outcode_v.take(c)
         out_or = ca | cb | cc
         out_and = ca & cb & cc
         ok = (out_or & _NONFINITE_MASK) == 0
@@ -430,9 +430,9 @@ def setup_renderers(items: list[SetupInput], camera: Camera, pool=None, parts: i
         # Object-space degenerate triangles (zero area) are reported; they draw nothing. The
         # cross product is zero when each component is: its z component first, the other two
         # only for the triangles where that one is zero (few).
-        pa = [np.take(pos_columns[k], a) for k in range(3)]
-        e1 = [np.take(pos_columns[k], b) - pa[k] for k in range(3)]
-        e2 = [np.take(pos_columns[k], c) - pa[k] for k in range(3)]
+        pa = [pos_columns[k].take(a) for k in range(3)]
+        e1 = [pos_columns[k].take(b) - pa[k] for k in range(3)]
+        e2 = [pos_columns[k].take(c) - pa[k] for k in range(3)]
         with np.errstate(over="ignore", invalid="ignore"):
             flat = (e1[0] * e2[1] - e1[1] * e2[0]) == 0
             flat &= ok
@@ -440,13 +440,13 @@ def setup_renderers(items: list[SetupInput], camera: Camera, pool=None, parts: i
             degenerate[:] = False
             some = np.flatnonzero(flat)
             if some.size:
-                f, g = [np.take(v, some) for v in e1], [np.take(v, some) for v in e2]
+                f, g = [v.take(some) for v in e1], [v.take(some) for v in e2]
                 degenerate[some] = ((f[1] * g[2] - f[2] * g[1]) == 0) & ((f[2] * g[0] - f[0] * g[2]) == 0)
 
     run_parts(pool, parts, t_count, triangle_part, piece=PIECE)
 
     # Unclipped triangles: window coordinates per vertex, gathered per corner.
-    if np.all(keep_whole):
+    if keep_whole.all():
         whole, tw = np.arange(t_count, dtype=np.int64), tris
     else:
         whole = np.nonzero(keep_whole)[0]
@@ -475,7 +475,7 @@ def setup_renderers(items: list[SetupInput], camera: Camera, pool=None, parts: i
         fan_src, fan_verts = [], []
         for j in range(1, _MAX_POLY - 1):  # fan triangles (v0, vj, vj+1), at most seven per polygon
             has = count >= j + 2
-            if not np.any(has):
+            if not has.any():
                 break
             rows = np.nonzero(has)[0]
             fan_src.append(np.stack([rows, np.full(rows.size, j)], axis=1))
@@ -486,7 +486,7 @@ def setup_renderers(items: list[SetupInput], camera: Camera, pool=None, parts: i
             order = np.lexsort((fs[:, 1], fs[:, 0]))  # by polygon, then fan position
             fs, fv = fs[order], fv[order]
             cX, cY, czw, ciw, cok = _to_window(fv[:, :, :4], camera)
-            cgood = np.all(cok, axis=1)
+            cgood = cok.all(axis=1)
             parts_list.append(
                 (clip_idx[fs[cgood, 0]], cX[cgood], cY[cgood], czw[cgood], ciw[cgood], fv[cgood, :, 4:]))
 
@@ -531,7 +531,7 @@ def setup_renderers(items: list[SetupInput], camera: Camera, pool=None, parts: i
         skipped = [t_count - int(np.count_nonzero(finite))]
         degenerate = [int(np.count_nonzero(degenerate_t))]
     else:
-        owner = np.repeat(np.arange(len(items)), t_counts)
+        owner = np.arange(len(items)).repeat(t_counts)
         skipped = (t_counts - np.bincount(owner[finite], minlength=len(items))).tolist()
         degenerate = np.bincount(owner[degenerate_t], minlength=len(items)).tolist()
     setups = []

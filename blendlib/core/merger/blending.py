@@ -114,12 +114,12 @@ def blend_lut(buf: FrameBuffers, p: Pass, palette: np.ndarray) -> np.ndarray:
     if not p.blend:
         return buf.encode(np.minimum(np.maximum(palette, 0.0), 1.0)).reshape(k, 1, 4)
     if buf.hdr:
-        src = np.repeat(np.minimum(np.maximum(palette, 0.0), 1.0), 256, axis=0)
-        codes = np.repeat(np.tile(np.arange(256, dtype=np.uint8), k)[:, None], 4, axis=1)
+        src = np.minimum(np.maximum(palette, 0.0), 1.0).repeat(256, axis=0)
+        codes = np.tile(np.arange(256, dtype=np.uint8), k)[:, None].repeat(4, axis=1)
         return buf.encode(blend(p, src, buf.decode(codes))).reshape(k, 256, 4)
     # The per-fragment blend itself, over packed destinations whose four bytes hold d.
     stored = np.tile(np.arange(256, dtype=np.uint32) * np.uint32(0x01010101), k)
-    packed = blend_fragments(buf, p, stored, np.repeat(palette, 256, axis=0))
+    packed = blend_fragments(buf, p, stored, palette.repeat(256, axis=0))
     return packed.view(np.uint8).reshape(k, 256, 4)
 
 
@@ -158,7 +158,7 @@ class BlendTable:
     def lookup(self, stored: np.ndarray, ids: np.ndarray) -> np.ndarray:
         """New packed pixels (N,) uint32 for ``stored`` (N,) uint32 and palette ``ids`` (N,) >= 0."""
         if self.direct is not None:
-            return np.take(self.direct, ids)
+            return self.direct.take(ids)
         base = None
         if self.size > 1:
             base = ids.astype(np.intp) << (16 if self.pairs else 8)
@@ -171,7 +171,7 @@ class BlendTable:
         for table, index in zip(self.tables, parts, strict=True):
             if base is not None:
                 index += base
-            value = np.take(table, index)
+            value = table.take(index)
             if out is None:
                 out = value
             else:

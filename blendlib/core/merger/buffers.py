@@ -117,7 +117,7 @@ def _uniform_resolve_table(samples: int, linear: bool) -> np.ndarray | None:
     """(256, 4) uint8: the resolve of a pixel whose N samples all hold code q (row q, per channel),
     or None where that is q itself (the case for 2, 4 and 8 samples, Gamma and Linear: checked
     here, not assumed)."""
-    codes = np.repeat(np.arange(256, dtype=np.uint8)[:, None], 4, axis=1)
+    codes = np.arange(256, dtype=np.uint8)[:, None].repeat(4, axis=1)
     table = resolve_colors(np.ascontiguousarray(np.broadcast_to(codes, (samples, 256, 4))), samples, False, linear)
     return None if np.array_equal(table, codes) else table
 
@@ -129,7 +129,7 @@ def resolve_planes(planes: np.ndarray, uniform: np.ndarray, samples: int, hdr: b
     out = np.empty((planes.shape[1], 4), dtype=np.float32 if hdr else np.uint8)
     mixed = np.flatnonzero(~uniform)
     if mixed.size:
-        stored = np.take(planes, mixed, axis=1)
+        stored = planes.take(mixed, axis=1)
         # Samples left bit-identical by fragments that each covered only some of them resolve as
         # uniform pixels do.
         words = stored.view(np.uint32).reshape(samples, mixed.size, -1)
@@ -140,7 +140,7 @@ def resolve_planes(planes: np.ndarray, uniform: np.ndarray, samples: int, hdr: b
         out[mixed[differ]] = resolve_colors(stored[:, differ], samples, hdr, linear)
     same = np.flatnonzero(uniform)
     if same.size:
-        first = np.take(planes[0], same, axis=0)
+        first = planes[0].take(same, axis=0)
         if hdr:
             out[same] = resolve_colors(np.broadcast_to(first, (samples, *first.shape)), samples, hdr, linear)
         else:
@@ -250,7 +250,7 @@ class FrameBuffers:
         """(K, N, 4) the stored colour of every sample of ``pixels`` (K,) int64 (uniform pixels'
         from plane 0)."""
         planes = self.color.reshape(self.samples, self.plane, 4)
-        out = np.ascontiguousarray(np.take(planes, pixels, axis=1).transpose(1, 0, 2))
+        out = np.ascontiguousarray(planes.take(pixels, axis=1).transpose(1, 0, 2))
         if self.uniform is not None:
             same = self.uniform[pixels]
             out[same] = out[same, :1]

@@ -60,7 +60,7 @@ def apply_layer(
         if outcome is not None:
             outcome[~s_pass] = Outcome.STENCIL
     if passed is not None:
-        if not np.any(passed):
+        if not passed.any():
             return
         if not passed.all():
             index = np.flatnonzero(passed)
@@ -119,7 +119,7 @@ def layers_by_rank(order: np.ndarray, grouped: np.ndarray) -> list[np.ndarray]:
     index = np.arange(n, dtype=np.int64)
     rank = index - np.maximum.accumulate(np.where(starts, index, 0))
     layers = int(rank.max()) + 1
-    bounds = np.concatenate([[0], np.cumsum(np.bincount(rank, minlength=layers))])
+    bounds = np.concatenate([[0], np.bincount(rank, minlength=layers).cumsum()])
     # A stable sort by rank keeps each layer in the order of ``order``; numpy sorts 16-bit keys
     # by radix, and any key type gives the same permutation.
     by_rank = order[np.argsort(rank.astype(np.uint16) if layers <= 1 << 16 else rank, kind="stable")]
