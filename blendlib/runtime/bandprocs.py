@@ -21,7 +21,9 @@ Requests and replies are pickled messages over a :mod:`multiprocessing.connectio
 (``send_bytes`` / ``recv_bytes`` frame them; ``wait`` polls while ``should_cancel`` is
 checked). The helper's rows come back through an anonymous shared file (``memfd_create``):
 nothing named is left behind if either process dies. Its first byte is the stop flag, which
-the helper reads between chunks.
+the helper reads between chunks. A large request (a scene's meshes, :data:`SHARED_REQUEST_BYTES`)
+travels the other way through the same file, where the band's rows will go: the connection
+carries only its length, and the helper copies it out before it draws.
 
 Frames below :data:`MIN_PIXELS`, scenes over a renderer's triangle limit (final renders:
 :data:`FINAL_MAX_TRIANGLES`), renders with other options, and machines where the helper cannot
@@ -74,6 +76,14 @@ BAND_CHUNK_CANDIDATES = 1 << 15
 _HEAD = 64
 #: How often a waiting render polls ``should_cancel`` (seconds).
 _POLL_S = 0.01
+#: Requests of this many bytes or more (a scene's meshes) go through the shared file: written
+#: there in one copy, and the connection carries :data:`_SHARED_REQUEST` and their length. Sent
+#: through the connection, the sender waits until the helper has read every socket buffer-full:
+#: S1's 11.6 MB scene held up this process's band 5–80 ms a frame (docs/benchmark.md, round twelve).
+SHARED_REQUEST_BYTES = 1 << 20
+#: The first bytes of a message that says "the request is in the shared file" (a pickle starts
+#: with its protocol byte, 0x80, so no request message starts so); the length follows, 8 bytes.
+_SHARED_REQUEST = b"shared:"
 #: A helper that dropped its scene (after a final frame) gives the heap it freed back to the
 #: system once it has waited this long for the next request: frames that follow one another (an
 #: animation, repeated F12, the benchmark) reuse its pages instead of faulting fresh zeroed ones
@@ -544,14 +554,19 @@ class BandRenderer:
         None when the helper stopped (it is not used again)."""
         width, height = int(scene.camera.width), int(scene.camera.height)
         cut = min(max(int(round(fraction * height)), 1), height - 1)
-        buffer = helper.reserve(_band_bytes(height - cut, width))
-        buffer[0] = 0  # the stop flag
         forget, self._forget_tables = self._forget_tables, False
         if _same_but_camera(scene, helper.scene):
             request = ("view", scene.camera, cut, height, self.chunk_candidates, forget)
         else:
             request = ("scene", scene, cut, height, self.chunk_candidates, forget)
         message = helper.parts.dumps(request, scene if request[0] == "scene" else None)
+        shared = len(message) >= SHARED_REQUEST_BYTES
+        # A large request waits in the band's own bytes: the helper copies it out before it draws.
+        buffer = helper.reserve(max(_band_bytes(height - cut, width), _HEAD + len(message) if shared else 0))
+        buffer[0] = 0  # the stop flag
+        if shared:
+            buffer[_HEAD:_HEAD + len(message)] = message
+            message = _SHARED_REQUEST + len(message).to_bytes(8, "little")
         helper.in_flight = True
         if not self._write(helper, message):
             return None
@@ -728,7 +743,8 @@ def serve(conn_fd: int, fd: int) -> int:
     """The helper's loop: read ("scene", scene, y0, y1, chunk, forget) or ("view", camera, y0, y1,
     chunk, forget) requests (the latter: the last scene seen through ``camera``; ``forget``: clear
     the kept blend tables first) from the connection on descriptor ``conn_fd``, draw band
-    [y0, y1) into the shared file ``fd``, answer ("ok", seconds since the request arrived),
+    [y0, y1) into the shared file ``fd`` (where a large request came, :data:`_SHARED_REQUEST`),
+    answer ("ok", seconds since the request arrived),
     ("cancelled",), ("error", line) or ("failed", line). A ("drop",) request frees the scene,
     its memo and parts and is not answered; the heap they leave free goes back to the system
     when no request follows within :data:`IDLE_TRIM_S`. Returns 0 when the parent closes its end,
@@ -756,6 +772,13 @@ def serve(conn_fd: int, fd: int) -> int:
             data = conn.recv_bytes()
         except (EOFError, OSError):  # the parent closed its end, or died (connection reset)
             return 0
+        if data.startswith(_SHARED_REQUEST):  # the request waits in the shared file, after its head
+            end = _HEAD + int.from_bytes(data[len(_SHARED_REQUEST):], "little")
+            if buffer is None or len(buffer) < end:
+                if buffer is not None:
+                    buffer.close()
+                buffer = mmap.mmap(fd, os.fstat(fd).st_size)
+            data = buffer[_HEAD:end]  # a copy: the band is drawn over it
         request = parts.loads(data)
         if request[0] == "drop":  # idle until the next request: hold nothing of the last scene
             scene = content = request = data = None

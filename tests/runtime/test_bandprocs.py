@@ -161,6 +161,30 @@ def new_parts_of(renderer, scene) -> list[object]:
     return [p for p in scene_parts(dataclasses.replace(scene, renderers=(renderer,))) if id(p) not in held]
 
 
+def test_large_requests_wait_in_the_shared_file_and_the_connection_carries_their_length(bands, monkeypatch):
+    """A request of SHARED_REQUEST_BYTES or more is written into the shared file, where the band's
+    rows will go, and the connection carries only its length: the helper reads it from there
+    (growing its mapping when the request is larger than the band) before it draws over it.
+    Frames equal render_scene; below the limit requests go through the connection again."""
+    wire = []
+    real = BandRenderer._write
+    monkeypatch.setattr(BandRenderer, "_write", lambda self, helper, message: wire.append(message) or real(
+        self, helper, message))
+    monkeypatch.setattr(bandprocs, "SHARED_REQUEST_BYTES", 1)
+    tiny = scene_at(5, 16, 8)  # a band of a few hundred bytes: the scene is larger
+    moved_view = dataclasses.replace(tiny, camera=moved(tiny.camera, 0.2))
+    wide = scene_at(11, 240, 160)
+    for draw in (tiny, moved_view, wide):
+        split = bands.split_frames
+        assert_same_frame(bands(draw), render_scene(draw))
+        assert bands.split_frames == split + 1 and bands.failure is None  # drawn by the helper too
+        assert wire[-1].startswith(bandprocs._SHARED_REQUEST) and len(wire[-1]) == len(bandprocs._SHARED_REQUEST) + 8
+    assert bands._helper.size >= len(bandprocs._PartsWriter().dumps(("scene", tiny, 1, 8, 1, False), tiny))
+    monkeypatch.setattr(bandprocs, "SHARED_REQUEST_BYTES", 1 << 40)
+    assert_same_frame(bands(tiny), render_scene(tiny))
+    assert wire[-1][:1] == b"\x80"  # a pickle, through the connection
+
+
 def test_after_a_refused_scene_the_next_view_sends_the_scene_again(bands, monkeypatch):
     sent, _ = recorded_requests(monkeypatch)
     template = scene_at(3)
