@@ -170,6 +170,15 @@ class _PartsWriter:
             self._numbers = {key: hit for key, hit in numbers.items() if key in alive}
         return out.getvalue()
 
+    def restarted(self) -> _PartsWriter:
+        """A writer that counts no part as held, numbering on from this one's: for a message that
+        was made and never sent (the helper may lack parts this writer counts as held, so the next
+        request must send its scene whole; parts the helper does hold linger there until it drops
+        its scene)."""
+        fresh = _PartsWriter()
+        fresh._next = self._next
+        return fresh
+
 
 class _PartsReader:
     """The helper's side of :class:`_PartsWriter`: the parts it holds, by number."""
@@ -552,6 +561,8 @@ class BandRenderer:
     def _request(self, helper: _Helper, scene: DrawScene, fraction: float, begun: bool) -> _HelperBand | None:
         """Ask the helper for the top band of ``scene`` (the cut at ``fraction`` of the rows);
         None when the helper stopped (it is not used again)."""
+        if helper.closed or helper is not self._helper:  # it stopped (collecting an earlier band)
+            return None
         width, height = int(scene.camera.width), int(scene.camera.height)
         cut = min(max(int(round(fraction * height)), 1), height - 1)
         forget, self._forget_tables = self._forget_tables, False
@@ -560,13 +571,19 @@ class BandRenderer:
         else:
             request = ("scene", scene, cut, height, self.chunk_candidates, forget)
         message = helper.parts.dumps(request, scene if request[0] == "scene" else None)
-        shared = len(message) >= SHARED_REQUEST_BYTES
-        # A large request waits in the band's own bytes: the helper copies it out before it draws.
-        buffer = helper.reserve(max(_band_bytes(height - cut, width), _HEAD + len(message) if shared else 0))
-        buffer[0] = 0  # the stop flag
-        if shared:
-            buffer[_HEAD:_HEAD + len(message)] = message
-            message = _SHARED_REQUEST + len(message).to_bytes(8, "little")
+        try:
+            shared = len(message) >= SHARED_REQUEST_BYTES
+            # A large request waits in the band's own bytes: the helper copies it out before it draws.
+            buffer = helper.reserve(max(_band_bytes(height - cut, width), _HEAD + len(message) if shared else 0))
+            buffer[0] = 0  # the stop flag
+            if shared:
+                buffer[_HEAD:_HEAD + len(message)] = message
+                message = _SHARED_REQUEST + len(message).to_bytes(8, "little")
+        except BaseException:  # nothing sent (the shared file could not grow, an interrupt)
+            helper.parts = helper.parts.restarted()
+            helper.scene = None
+            self._forget_tables = self._forget_tables or forget
+            raise
         helper.in_flight = True
         if not self._write(helper, message):
             return None
@@ -774,9 +791,7 @@ def serve(conn_fd: int, fd: int) -> int:
             return 0
         if data.startswith(_SHARED_REQUEST):  # the request waits in the shared file, after its head
             end = _HEAD + int.from_bytes(data[len(_SHARED_REQUEST):], "little")
-            if buffer is None or len(buffer) < end:
-                if buffer is not None:
-                    buffer.close()
+            if buffer is None or len(buffer) < end:  # the old mapping closes when nothing views it
                 buffer = mmap.mmap(fd, os.fstat(fd).st_size)
             data = buffer[_HEAD:end]  # a copy: the band is drawn over it
         request = parts.loads(data)

@@ -161,28 +161,67 @@ def new_parts_of(renderer, scene) -> list[object]:
     return [p for p in scene_parts(dataclasses.replace(scene, renderers=(renderer,))) if id(p) not in held]
 
 
-def test_large_requests_wait_in_the_shared_file_and_the_connection_carries_their_length(bands, monkeypatch):
+def test_large_requests_wait_in_the_shared_file_and_the_connection_carries_their_length(monkeypatch):
     """A request of SHARED_REQUEST_BYTES or more is written into the shared file, where the band's
     rows will go, and the connection carries only its length: the helper reads it from there
-    (growing its mapping when the request is larger than the band) before it draws over it.
-    Frames equal render_scene; below the limit requests go through the connection again."""
+    (the file grown, and the helper's mapping with it, when the request is larger than the
+    band) before it draws over it. Frames equal render_scene, a final renderer's drops between
+    them; below the limit requests go through the connection again."""
     wire = []
     real = BandRenderer._write
     monkeypatch.setattr(BandRenderer, "_write", lambda self, helper, message: wire.append(message) or real(
         self, helper, message))
     monkeypatch.setattr(bandprocs, "SHARED_REQUEST_BYTES", 1)
-    tiny = scene_at(5, 16, 8)  # a band of a few hundred bytes: the scene is larger
-    moved_view = dataclasses.replace(tiny, camera=moved(tiny.camera, 0.2))
-    wide = scene_at(11, 240, 160)
-    for draw in (tiny, moved_view, wide):
-        split = bands.split_frames
-        assert_same_frame(bands(draw), render_scene(draw))
-        assert bands.split_frames == split + 1 and bands.failure is None  # drawn by the helper too
-        assert wire[-1].startswith(bandprocs._SHARED_REQUEST) and len(wire[-1]) == len(bandprocs._SHARED_REQUEST) + 8
-    assert bands._helper.size >= len(bandprocs._PartsWriter().dumps(("scene", tiny, 1, 8, 1, False), tiny))
-    monkeypatch.setattr(bandprocs, "SHARED_REQUEST_BYTES", 1 << 40)
-    assert_same_frame(bands(tiny), render_scene(tiny))
-    assert wire[-1][:1] == b"\x80"  # a pickle, through the connection
+    renderer = BandRenderer(min_pixels=0, keep_scene=False)
+    try:
+        assert renderer.wait_ready(WAIT)
+        tiny = scene_at(5, 16, 8)  # a whole frame of a few thousand bytes: the scene is larger
+        larger = scene_at(8, 16, 8)  # four renderers, three textured: a larger request again
+        for draw in (tiny, larger, scene_at(11, 240, 160)):
+            grown = renderer._helper.size
+            assert_same_frame(renderer(draw), render_scene(draw))
+            assert renderer.split_frames and renderer.failure is None  # drawn by the helper too
+            scene_request = wire[-2]  # then the drop
+            assert scene_request.startswith(bandprocs._SHARED_REQUEST)
+            assert len(scene_request) == len(bandprocs._SHARED_REQUEST) + 8
+            if draw is not tiny and draw.camera.width == 16:
+                assert renderer._helper.size > max(grown, bandprocs._band_bytes(8, 16))
+        assert renderer.split_frames == 3
+        monkeypatch.setattr(bandprocs, "SHARED_REQUEST_BYTES", 1 << 40)
+        assert_same_frame(renderer(tiny), render_scene(tiny))
+        assert renderer.split_frames == 4 and wire[-2][:1] == b"\x80"  # a pickle, through the connection
+    finally:
+        renderer.close()
+
+
+def test_a_request_that_could_not_be_sent_leaves_the_helper_whole(monkeypatch):
+    """A request made and never sent (here the shared file cannot grow) raises, and the writer
+    forgets which parts the helper holds: the next request sends the scene whole and the helper
+    draws it. Kept counting the unsent parts as held, it would send them by number and the
+    helper, lacking them, would stop."""
+    renderer = BandRenderer(min_pixels=0)
+    try:
+        assert renderer.wait_ready(WAIT)
+        first = scene_at(8)
+        assert_same_frame(renderer(first), render_scene(first))
+        r0 = first.renderers[0]
+        matrix = np.array(r0.matrix_world, dtype=np.float64)
+        matrix[0, 3] += 0.05
+        moved_scene = dataclasses.replace(first, renderers=(dataclasses.replace(r0, matrix_world=matrix),
+                                                            *first.renderers[1:]))  # one new part, the rest held
+        helper = renderer._helper
+
+        def no_room(size):
+            raise OSError("no room for the shared file")
+
+        monkeypatch.setattr(helper, "reserve", no_room)
+        with pytest.raises(OSError, match="no room"):
+            renderer(moved_scene)
+        monkeypatch.undo()
+        assert_same_frame(renderer(moved_scene), render_scene(moved_scene))
+        assert renderer.split_frames == 2 and renderer.failure is None and renderer._helper is helper
+    finally:
+        renderer.close()
 
 
 def test_after_a_refused_scene_the_next_view_sends_the_scene_again(bands, monkeypatch):
@@ -367,6 +406,29 @@ def test_a_dead_helper_leaves_frames_to_this_process():
         renderer.close()
 
 
+def test_a_helper_that_dies_while_its_begun_band_is_collected_leaves_the_frame_to_this_process(monkeypatch):
+    """A band begun for one frame, then a frame of another scene: the helper, alive when the frame
+    starts, dies while its begun band is being collected. The frame renders here: no request goes
+    to the closed helper (whose shared file is closed: writing the stop flag raised)."""
+    renderer = BandRenderer(min_pixels=0)
+    try:
+        assert renderer.wait_ready(WAIT)
+        begun, other = scene_at(12), scene_at(3)
+        assert renderer.begin(begun)
+        collect = renderer._drop_pending
+
+        def dying(helper):
+            helper.proc.kill()
+            helper.proc.wait()
+            collect(helper)
+
+        monkeypatch.setattr(renderer, "_drop_pending", dying)
+        assert_same_frame(renderer(other), render_scene(other))
+        assert renderer.failure is not None and renderer._helper is None and renderer.split_frames == 0
+    finally:
+        renderer.close()
+
+
 def test_close_ends_the_helper_and_frames_go_on_here():
     renderer = BandRenderer(min_pixels=0)
     assert renderer.wait_ready(WAIT)
@@ -419,12 +481,12 @@ def test_waiting_after_a_drop_gives_the_freed_heap_back_only_when_idle(monkeypat
         theirs.send_bytes(b"waiting")
         bandprocs._await_request(ours, 30.0)  # a request already there: at once, nothing given back
         assert trims == [] and ours.recv_bytes() == b"waiting"
-        threading.Timer(0.3, theirs.send_bytes, (b"late",)).start()
-        bandprocs._await_request(ours, 0.05)
-        assert trims == [1] and ours.recv_bytes() == b"late"
-        threading.Timer(0.2, theirs.send_bytes, (b"no drop before",)).start()
-        bandprocs._await_request(ours, None)
-        assert trims == [1] and ours.recv_bytes() == b"no drop before"
+        for message, idle, trimmed in ((b"late", 0.05, [1]), (b"no drop before", None, [1])):
+            timer = threading.Timer(0.3, theirs.send_bytes, (message,))
+            timer.start()
+            bandprocs._await_request(ours, idle)
+            timer.join()
+            assert trims == trimmed and ours.recv_bytes() == message
     finally:
         ours.close()
         theirs.close()
@@ -436,7 +498,8 @@ def _resident_mib(pid: int) -> float:
         return next(int(line.split()[1]) for line in status if line.startswith("VmRSS:")) / 1024
 
 
-@pytest.mark.skipif(not os.path.exists("/proc/self/status"), reason="reads the helper's resident memory from /proc")
+@pytest.mark.skipif(not os.path.exists("/proc/self/status") or bandprocs.allocator._glibc() is None,
+                    reason="reads the helper's resident memory from /proc; glibc's allocator gives it back")
 def test_a_final_frames_helper_keeps_its_freed_heap_while_frames_follow_then_gives_it_back():
     """After a final frame the helper drops its scene but keeps the heap it freed for
     IDLE_TRIM_S, so that a frame following soon reuses its pages (instead of faulting zeroed ones
