@@ -64,6 +64,17 @@ def moved(camera, dx: float):
     return dataclasses.replace(camera, view_matrix=view)
 
 
+def split_frames_of(renderer: BandRenderer, draw, count: int):
+    """Render ``draw`` ``count`` times through ``renderer`` (its helper started): each frame
+    equals render_scene and is drawn in two bands. Returns ``draw``."""
+    assert renderer.wait_ready(WAIT)
+    split = renderer.split_frames
+    for _ in range(count):
+        assert_same_frame(renderer(draw), render_scene(draw))
+    assert renderer.split_frames == split + count
+    return draw
+
+
 def recorded_requests(monkeypatch) -> tuple[list[str], list[int]]:
     """The kinds ("scene", "view") of the requests sent to helpers from now on, and their sizes in bytes."""
     kinds, sizes = [], []
@@ -455,11 +466,7 @@ def test_final_renders_split_and_leave_no_scene_in_either_process(monkeypatch):
     sent, _ = recorded_requests(monkeypatch)
     renderer = BandRenderer(min_pixels=0, keep_scene=False)
     try:
-        assert renderer.wait_ready(WAIT)
-        draw = scene_at(9, 96, 64)
-        for _ in range(2):
-            assert_same_frame(renderer(draw), render_scene(draw))
-        assert renderer.split_frames == 2
+        draw = split_frames_of(renderer, scene_at(9, 96, 64), 2)
         assert sent == ["scene", "drop", "scene", "drop"]
         assert renderer._memo is None and not renderer._helper.holding
         helper = renderer._helper
@@ -507,10 +514,7 @@ def test_a_final_frames_helper_keeps_its_freed_heap_while_frames_follow_then_giv
     the heap goes back to the system: it falls."""
     renderer = BandRenderer(min_pixels=0, keep_scene=False)
     try:
-        assert renderer.wait_ready(WAIT)
-        draw = scene_at(9, 960, 540)
-        for _ in range(2):
-            assert_same_frame(renderer(draw), render_scene(draw))
+        split_frames_of(renderer, scene_at(9, 960, 540), 2)
         pid = renderer.helper_pid
         held = _resident_mib(pid)
         time.sleep(0.5)
