@@ -747,6 +747,15 @@ def balanced_fraction(fraction: float, cut: int, height: int, own_s: float, help
     return min(max(0.5 * fraction + 0.5 * target / height, 0.05), 0.95)
 
 
+def _mapping(fd: int, buffer: mmap.mmap | None, size: int) -> mmap.mmap:
+    """The helper's mapping of the shared file ``fd``, at least ``size`` bytes: ``buffer`` when it
+    is that large, else the whole file mapped again (the parent grew it; the old mapping closes
+    once nothing views it)."""
+    if buffer is not None and len(buffer) >= size:
+        return buffer
+    return mmap.mmap(fd, os.fstat(fd).st_size)
+
+
 def _await_request(conn: Connection, trim_after: float | None) -> None:
     """Wait until the next request (or the end of the connection) arrives on ``conn``. With
     ``trim_after`` (seconds), the heap this process freed goes back to the system
@@ -791,8 +800,7 @@ def serve(conn_fd: int, fd: int) -> int:
             return 0
         if data.startswith(_SHARED_REQUEST):  # the request waits in the shared file, after its head
             end = _HEAD + int.from_bytes(data[len(_SHARED_REQUEST):], "little")
-            if buffer is None or len(buffer) < end:  # the old mapping closes when nothing views it
-                buffer = mmap.mmap(fd, os.fstat(fd).st_size)
+            buffer = _mapping(fd, buffer, end)
             data = buffer[_HEAD:end]  # a copy: the band is drawn over it
         request = parts.loads(data)
         if request[0] == "drop":  # idle until the next request: hold nothing of the last scene
@@ -813,11 +821,7 @@ def serve(conn_fd: int, fd: int) -> int:
             else:
                 scene = dataclasses.replace(scene, camera=content)
             width = int(scene.camera.width)
-            size = _band_bytes(y1 - y0, width)
-            if buffer is None or len(buffer) < size:
-                if buffer is not None:
-                    buffer.close()
-                buffer = mmap.mmap(fd, os.fstat(fd).st_size)
+            buffer = _mapping(fd, buffer, _band_bytes(y1 - y0, width))
             pipeline.render_scene(scene, band=(y0, y1), workers=1, chunk_candidates=chunk,
                                   should_cancel=lambda stop=buffer: stop[0] != 0,
                                   out=_band_views(buffer, y1 - y0, width), memo=memo)
