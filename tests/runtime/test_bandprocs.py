@@ -660,18 +660,29 @@ def test_the_helper_runs_in_its_own_session_and_ignores_sigint(bands):
     assert bands.split_frames == before + 1 and bands.helper_pid == pid
 
 
-def test_close_from_another_call_during_a_frame_stops_it_and_the_frame_ends_the_helper():
+def test_close_from_another_call_during_a_frame_stops_it_and_the_frame_ends_the_helper(monkeypatch):
     """close() while a frame holds the renderer (here from the frame's own should_cancel, as a
     second thread would): it returns at once, the helper's band stops, the frame fails as
-    cancelled and ends the helper."""
+    cancelled and ends the helper. The helper is paused from before its request until close()
+    has returned, so its band cannot have ended first (on a loaded machine it sometimes had)."""
+    import signal
+
     renderer = BandRenderer(min_pixels=0)
     assert renderer.wait_ready(WAIT)
     proc = renderer._helper.proc
     calls = []
+    request = renderer._request
+
+    def paused_request(helper, *args, **kwargs):
+        os.kill(helper.proc.pid, signal.SIGSTOP)
+        return request(helper, *args, **kwargs)
+
+    monkeypatch.setattr(renderer, "_request", paused_request)
 
     def closing() -> bool:
         if not calls:
             renderer.close(timeout=0.0)
+            os.kill(proc.pid, signal.SIGCONT)
         calls.append(1)
         return False
 
