@@ -245,6 +245,7 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
     tabled_count = 0  # fragments with an id
     row_flat = flat[run_of_row]
     dropped = None  # (N,) bool: fragments dropped before merging (out of a light's reach, alpha first)
+    inert = None  # (N,) bool: observed fragments whose merge changes nothing (ShadedFragments.inert)
     constant = None if not any_varying else row_flat.repeat(length)
 
     def sample_at(uv: np.ndarray, lod: np.ndarray | None, channels: tuple[int, ...]) -> np.ndarray:
@@ -368,7 +369,12 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
 
                 unlit = places[skip]
                 rgba[unlit] = 0.0
-                if state.observed:  # merged: their alpha as shading computes it (it reads no light)
+                if state.observed:  # told of: their alpha as shading computes it (it reads no light)
+                    inert = np.zeros(n, dtype=bool)
+                    # Inert where merging them changes nothing (DrawState.dark_skip); indexing, not
+                    # np.take, of the strided alpha codes (see _dark).
+                    saturated = None if state.dark_alpha is None else state.dark_alpha[frags.pix[unlit]] == 255
+                    inert[unlit if saturated is None else unlit[saturated]] = True
                     dim = np.flatnonzero(skip)
                     dim_color = None if colors is None else raster.interpolate_runs(  # observed: no alpha first
                         gather(w, dim, axis=1), colors[keep][:, :, 3:], run_counts - lit_counts, color_flat[keep])[:, 0]
@@ -426,7 +432,7 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
     if of_row is not None:  # the counts of the chunk's rows, of which these are the parts kept
         length = np.bincount(of_row, weights=length, minlength=chunk_rows).astype(np.int64)
     return ShadedFragments(frags.pix, depth, rgba, ids, palette, None, alive, disjoint, depth_fn, triangle_fn,
-                           row_counts=None if n == full else length)
+                           row_counts=None if n == full else length, inert=inert)
 
 
 #: Fragments dropped before merging (out of a ForwardAdd light's reach, discarded by the alpha
@@ -537,7 +543,7 @@ def _dark(state: DrawState, position: np.ndarray, pix: np.ndarray, corners: list
     dark = lights.dark_fragments(state.lights.add, position[:, 0], position[:, 1], position[:, 2])
     if state.observed and state.colors_read is not False:  # lit where the observer reads the colour
         dark &= ~state.colors_read[pix]
-    if state.dark_alpha is not None:
+    if state.dark_alpha is not None and not state.observed:  # observed: merged there (DrawState.dark_skip)
         # Indexing, not np.take: the alpha codes are a strided view of the colour buffer, which
         # np.take would first copy whole.
         dark &= state.dark_alpha[pix] == 255

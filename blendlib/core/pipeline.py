@@ -25,7 +25,8 @@ import numpy as np
 from . import fragment, msaa, raster, shade
 from .drawlist import DrawCall, draw_calls
 from .fuse import fuse_constant_calls, fuse_shared_shading
-from .merger import FrameBuffers, Outcome, lut_eligible, merge
+from .gather import gather
+from .merger import FrameBuffers, Outcome, compare, lut_eligible, merge
 from .prepare import FrameContext, Member, PreparedCall, prepare_batch
 from .records import DrawState, Frame, FrameObserver, RenderCancelled, ShadedFragments
 from .scene import DrawScene, SceneError, SceneMemo, validate_scene
@@ -449,7 +450,23 @@ def _draw_chunks(frame: FrameContext, prepared: PreparedCall, rows: raster.Rows,
 
 def _merge(buf: FrameBuffers, p, frags: ShadedFragments, tables, outcome: np.ndarray | None = None) -> None:
     """Merge a chunk's surviving fragments with pass ``p``: :func:`.merger.merge`, or per sample
-    with MSAA (:func:`.msaa.merge_samples`); ``outcome`` as theirs."""
+    with MSAA (:func:`.msaa.merge_samples`); ``outcome`` as theirs. Inert fragments
+    (:attr:`.records.ShadedFragments.inert`) are not merged: their outcome is the depth test's."""
+    if frags.inert is not None and frags.inert.any():
+        active = np.flatnonzero(~frags.inert)
+        if active.size:
+            codes = None if outcome is None else np.empty(active.size, dtype=np.int8)
+            _merge(buf, p, frags.select(active), tables, codes)
+            if outcome is not None:
+                outcome[active] = codes
+        if outcome is not None:
+            idle = np.flatnonzero(frags.inert)
+            if frags.stored_depth is None:  # the chunk passes the depth test (merge's depth None)
+                outcome[idle] = Outcome.WRITTEN
+            else:  # the pass writes no depth: the stored depth is as the others left it, and as before them
+                passed = compare(p.ztest, gather(frags.stored_depth, idle), buf.depth[gather(frags.pix, idle)])
+                outcome[idle] = np.where(passed, Outcome.WRITTEN, Outcome.DEPTH)
+        return
     if frags.coverage is None:
         merge(buf, p, frags.pix, frags.stored_depth, frags.rgba, frags.ids, frags.palette, outcome=outcome,
               disjoint=frags.disjoint, tables=tables)

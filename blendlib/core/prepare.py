@@ -342,10 +342,13 @@ def _draw_state(frame: FrameContext, call: DrawCall, setup, inputs: CallInputs,
     colors_read = True if frame.colors_read is None else frame.colors_read(call)
     if not isinstance(colors_read, np.ndarray):
         colors_read = bool(colors_read)  # True / False as such, whatever the observer returned
-    observed_dark, _ = lights.dark_skip_applies(p, material, inputs.lights.add, peak, frame.hdr, frame.samples,
-                                                colors_read is True)
+    observed_dark, observed_saturated = lights.dark_skip_applies(p, material, inputs.lights.add, peak, frame.hdr,
+                                                                 frame.samples, colors_read is True)
+    # Observed, the unreached fragments are all told of; where the stored alpha makes them change
+    # nothing they are inert (DrawState.dark_skip), elsewhere merged with rgb 0.
     state = replace(plain, observed=True, unobserved=plain, colors_read=colors_read, dark_skip=observed_dark,
-                    dark_alpha=None, early_depth=frame.buf.depth if fragment.early_depth_applies(
+                    dark_alpha=frame.buf.color[:, 3] if observed_dark and observed_saturated else None,
+                    early_depth=frame.buf.depth if fragment.early_depth_applies(
                         p, frame.samples, not hidden_unread) else None)
     return state, selected
 

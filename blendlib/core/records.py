@@ -81,9 +81,11 @@ class DrawState:
     #: nothing, so they are dropped unshaded (:func:`.lights.dark_skip_applies`): everywhere when
     #: ``dark_alpha`` is None, else where it — the colour buffer's (H*W,) uint8 alpha codes, read
     #: as each chunk is shaded — holds 255 (its pass adds to a saturated alpha). Observed, the
-    #: fragments are told of and merged, and those at pixels whose colours the observer does not
-    #: read (``colors_read``) are not lit: their rgb is 0 (their alpha computed as always), which
-    #: merges to the same stored values and outcomes as the exact colour (±0); ``dark_alpha`` None.
+    #: fragments are told of, and those at pixels whose colours the observer does not read
+    #: (``colors_read``) are not lit: their rgb is 0 (their alpha computed as always). Where they
+    #: change nothing (``dark_alpha`` None, or 255 there) they are marked inert
+    #: (:attr:`ShadedFragments.inert`: not merged, their outcome the depth test's); elsewhere
+    #: they are merged with rgb 0, which stores the same values as the exact colour (±0).
     dark_skip: bool = False
     dark_alpha: np.ndarray | None = None
     #: Observed: where the observer reads the rgb of the call's fragments
@@ -169,6 +171,11 @@ class ShadedFragments:
     #: (R,) int64 fragments left in each of the chunk's rows when an early depth test dropped some
     #: (:attr:`DrawState.early_depth`); None: each row holds all its covered pixels.
     row_counts: np.ndarray | None = None
+    #: (N,) bool or None: fragments whose merge would change no stored value (an observed
+    #: ForwardAdd draw's fragments out of its light's reach: :attr:`DrawState.dark_skip`). They
+    #: are told of with the outcome of the depth test alone (their pass has no stencil and writes
+    #: no depth, so the stored depth is the same before and after the others) and not merged.
+    inert: np.ndarray | None = None
 
     @property
     def triangle(self) -> np.ndarray | None:
@@ -208,7 +215,7 @@ class ShadedFragments:
 
         return ShadedFragments(cut(self.pix), cut(self.stored_depth), cut(self.rgba), cut(self.ids), self.palette,
                                cut(self.stored_triangle), cut(self.alive), self.disjoint,
-                               coverage=cut(self.coverage))
+                               coverage=cut(self.coverage), inert=cut(self.inert))
 
     def select(self, keep: np.ndarray) -> ShadedFragments:
         """The fragments where ``keep`` (bool (N,) or indices) holds."""
@@ -229,7 +236,7 @@ class ShadedFragments:
         colors_fn = deferred(self.rgba if self.ids is None else self.ids, self.colors_fn)
         return ShadedFragments(take(self.pix), take(self.stored_depth), take(self.rgba), take(self.ids),
                                self.palette, take(self.stored_triangle), take(self.alive), self.disjoint, depth_fn,
-                               triangle_fn, colors_fn, take(self.coverage))
+                               triangle_fn, colors_fn, take(self.coverage), inert=take(self.inert))
 
 
 class FrameObserver:

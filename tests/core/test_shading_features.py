@@ -397,6 +397,39 @@ def test_a_draw_list_leaves_fragments_out_of_reach_unlit_and_counts_them_as_the_
     assert veil and all(s.written > 1000 for s in veil)
 
 
+def test_a_draw_list_does_not_merge_unreached_fragments_that_change_nothing(monkeypatch):
+    """Under a capture (no colour read) the fragments of an opaque floor's ForwardAdd draws that
+    its lights do not reach add rgb 0; where the stored alpha is saturated (the plank's, then the
+    floor's once an earlier ForwardAdd draw filled it: its texture's alpha is below 1) they change
+    nothing, are told of with the outcome of the depth test alone and never reach the merger. The
+    plank, in front of part of the floor and drawn before it, makes some of them fail that test.
+    Each draw's counts and the frame equal the scalar reference's; without the shortcut the merger
+    would see every fragment told of."""
+    from blendlib.core import pipeline
+
+    scene = _reach_scene(ColorSpace.Gamma)
+    floor = scene.renderers[0]
+    plank = sc.renderer(sc.quad(-2.0, -2.6, 0.0, -1.8, z=0.6), Material(name="Plank", color=(0.3, 0.3, 0.3, 1.0),
+                                                                         passes=(BASE,)), name="Plank")
+    scene = replace(scene, renderers=(floor, plank))
+    unlit = _count_unlit(monkeypatch)
+    merged = [0]
+    original = pipeline.merge
+
+    def counting_merge(buf, p, pix, *args, **kwargs):
+        merged[0] += int(pix.shape[0])
+        return original(buf, p, pix, *args, **kwargs)
+
+    monkeypatch.setattr(pipeline, "merge", counting_merge)
+    capture = _capture_equal_to_reference(scene)
+    told = sum(s.fragments for s in capture.stats)
+    assert unlit[("Floor", True)] > 20000
+    assert merged[0] < told - 15000, (merged[0], told, unlit)
+    adds = [s for s in capture.stats if s.call.renderer.name == "Floor" and s.call.light is not None]
+    assert len(adds) == 3 and all(s.fragments > s.written > 0 for s in adds)  # the plank hides some
+    assert capture.stats[0].call.renderer.name == "Plank"  # nearer: drawn first (opaque, front to back)
+
+
 def test_unreached_fragments_of_a_textured_mesh_without_uvs_keep_the_texels_alpha(monkeypatch):
     """A mesh without UVs samples its texture at (0, 0) (§7): under a capture, the alpha of its
     fragments left unlit includes that texel's alpha (the floor's pass adds it to an unsaturated
