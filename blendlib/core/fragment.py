@@ -24,7 +24,7 @@ from collections.abc import Callable
 import numpy as np
 
 from . import lights, mips, raster, shade
-from .gather import gather, scatter_rows
+from .gather import gather, scatter_rows, zero_rows
 from .merger import compare, table_pays
 from .records import DrawState, ShadedFragments
 from .vertex import TriangleSetup
@@ -368,7 +368,7 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
                         w_lit, corners[keep], lit_counts, corner_flat[keep], channels_first=True).T
 
                 unlit = places[skip]
-                rgba[unlit] = 0.0
+                zero_rows(rgba, unlit)
                 if state.observed:  # told of: their alpha as shading computes it (it reads no light)
                     inert = np.zeros(n, dtype=bool)
                     # Inert where merging them changes nothing (DrawState.dark_skip); indexing, not

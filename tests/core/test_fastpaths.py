@@ -451,6 +451,24 @@ def test_scatter_rows_equals_row_assignment(columns):
     np.testing.assert_array_equal(dest.view(np.int64), expected.view(np.int64))
 
 
+@pytest.mark.parametrize("columns", [3, 4])
+def test_zero_rows_equals_row_assignment(columns):
+    """``zero_rows`` sets the indexed rows to +0.0 bit for bit (a NaN or -0.0 there included),
+    as ``dest[index] = 0.0`` does, and leaves every other row as it was."""
+    from blendlib.core.gather import zero_rows
+
+    rng = np.random.default_rng(10 + columns)
+    dest = rng.uniform(-1.0, 1.0, (60, columns))
+    dest[3] = np.nan
+    dest[4] = -0.0
+    index = np.concatenate([[3, 4], rng.permutation(np.arange(5, 60))[:20]])
+    expected = dest.copy()
+    expected[index] = 0.0
+    zero_rows(dest, index)
+    np.testing.assert_array_equal(dest.view(np.int64), expected.view(np.int64))
+    assert not np.signbit(dest[4]).any() and np.isnan(dest[5:]).sum() == 0
+
+
 def _sprite_like(h: int, w: int, byte: bool) -> np.ndarray:
     """(h, w, 4) float32: red and green white everywhere, blue varying (but along its first
     row), alpha 0.2 everywhere — the uniform channels of a particle sprite, and two channels
