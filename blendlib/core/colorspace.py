@@ -89,7 +89,7 @@ _EDGES = np.arange(ENCODE_BUCKETS + 1, dtype=np.float64) / ENCODE_BUCKETS
 _BUCKET_CODE = np.searchsorted(ENCODE_THRESHOLDS, _EDGES, side="right").astype(np.uint8)
 _BUCKET_NEXT = np.append(ENCODE_THRESHOLDS, np.inf)[_BUCKET_CODE.astype(np.int64)]
 assert (np.searchsorted(ENCODE_THRESHOLDS, _EDGES[1:], side="left")
-              - _BUCKET_CODE[:-1].astype(np.int64) <= 1).all(), "a bucket holds two thresholds"
+        - _BUCKET_CODE[:-1].astype(np.int64) <= 1).all(), "a bucket holds two thresholds"
 
 
 def quantize_encoded(linear: np.ndarray) -> np.ndarray:

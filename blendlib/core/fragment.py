@@ -24,7 +24,7 @@ from collections.abc import Callable
 import numpy as np
 
 from . import lights, mips, raster, shade
-from .gather import gather, scatter_rows, zero_rows
+from .gather import gather, scatter_rows
 from .merger import compare, table_pays
 from .records import DrawState, ShadedFragments
 from .vertex import TriangleSetup
@@ -368,7 +368,7 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
                         w_lit, corners[keep], lit_counts, corner_flat[keep], channels_first=True).T
 
                 unlit = places[skip]
-                zero_rows(rgba, unlit)
+                scatter_rows(rgba, unlit, _ZERO_RGBA)  # colour 0 (fused calls merge them so)
                 if state.observed:  # told of: their alpha as shading computes it (it reads no light)
                     inert = np.zeros(n, dtype=bool)
                     # Inert where merging them changes nothing (DrawState.dark_skip); indexing, not
@@ -435,6 +435,8 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
                            row_counts=None if n == full else length, inert=inert)
 
 
+#: The colour of fragments left unlit: one row, put at each of theirs (:func:`.gather.scatter_rows`).
+_ZERO_RGBA = np.zeros((1, 4), dtype=np.float64)
 #: Fragments dropped before merging (out of a ForwardAdd light's reach, discarded by the alpha
 #: test) are left out of shading when they are at least 1/SPARSE_SKIP_SHARE of those shaded one
 #: by one; fewer are shaded with the others and dropped after (gathering the others out and

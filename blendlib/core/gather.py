@@ -27,16 +27,9 @@ def gather(values: np.ndarray, index: np.ndarray, axis: int | None = None, out: 
 
 def scatter_rows(dest: np.ndarray, index: np.ndarray, rows: np.ndarray) -> None:
     """``dest[index] = rows`` for a C-contiguous (N, C) ``dest``, ``index`` (M,) distinct and in
-    range, ``rows`` (M, C) of ``dest``'s dtype: each row moved whole (as one C-item value), where
-    numpy's fancy assignment of rows copies them element by element."""
+    range, ``rows`` (M, C) of ``dest``'s dtype — or one row (1, C), put at every index: each row
+    moved whole (as one C-item value), where numpy's fancy assignment of rows (or of a scalar to
+    rows, about 4x slower) sets them element by element."""
     row = np.dtype((np.void, dest.shape[1] * dest.itemsize))
     values = np.ascontiguousarray(rows, dtype=dest.dtype).view(row).reshape(-1)
-    np.put(dest.view(row).reshape(-1), index, values, mode="wrap")
-
-
-def zero_rows(dest: np.ndarray, index: np.ndarray) -> None:
-    """``dest[index] = 0`` for a C-contiguous (N, C) ``dest`` and ``index`` (M,) in range: each
-    row zeroed whole (one C-item value put M times), where numpy's fancy assignment of a scalar
-    to rows sets them element by element (about 4x slower)."""
-    row = np.dtype((np.void, dest.shape[1] * dest.itemsize))
-    dest.view(row).reshape(-1).put(index, np.zeros(1, dtype=row), mode="wrap")
+    np.put(dest.view(row).reshape(-1), index, values, mode="wrap")  # put repeats a shorter values

@@ -452,10 +452,10 @@ def test_scatter_rows_equals_row_assignment(columns):
 
 
 @pytest.mark.parametrize("columns", [3, 4])
-def test_zero_rows_equals_row_assignment(columns):
-    """``zero_rows`` sets the indexed rows to +0.0 bit for bit (a NaN or -0.0 there included),
-    as ``dest[index] = 0.0`` does, and leaves every other row as it was."""
-    from blendlib.core.gather import zero_rows
+def test_scatter_rows_of_one_row_equals_scalar_assignment(columns):
+    """``scatter_rows`` of one zero row sets every indexed row to +0.0 bit for bit (a NaN or -0.0
+    there included), as ``dest[index] = 0.0`` does, and leaves every other row as it was."""
+    from blendlib.core.gather import scatter_rows
 
     rng = np.random.default_rng(10 + columns)
     dest = rng.uniform(-1.0, 1.0, (60, columns))
@@ -464,7 +464,7 @@ def test_zero_rows_equals_row_assignment(columns):
     index = np.concatenate([[3, 4], rng.permutation(np.arange(5, 60))[:20]])
     expected = dest.copy()
     expected[index] = 0.0
-    zero_rows(dest, index)
+    scatter_rows(dest, index, np.zeros((1, columns)))
     np.testing.assert_array_equal(dest.view(np.int64), expected.view(np.int64))
     assert not np.signbit(dest[4]).any() and np.isnan(dest[5:]).sum() == 0
 
