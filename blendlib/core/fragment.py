@@ -203,6 +203,14 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
             start, stop, run_of_row = 0, rows.count, run_of_row.take(of_row)
             length = rows.length
             n = int(length.sum())
+    beyond = None  # (N,) bool, observed: fragments beyond the spans the light may reach (dark)
+    if state.dark_skip and state.observed and positions is not None and n >= ROW_REACH_MIN_RUN * length.size:
+        # Observed, every fragment is rasterised and told of; the spans spare only the world
+        # positions and reach test of the fragments beyond them, which _dark would call dark.
+        spans = _reached_spans(setup, rows, start, stop, state, positions, run_of_row,
+                               [c for c in (normals, colors) if c is not None], saturated_only=False)
+        if spans is not None:
+            beyond = _beyond_spans(rows.x0[start:stop], length, *spans)
     want_depth = state.depth_needed(rows, start, stop)
     frags = raster.rasterize_rows(rows, start, stop, state.width, bary=want_depth or any_varying)
     depth = weights = None
@@ -226,6 +234,7 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
                                      row_length=length)
             depth = gather(depth, kept)
             weights = None if weights is None else gather(weights, kept, axis=1)
+            beyond = None if beyond is None else gather(beyond, kept)
     # (K,) fragments per triangle (some none): rows come in triangle order, each triangle's one run.
     counts = (np.add.reduceat(length, np.flatnonzero(first)) if of_row is None
               else np.bincount(run_of_row, weights=length, minlength=tris.size).astype(np.int64))
@@ -326,10 +335,32 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
             lod = None
             if state.mips is not None and uv is not None:  # one LOD per 2x2 quad (§7, "Mipmaps")
                 lod = mips.quad_lod(setup, frags.tri[at], frags.pix[at], state.width, material, texels.shape[:2])
-            position = varying(positions, position_flat)
             skip = None  # (M,) bool: fragments not shaded (dropped, or observed and only their alpha computed)
-            if state.dark_skip and position is not None:
-                skip = _dark(state, position, frags.pix[at], [c[keep] for c in (normals, colors) if c is not None])
+            position = lit_position = None  # (M, 3) world positions; (L, 3) those of the lit ones (below)
+            known = None
+            if beyond is not None:
+                pix_at = frags.pix[at]
+                known = _known_dark(state, beyond[at], pix_at)
+            if known is not None:
+                # Positions and the reach test for the fragments within the spans alone (runs keep
+                # their order: a triangle's fragments there stay one run).
+                within = np.flatnonzero(~known)
+                w_within = gather(w, within, axis=1)
+                position = raster.interpolate_runs(w_within, positions[keep], _segment_sums(~known, counts[keep]),
+                                                   position_flat[keep], channels_first=True).T
+                skip = known.copy()
+                dark = _dark(state, position, pix_at.take(within),
+                             [c[keep] for c in (normals, colors) if c is not None])
+                if dark is not None:
+                    skip[within[dark]] = True
+                    lit_position = gather(position.T, np.flatnonzero(~dark), axis=1).T
+                else:
+                    lit_position = position
+            else:
+                position = varying(positions, position_flat)
+                if state.dark_skip and position is not None:
+                    skip = _dark(state, position, frags.pix[at],
+                                 [c[keep] for c in (normals, colors) if c is not None])
             color = None  # the vertex colours, when interpolated for the alpha first
             if p.alpha_test and not state.observed and uv is not None:
                 # Alpha first (it reads neither lighting nor the outline): fragments the alpha test
@@ -387,7 +418,8 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
                 scatter_rows(rgba, places[lit], shade_at(
                     None if uv is None else gather(uv, lit, axis=1).T, varying_lit(normals, normal_flat),
                     varying_lit(colors, color_flat) if color is None else gather(color.T, lit, axis=1).T,
-                    None if position is None else gather(position.T, lit, axis=1).T, lit.size,
+                    lit_position if known is not None else None if position is None
+                    else gather(position.T, lit, axis=1).T, lit.size,
                     None if lod is None else gather(lod, lit)))
     palette = None
     if palettes:
@@ -452,14 +484,16 @@ REACH_PIXEL_MARGIN = 1.0
 
 
 def _reached_spans(setup, rows, start: int, stop: int, state: DrawState, positions: np.ndarray,
-                   run_of_row: np.ndarray, corners: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray] | None:
+                   run_of_row: np.ndarray, corners: list[np.ndarray], saturated_only: bool = True
+                   ) -> tuple[np.ndarray, np.ndarray] | None:
     """Rows ``[start, stop)`` (R rows) cut to the part a ForwardAdd light may reach
     (:attr:`DrawState.dark_skip`): the new spans ``[x0, x1)`` (two (R,) int64 within each row's;
     ``x1 <= x0``: nothing kept), or None when nothing is cut. ``positions`` (K, 3, 3) float64: the
     world corners of the chunk's source triangles, ``run_of_row`` (R,) int64 each row's among
     them; ``corners``: their (K, 3, C) normals and colours, all finite and bounded or nothing is
-    cut (as :func:`_dark`). Where ``dark_alpha`` is set, a row is cut only where its stored alpha
-    is 255 throughout the parts cut off, else kept whole.
+    cut (as :func:`_dark`). Where ``dark_alpha`` is set and ``saturated_only`` (a render's cut: the
+    parts cut off are dropped), a row is cut only where its stored alpha is 255 throughout the
+    parts cut off, else kept whole.
 
     Along a row the screen barycentrics are affine in x, so a fragment's perspective-correct world
     position runs along the segment between those of the row's first and last pixels, ``A + t (B −
@@ -503,7 +537,7 @@ def _reached_spans(setup, rows, start: int, stop: int, state: DrawState, positio
     cut = (x0 != first) | (x1 != stop_x)
     if not cut.any():
         return None
-    if state.dark_alpha is not None:
+    if state.dark_alpha is not None and saturated_only:
         # Cut-off parts keep their stored colour; their alpha too only where it is 255 already.
         # Both sides of the cut rows in one test: they share the box the running count covers.
         some = np.flatnonzero(cut)
@@ -519,6 +553,32 @@ def _reached_spans(setup, rows, start: int, stop: int, state: DrawState, positio
         x0[keep] = first[keep]
         x1[keep] = stop_x[keep]
     return x0, x1
+
+
+def _beyond_spans(first: np.ndarray, length: np.ndarray, x0: np.ndarray, x1: np.ndarray) -> np.ndarray:
+    """(N,) bool over the fragments of R rows (``first`` (R,) int64 each row's first column,
+    ``length`` (R,) int64 its fragments, N in all, in row order): those outside the row's span
+    ``[x0, x1)`` (two (R,) int64 within the row, ``x0 <= x1``; :func:`_reached_spans`)."""
+    parts = np.empty((length.size, 3), dtype=np.int64)  # per row: before, within, after the span
+    np.subtract(x0, first, out=parts[:, 0])
+    np.subtract(x1, x0, out=parts[:, 1])
+    np.subtract(first + length, x1, out=parts[:, 2])
+    return np.tile(_BEYOND_PATTERN, length.size).repeat(parts.reshape(-1))
+
+
+_BEYOND_PATTERN = np.array([True, False, True])
+
+
+def _known_dark(state: DrawState, beyond: np.ndarray, pix: np.ndarray) -> np.ndarray | None:
+    """(M,) bool: which of M observed fragments (``beyond`` (M,) bool: beyond the light's reached
+    spans, ``pix`` (M,) int64 their pixels) :func:`_dark` would call dark without their positions:
+    those beyond the spans (their attenuation is 0) at pixels whose colour the observer does not
+    read. None when they are too few to pay for handling the others apart (then :func:`_dark`
+    tests all, finding the same)."""
+    known = beyond if state.colors_read is False else beyond & ~state.colors_read[pix]
+    if int(np.count_nonzero(known)) * SPARSE_SKIP_SHARE < known.size:
+        return None
+    return known
 
 
 def _unsaturated(alpha: np.ndarray, width: int, rows) -> np.ndarray:

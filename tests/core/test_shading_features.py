@@ -351,21 +351,32 @@ def _capture_equal_to_reference(scene):
     return capture
 
 
-def _count_unlit(monkeypatch) -> dict[tuple[str, bool], int]:
-    """Counts, by (renderer, whether the chunk is observed), the fragments ``fragment._dark``
-    leaves unlit."""
+def _count_unlit(monkeypatch, tested: dict | None = None) -> dict[tuple[str, bool], int]:
+    """Counts, by (renderer, whether the chunk is observed), the fragments left unlit: those
+    ``fragment._dark`` calls dark and, observed, those ``fragment._known_dark`` calls dark beyond
+    the light's reached spans without testing them. ``tested``, when given, counts likewise the
+    fragments ``_dark`` tests."""
     from blendlib.core import fragment
 
     unlit: dict[tuple[str, bool], int] = {}
-    original = fragment._dark
+    original, known_dark = fragment._dark, fragment._known_dark
 
     def dark(state, position, pix, corners):
         out = original(state, position, pix, corners)
         key = (state.call.renderer.name, state.observed)
         unlit[key] = unlit.get(key, 0) + (0 if out is None else int(out.sum()))
+        if tested is not None:
+            tested[key] = tested.get(key, 0) + int(pix.size)
+        return out
+
+    def known(state, beyond, pix):
+        out = known_dark(state, beyond, pix)
+        key = (state.call.renderer.name, state.observed)
+        unlit[key] = unlit.get(key, 0) + (0 if out is None else int(out.sum()))
         return out
 
     monkeypatch.setattr(fragment, "_dark", dark)
+    monkeypatch.setattr(fragment, "_known_dark", known)
     return unlit
 
 
@@ -428,6 +439,25 @@ def test_a_draw_list_does_not_merge_unreached_fragments_that_change_nothing(monk
     adds = [s for s in capture.stats if s.call.renderer.name == "Floor" and s.call.light is not None]
     assert len(adds) == 3 and all(s.fragments > s.written > 0 for s in adds)  # the plank hides some
     assert capture.stats[0].call.renderer.name == "Plank"  # nearer: drawn first (opaque, front to back)
+
+
+@pytest.mark.parametrize("color_space", [ColorSpace.Gamma, ColorSpace.Linear])
+def test_a_capture_tests_the_reach_only_of_fragments_within_the_reached_spans(color_space, monkeypatch):
+    """Observed, every fragment of a ForwardAdd draw is rasterised and told of, but the world
+    positions and the reach test (``_dark``) are computed only for fragments within the row spans
+    the light may reach (:func:`fragment._reached_spans`, which a render uses to cut its rows): those
+    beyond are dark by that function's guarantee. On the floor and wall most are beyond; on the
+    veil, whose pass adds alpha to an unsaturated one, they are merged with rgb 0 all the same.
+    Each draw's counts and the frame equal the scalar reference's; before, every fragment told of
+    was tested."""
+    tested: dict[tuple[str, bool], int] = {}
+    unlit = _count_unlit(monkeypatch, tested)
+    capture = _capture_equal_to_reference(_reach_scene(color_space))
+    for name in ("Floor", "Wall", "Veil"):
+        told = sum(s.fragments for s in capture.stats
+                   if s.call.renderer.name == name and s.call.state.light_mode is LightMode.ForwardAdd)
+        assert unlit[(name, True)] > told // 4, (name, told, unlit)
+        assert tested[(name, True)] < told - unlit[(name, True)] // 2, (name, told, tested, unlit)
 
 
 def test_unreached_fragments_of_a_textured_mesh_without_uvs_keep_the_texels_alpha(monkeypatch):
