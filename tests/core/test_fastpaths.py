@@ -688,6 +688,26 @@ def test_distinct_colours_equal_numpy_unique(rows):
     np.testing.assert_array_equal(inverse.reshape(-1), want_inverse.reshape(-1))
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_distinct_colours_of_many_rows_equal_numpy_unique(seed):
+    """Many colours, some repeated, some differing in one channel only, negative ones and, in
+    some draws, a -0.0 or a NaN: np.unique's rows, order and inverse, byte for byte."""
+    from blendlib.core.fragment import distinct_colors
+
+    rng = np.random.default_rng(seed)
+    base = rng.choice([-1.5, -0.25, 0.0, 0.25, 0.5, 2.0], size=(40, 4))
+    colors = base[rng.integers(0, 40, size=300)].copy()
+    if seed == 4:
+        colors[7, 2] = -0.0
+    if seed == 5:
+        colors[9, 0] = np.nan
+    got, inverse = distinct_colors(colors)
+    want, want_inverse = np.unique(colors, axis=0, return_inverse=True)
+    assert 10 < want.shape[0] < 300
+    assert got.tobytes() == want.tobytes() and got.shape == want.shape
+    np.testing.assert_array_equal(inverse.reshape(-1), want_inverse.reshape(-1))
+
+
 def test_blend_tables_are_kept_across_renders_by_content(monkeypatch):
     """A second render takes its blend tables from merger.RECENT_TABLES (none is built) and is
     identical; a table is never reused for another colour space or pass: renders that
