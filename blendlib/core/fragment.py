@@ -356,7 +356,9 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
                 known = _known_dark(state, beyond[at], pix_at)
             if known is not None:
                 # Positions and the reach test for the fragments within the spans alone (runs keep
-                # their order: a triangle's fragments there stay one run).
+                # their order: a triangle's fragments there stay one run). ``skip`` then holds at
+                # least 1/SPARSE_SKIP_SHARE of them (_known_dark), so the sparse branch below, which
+                # would read every fragment's position, is not taken: lit_position serves the lit.
                 within = np.flatnonzero(~known)
                 w_within = gather(w, within, axis=1)
                 position = raster.interpolate_runs(w_within, positions[keep], _segment_sums(~known, counts[keep]),
