@@ -199,12 +199,17 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
             flat &= corners_flat
     any_varying = not bool(flat.all())
     of_row = None  # (P,) int64: each row's row in the chunk, when rows were cut (below)
-    if state.dark_skip and not state.observed and positions is not None and n >= ROW_REACH_MIN_RUN * length.size:
-        # The parts of rows out of the ForwardAdd light's reach are cut off before they are
-        # rasterised (they hold fragments _dark would drop).
+    beyond = None  # (N,) bool, observed: fragments beyond the spans the light may reach (dark)
+    if state.dark_skip and positions is not None and n >= ROW_REACH_MIN_RUN * length.size:
+        # The parts of rows out of the ForwardAdd light's reach hold fragments _dark would call
+        # dark. A render cuts them off before they are rasterised; observed, every fragment is
+        # rasterised and told of, and the spans spare only the world positions and reach test of
+        # those beyond them (whatever the stored alpha: the observed path merges them there).
         spans = _reached_spans(setup, rows, start, stop, state, positions, run_of_row,
-                               [c for c in (normals, colors) if c is not None])
-        if spans is not None:
+                               [c for c in (normals, colors) if c is not None], saturated_only=not state.observed)
+        if spans is not None and state.observed:
+            beyond = _beyond_spans(rows.x0[start:stop], length, *spans)
+        elif spans is not None:
             x0, x1 = spans
             reached = np.flatnonzero(x1 > x0)
             if reached.size == 0:
@@ -216,14 +221,6 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
             start, stop, run_of_row = 0, rows.count, run_of_row.take(of_row)
             length = rows.length
             n = int(length.sum())
-    beyond = None  # (N,) bool, observed: fragments beyond the spans the light may reach (dark)
-    if state.dark_skip and state.observed and positions is not None and n >= ROW_REACH_MIN_RUN * length.size:
-        # Observed, every fragment is rasterised and told of; the spans spare only the world
-        # positions and reach test of the fragments beyond them, which _dark would call dark.
-        spans = _reached_spans(setup, rows, start, stop, state, positions, run_of_row,
-                               [c for c in (normals, colors) if c is not None], saturated_only=False)
-        if spans is not None:
-            beyond = _beyond_spans(rows.x0[start:stop], length, *spans)
     want_depth = state.depth_needed(rows, start, stop)
     frags = raster.rasterize_rows(rows, start, stop, state.width, bary=want_depth or any_varying)
     depth = weights = None
@@ -351,6 +348,8 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
             skip = None  # (M,) bool: fragments not shaded (dropped, or observed and only their alpha computed)
             position = lit_position = None  # (M, 3) world positions; (L, 3) those of the lit ones (below)
             known = None
+            dark_corners = ([c[keep] for c in (normals, colors) if c is not None]  # what _dark reads
+                            if state.dark_skip and positions is not None else None)
             if beyond is not None:
                 pix_at = frags.pix[at]
                 known = _known_dark(state, beyond[at], pix_at)
@@ -364,8 +363,7 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
                 position = raster.interpolate_runs(w_within, positions[keep], _segment_sums(~known, counts[keep]),
                                                    position_flat[keep], channels_first=True).T
                 skip = known.copy()
-                dark = _dark(state, position, pix_at.take(within),
-                             [c[keep] for c in (normals, colors) if c is not None])
+                dark = _dark(state, position, pix_at.take(within), dark_corners)
                 if dark is not None:
                     skip[within[dark]] = True
                     lit_position = gather(position.T, np.flatnonzero(~dark), axis=1).T
@@ -374,8 +372,7 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
             else:
                 position = varying(positions, position_flat)
                 if state.dark_skip and position is not None:
-                    skip = _dark(state, position, frags.pix[at],
-                                 [c[keep] for c in (normals, colors) if c is not None])
+                    skip = _dark(state, position, frags.pix[at], dark_corners)
             color = None  # the vertex colours, when interpolated for the alpha first
             if p.alpha_test and not state.observed and uv is not None:
                 # Alpha first (it reads neither lighting nor the outline): fragments the alpha test

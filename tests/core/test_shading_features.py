@@ -315,14 +315,14 @@ def test_row_parts_out_of_a_lights_reach_are_cut_and_equal_the_reference(color_s
     kept_for_alpha: dict[str, int] = {}  # out of reach, but the stored alpha is not 255 throughout
     original = fragment._reached_spans
 
-    def counting(setup, rows, start, stop, state, *args):
+    def counting(setup, rows, start, stop, state, *args, **kwargs):
         def cut_off(spans):
             if spans is None:
                 return 0
             return int(rows.length[start:stop].sum() - np.maximum(spans[1] - spans[0], 0).sum())
 
-        out = original(setup, rows, start, stop, state, *args)
-        anywhere = original(setup, rows, start, stop, replace(state, dark_alpha=None), *args)
+        out = original(setup, rows, start, stop, state, *args, **kwargs)
+        anywhere = original(setup, rows, start, stop, replace(state, dark_alpha=None), *args, **kwargs)
         name = state.call.renderer.name
         cut[name] = cut.get(name, 0) + cut_off(out)
         kept_for_alpha[name] = kept_for_alpha.get(name, 0) + cut_off(anywhere) - cut_off(out)
