@@ -57,11 +57,10 @@ def outline_key(p: Pass) -> tuple | None:
 
 def _matmul4(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """docs/pipeline.md §1's ``matmul4``, (4, 4) float64."""
-    out = np.empty((4, 4), dtype=np.float64)
-    for i in range(4):
-        for j in range(4):
-            out[i, j] = ((a[i, 0] * b[0, j] + a[i, 1] * b[1, j]) + a[i, 2] * b[2, j]) + a[i, 3] * b[3, j]
-    return out
+    # Python floats: the same IEEE double operations as numpy's, without a numpy scalar per product.
+    a, b = np.asarray(a, dtype=np.float64).tolist(), np.asarray(b, dtype=np.float64).tolist()
+    return np.array([[((a[i][0] * b[0][j] + a[i][1] * b[1][j]) + a[i][2] * b[2][j]) + a[i][3] * b[3][j]
+                      for j in range(4)] for i in range(4)], dtype=np.float64)
 
 
 def _signed_cofactors(m: np.ndarray) -> tuple[np.ndarray, float]:

@@ -42,6 +42,9 @@ _COMPARE = {
 }
 _FLOAT32_255 = np.float32(255.0)
 _FLOAT32_DEPTH_MAX = np.float32(DEPTH_MAX)
+#: Rows converted per step by :meth:`FrameBuffers.output` (cast, then divided in place while the
+#: piece is in cache: 1920 × 64 pixels are 2 MB of float32 colour; docs/benchmark.md, round fifteen).
+OUTPUT_ROWS = 64
 #: One LDR pixel (four 8-bit codes, R in the low byte) and one HDR pixel (four float32) as a
 #: single element: fancy indexing of whole pixels is several times faster than of (N, 4) rows.
 _PIXEL4 = np.dtype("<u4")
@@ -367,15 +370,18 @@ class FrameBuffers:
                 part = resolved.reshape(hi - lo, w, 4)[::-1]
             else:
                 part = src_color[0, lo:hi]
-            if self.hdr:
-                color[lo:hi] = part
-            else:
+            color[lo:hi] = part
+            if not self.hdr:
                 # float32 division of the exact integers equals float32(q / 255.0) for every code
                 # and float32(d / (2**24 - 1)) for every depth code (both checked exhaustively in
-                # tests/core/test_fastpaths.py), cheaper than a table lookup.
-                np.divide(part, _FLOAT32_255, out=color[lo:hi], dtype=np.float32)
-            np.divide(src_depth[lo:hi], _FLOAT32_DEPTH_MAX, out=depth[lo:hi], dtype=np.float32)
+                # tests/core/test_fastpaths.py), cheaper than a table lookup. Codes and depth codes
+                # (below 2**24) convert to float32 exactly, so casting first and dividing in place
+                # gives the same values, without the mixed-type division's buffered casts.
+                np.divide(color[lo:hi], _FLOAT32_255, out=color[lo:hi])
+            depth[lo:hi] = src_depth[lo:hi]
+            np.divide(depth[lo:hi], _FLOAT32_DEPTH_MAX, out=depth[lo:hi])
 
-        run_parts(pool, parts, h, rows, min_part=64)
+        # Pieces of OUTPUT_ROWS rows: each piece's float32 rows are divided while still in cache.
+        run_parts(pool, parts, h, rows, min_part=64, piece=OUTPUT_ROWS)
         stencil[...] = self.stencil.reshape(n, self.height, w)[0, y0:y1][::-1]
         return color, depth, stencil
