@@ -454,6 +454,11 @@ def run_expander(counts: np.ndarray, n: int) -> Callable[[np.ndarray], np.ndarra
     return lambda values: values.repeat(counts, axis=0)
 
 
+#: Chunks of up to this many fragments give :func:`rasterize_rows`' edge functions from the
+#: fragment's index in the chunk (products below 2**59), larger ones from its index in its row.
+GLOBAL_INDEX_FRAGMENTS = 1 << 22
+
+
 def rasterize_rows(rows: Rows, start: int, stop: int, width: int, bary: bool = True) -> Fragments:
     """The covered pixels of rows ``[start, stop)`` with their barycentrics (docs/pipeline.md §4).
 
@@ -465,29 +470,46 @@ def rasterize_rows(rows: Rows, start: int, stop: int, width: int, bary: bool = T
     # A fragment's pixel is its index in the chunk plus its row's (first pixel - first index).
     first = length.cumsum() - length
     each = run_expander(length, n)
-    pix = np.arange(n, dtype=np.int64)
-    pix += each(rows.y[sl] * width + rows.x0[sl] - first)
+    index = np.arange(n, dtype=np.int64)
+    pix = each(rows.y[sl] * width + rows.x0[sl] - first)
+    pix += index
     row_tri = rows.tri[sl]
     tri = each(row_tri)
     if not bary:
         return Fragments(pix=pix, tri=tri, bary=None, row_tri=row_tri, row_length=length)
-    x = np.arange(n, dtype=np.int64)
-    x += each(rows.x0[sl] - first)
-    px = x * SUBPIXEL + HALF
-    area = each(rows.area[sl])
-    ea = each(rows.c0[sl]) - each(rows.dy0[sl]) * px
-    eb = each(rows.c1[sl]) - each(rows.dy1[sl]) * px
-    ec = area - ea - eb  # the three edge functions sum to the doubled area
+    # The edge functions E = c - dy*Px at the pixel centres Px = S*x + HALF, x = index + (x0 -
+    # first) of the row: E = (c - dy*P0) - (dy*S)*index with P0 = S*(x0 - first) + HALF per row,
+    # the same integers (int64, exact) without a per-fragment x or Px. A chunk of more than
+    # GLOBAL_INDEX_FRAGMENTS counts from each row's start instead (one more pass), so that no
+    # product comes near 2**63 (|dy| < 2**28 within the guard band).
+    if n <= GLOBAL_INDEX_FRAGMENTS:
+        step = index
+        p0 = rows.x0[sl] - first
+    else:
+        step = index - each(first)
+        p0 = rows.x0[sl].copy()
+    p0 *= SUBPIXEL
+    p0 += HALF
+    c0, dy0, c1, dy1, row_area = rows.c0[sl], rows.dy0[sl], rows.c1[sl], rows.dy1[sl], rows.area[sl]
+    swap = rows.swap[sl]
+    if swap.any():
+        # A clockwise triangle's second weight is its third edge function (area - E0 - E1 =
+        # (area - c0 - c1) - (-(dy0 + dy1))*Px): take that edge's row coefficients, so the
+        # fragments need no swap of their own; the third weight (area - E0 - E1) is then E1.
+        c1 = np.where(swap, row_area - c0 - c1, c1)
+        dy1 = np.where(swap, -(dy0 + dy1), dy1)
+    area = each(row_area)
+    ea = each(c0 - dy0 * p0)
+    ea -= each(dy0 * SUBPIXEL) * step
+    eb = each(c1 - dy1 * p0)
+    eb -= each(dy1 * SUBPIXEL) * step
+    ec = area - ea
+    ec -= eb  # the three edge functions sum to the doubled area
     farea = area.astype(np.float64)
     weights = np.empty((3, n), dtype=np.float64)
     np.divide(ea, farea, out=weights[0])
-    swap = each(rows.swap[sl])
-    if swap.any():
-        weights[1] = np.where(swap, ec, eb) / farea
-        weights[2] = np.where(swap, eb, ec) / farea
-    else:
-        np.divide(eb, farea, out=weights[1])
-        np.divide(ec, farea, out=weights[2])
+    np.divide(eb, farea, out=weights[1])
+    np.divide(ec, farea, out=weights[2])
     return Fragments(pix=pix, tri=tri, bary=weights, row_tri=row_tri, row_length=length)
 
 

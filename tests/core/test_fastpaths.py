@@ -17,10 +17,11 @@ import numpy as np
 import pytest
 
 from blendlib import render_scene
-from blendlib.core import colorspace, merger
+from blendlib.core import colorspace, merger, raster
 from blendlib.core.merger import blending, ordering
 from blendlib.core.pipeline import BAND_PIXELS as PRODUCTION_BAND_PIXELS  # read before the tests' override
 from blendlib.core.scene import DrawScene
+from blendlib.core.vertex import HALF, SUBPIXEL
 from blendlib.core.vocabulary import (
     BlendFactor,
     BlendOp,
@@ -1111,3 +1112,51 @@ def test_segment_sums_count_empty_segments_as_zero():
     values = np.array([True, False, True, True, False, True])
     counts = np.array([0, 2, 0, 3, 1, 0], dtype=np.int64)
     np.testing.assert_array_equal(_segment_sums(values, counts), [0, 1, 0, 2, 1, 0])
+
+
+def _rows_at_random(seed: int, count: int, width: int) -> raster.Rows:
+    """Rows of random spans and edge coefficients of guard-band size (|dy| up to 2**27, the
+    extent of the guard band in subpixels), some clockwise, some of one pixel."""
+    rng = np.random.default_rng(seed)
+    length = rng.integers(1, 40, count).astype(np.int64)
+    length[rng.random(count) < 0.3] = 1
+    x0 = rng.integers(0, width - 40, count).astype(np.int64)
+    big = lambda: rng.integers(-(2**27), 2**27, count).astype(np.int64)  # noqa: E731
+    return raster.Rows(tri=rng.integers(0, 50, count).astype(np.int64), y=rng.integers(0, 300, count).astype(np.int64),
+                       x0=x0, length=length, c0=big() * 3000, c1=big() * 3000, dy0=big(), dy1=big(),
+                       swap=rng.random(count) < 0.5, area=rng.integers(1, 2**50, count).astype(np.int64))
+
+
+def _barycentrics_pixel_by_pixel(rows: raster.Rows, width: int) -> tuple[np.ndarray, np.ndarray]:
+    """docs/pipeline.md §4 written out per fragment: pixels and (3, N) weights, E_k = c_k - dy_k*Px
+    at Px = x*S + HALF, the third edge area - E0 - E1, a clockwise row's second and third swapped."""
+    pix, weights = [], []
+    for r in range(rows.count):
+        x = rows.x0[r] + np.arange(rows.length[r], dtype=np.int64)
+        px = x * SUBPIXEL + HALF
+        ea = rows.c0[r] - rows.dy0[r] * px
+        eb = rows.c1[r] - rows.dy1[r] * px
+        ec = rows.area[r] - ea - eb
+        if rows.swap[r]:
+            eb, ec = ec, eb
+        pix.append(rows.y[r] * width + x)
+        weights.append(np.stack([e / np.float64(rows.area[r]) for e in (ea, eb, ec)]))
+    return np.concatenate(pix), np.concatenate(weights, axis=1)
+
+
+@pytest.mark.parametrize("global_index", [True, False])
+@pytest.mark.parametrize("seed", [0, 1])
+def test_rasterized_barycentrics_equal_the_per_pixel_formula(global_index, seed, monkeypatch):
+    # Row coefficients stand in for the per-fragment x, Px and swap; chunks past
+    # GLOBAL_INDEX_FRAGMENTS count from each row's start. Both give the formula's bits.
+    if not global_index:
+        monkeypatch.setattr(raster, "GLOBAL_INDEX_FRAGMENTS", 0)
+    width = 1000
+    rows = _rows_at_random(seed, 400, width)
+    pix, weights = _barycentrics_pixel_by_pixel(rows, width)
+    for start, stop in ((0, rows.count), (37, 250), (5, 6)):
+        first = int(rows.length[:start].sum())
+        n = int(rows.length[start:stop].sum())
+        frags = raster.rasterize_rows(rows, start, stop, width)
+        np.testing.assert_array_equal(frags.pix, pix[first:first + n])
+        assert frags.bary.view(np.uint64).tolist() == weights[:, first:first + n].view(np.uint64).tolist()
