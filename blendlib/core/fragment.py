@@ -350,8 +350,8 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
             known = None
             dark_corners = ([c[keep] for c in (normals, colors) if c is not None]  # what _dark reads
                             if state.dark_skip and positions is not None else None)
+            pix_at = None if dark_corners is None else frags.pix[at]  # the pixels _dark and _known_dark read
             if beyond is not None:
-                pix_at = frags.pix[at]
                 known = _known_dark(state, beyond[at], pix_at)
             if known is not None:
                 # Positions and the reach test for the fragments within the spans alone (runs keep
@@ -372,7 +372,7 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
             else:
                 position = varying(positions, position_flat)
                 if state.dark_skip and position is not None:
-                    skip = _dark(state, position, frags.pix[at], dark_corners)
+                    skip = _dark(state, position, pix_at, dark_corners)
             color = None  # the vertex colours, when interpolated for the alpha first
             if p.alpha_test and not state.observed and uv is not None:
                 # Alpha first (it reads neither lighting nor the outline): fragments the alpha test
