@@ -25,6 +25,7 @@ left out of it and of the inversion counts.
 
 from __future__ import annotations
 
+import contextlib
 import os
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
@@ -34,6 +35,7 @@ import numpy as np
 
 from ..core.drawlist import DrawCall, draw_calls
 from ..core.merger import FrameBuffers
+from ..core.parts import run_parts
 from ..core.pipeline import render_scene
 from ..core.records import Frame, FrameObserver, RenderCancelled
 from ..core.scene import DrawScene, SceneError, validate_scene
@@ -236,39 +238,91 @@ class Analysis:
 
 #: Rows of the sort error computed at once (bounds its temporaries).
 ERROR_ROWS = 256
+#: :func:`reference_from_codes` converts a range of rows from the reference's codes when more
+#: than one pixel in this many differs from the frame, else copies the frame's values and
+#: replaces the pixels that differ (about 100 ns each against 2 ns a pixel for the conversion).
+DIFFER_SHARE = 32
 
 
-def reference_from_codes(frame_color: np.ndarray, frame: FrameBuffers,
-                         reference: FrameBuffers) -> tuple[np.ndarray, np.ndarray]:
-    """(reference (H, W, 4) float32, :func:`sort_error` (H, W) float32) of two LDR buffers —
-    the frame's, whose output is ``frame_color``, and the reference's — from their stored 8-bit
-    codes: the frame's values where the codes agree, the reference's output and the code
-    difference (what ``rint(value * 255)`` recovers, every code checked by tests/explain) where
-    they differ."""
+def reference_from_codes(frame_color: np.ndarray, frame: FrameBuffers, reference: FrameBuffers, pool=None,
+                         parts: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """(reference (H, W, 4) float32, :func:`sort_error` (H, W) float32) of two LDR buffers of one
+    sample a pixel — the frame's, whose output is ``frame_color``, and the reference's — from their
+    stored 8-bit codes: the frame's values where the codes agree, the reference's output and the
+    largest code difference over RGBA (what ``rint(value * 255)`` recovers, every code checked by
+    tests/explain) where they differ. ``pool`` / ``parts``: a thread pool to take row ranges on
+    (the result does not depend on it)."""
     h, w = frame.height, frame.width
-    differ = np.flatnonzero(frame.packed() != reference.packed())
-    out = frame_color.copy()
-    error = np.zeros((h, w), dtype=np.float32)
-    if differ.size:
-        y, x = h - 1 - differ // w, differ % w
-        codes = np.take(reference.color, differ, axis=0)  # rows of four: np.take, not fancy indexing
-        out[y, x] = np.divide(codes, np.float32(255), dtype=np.float32)  # as FrameBuffers.output
-        error[y, x] = np.abs(np.take(frame.color, differ, axis=0).astype(np.int16) - codes.astype(np.int16)).max(axis=1)
+    out = np.empty_like(frame_color)
+    error = np.empty((h, w), dtype=np.float32)
+    mine, theirs = frame.packed(), reference.packed()
+    out_pixels, error_pixels = out.reshape(-1, 4), error.reshape(-1)
+    codes = reference.color.reshape(h, w, 4)
+
+    def rows(lo: int, hi: int) -> None:  # output rows [lo, hi): buffer rows [h - hi, h - lo)
+        first, end = (h - hi) * w, (h - lo) * w
+        differ = np.flatnonzero(mine[first:end] != theirs[first:end])
+        error[lo:hi] = 0
+        if differ.size * DIFFER_SHARE > end - first:  # many differ: the reference's codes converted
+            out[lo:hi] = codes[h - hi:h - lo][::-1]
+            np.divide(out[lo:hi], np.float32(255), out=out[lo:hi])  # as FrameBuffers.output
+        else:  # few: the frame's values, those pixels replaced
+            out[lo:hi] = frame_color[lo:hi]
+        if not differ.size:
+            return
+        a = np.take(mine[first:end], differ).view(np.uint8).reshape(-1, 4)
+        b = np.take(theirs[first:end], differ).view(np.uint8).reshape(-1, 4)
+        at = differ // w  # buffer row h - hi + q is output row hi - 1 - q
+        np.subtract(hi - 1, at, out=at)
+        at *= w
+        at += differ % w
+        if differ.size * DIFFER_SHARE <= end - first:
+            out_pixels[at] = np.divide(b, np.float32(255), dtype=np.float32)  # as FrameBuffers.output
+        steps = np.maximum(a, b)
+        steps -= np.minimum(a, b)  # |a - b| without leaving 8 bits
+        error_pixels[at] = np.maximum(np.maximum(steps[:, 0], steps[:, 1]), np.maximum(steps[:, 2], steps[:, 3]))
+
+    run_parts(pool, parts, h, rows, min_part=64, piece=ERROR_ROWS)
     return out, error
 
 
-def sort_error(frame_color: np.ndarray, reference: np.ndarray, hdr: bool) -> np.ndarray:
-    """(H, W) float32: the largest absolute difference over RGBA (8-bit steps on the codes for LDR)."""
+def sort_error(frame_color: np.ndarray, reference: np.ndarray, hdr: bool, pool=None, parts: int = 1) -> np.ndarray:
+    """(H, W) float32: the largest absolute difference over RGBA (8-bit steps on the codes for
+    LDR); ``pool`` / ``parts``: a thread pool to take row ranges on."""
     out = np.empty(frame_color.shape[:2], dtype=np.float32)
-    for y in range(0, frame_color.shape[0], ERROR_ROWS):
-        a, b = frame_color[y:y + ERROR_ROWS], reference[y:y + ERROR_ROWS]
+
+    def rows(lo: int, hi: int) -> None:
+        a, b = frame_color[lo:hi], reference[lo:hi]
         if hdr:
             diff = np.abs(a.astype(np.float64) - b.astype(np.float64))
         else:
             diff = np.abs(np.rint(a * np.float32(255)).astype(np.int16) - np.rint(b * np.float32(255)).astype(np.int16))
-        out[y:y + ERROR_ROWS] = diff.max(axis=-1)
+        out[lo:hi] = diff.max(axis=-1)
+
+    run_parts(pool, parts, out.shape[0], rows, min_part=ERROR_ROWS, piece=ERROR_ROWS)
     return out
 
+
+def _overdraw_and_inverted(collector: FragmentCollector, inverted: np.ndarray, height: int, width: int,
+                           pool=None, parts: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """The analysis's per-pixel images, row 0 = top: overdraw (H, W, 2) uint32 (fragments
+    rasterised, of them not written) from the collector's counts (whose ``unwritten`` becomes the
+    written ones), and the inverted pairs ``inverted`` (H*W,) uint16 as (H, W); row ranges on ``pool``."""
+    overdraw = np.empty((height, width, 2), dtype=np.uint32)
+    flipped = np.empty((height, width), dtype=np.uint16)
+    rasterised = collector.rasterised.reshape(height, width)
+    unwritten = collector.unwritten.reshape(height, width)
+    pixels = inverted.reshape(height, width)
+
+    def rows(lo: int, hi: int) -> None:  # output rows [lo, hi): buffer rows [height - hi, height - lo)
+        y0, y1 = height - hi, height - lo
+        overdraw[lo:hi, :, 0] = rasterised[y0:y1][::-1]
+        np.subtract(rasterised[y0:y1], unwritten[y0:y1], out=unwritten[y0:y1])
+        overdraw[lo:hi, :, 1] = unwritten[y0:y1][::-1]
+        flipped[lo:hi] = pixels[y0:y1][::-1]
+
+    run_parts(pool, parts, height, rows, min_part=ERROR_ROWS, piece=ERROR_ROWS)
+    return overdraw, flipped
 
 
 def unit_fragments(collector: FragmentCollector, threads: int) -> int:
@@ -429,7 +483,7 @@ def analyze(
     opaque_order_free = collector.opaque_order_free()
     inverted = np.zeros(width * height, dtype=np.uint16)
     pair_counts: dict[int, int] = {}
-    step1 = error = None
+    step1 = error = reference = buf = None
     if not any(is_sorted_queue(c.queue) for c in calls):
         reference = frame.color.copy()
         error = np.zeros((height, width), dtype=np.float32)
@@ -466,31 +520,31 @@ def analyze(
         if overlay and (scene.hdr or samples > 1):
             reference = render_scene(scene, resume=(buf, last_sorted), workers=workers, calls=calls,
                                      should_cancel=should_cancel).color
+            buf = None
         elif overlay:  # the Overlay draws' codes, compared
             last = LastBuffers()
             render_scene(scene, resume=(buf, last_sorted), workers=workers, calls=calls,
                          should_cancel=should_cancel, observer=last, output=False)
-            reference, error = reference_from_codes(frame.color, counts.final, last.buffers)
-        elif scene.hdr or samples > 1:  # MSAA: the samples resolved as the frame's
-            reference = buf.output()[0]
-        else:
-            reference, error = reference_from_codes(frame.color, counts.final, buf)
-        del buf
+            buf = last.buffers  # the reference's buffers after the Overlay draws
     final_codes = None
     if keep_step1 and not scene.hdr and samples == 1 and counts.final is not None:
         final_codes = counts.final.color  # the frame's own buffers: not written again
-    overdraw = np.empty((height, width, 2), dtype=np.uint32)
-    overdraw[..., 0] = counts.rasterised.reshape(height, width)[::-1]
-    np.subtract(counts.rasterised, counts.unwritten, out=counts.unwritten)
-    overdraw[..., 1] = counts.unwritten.reshape(height, width)[::-1]
+    # The passes over whole frames that remain: row ranges on both threads (numpy releases the GIL).
+    with ThreadPoolExecutor(max_workers=threads) if threads > 1 else contextlib.nullcontext() as pool:
+        if buf is not None:  # the reference's buffers, not output yet
+            if scene.hdr or samples > 1:  # HDR values; MSAA: the samples resolved as the frame's
+                reference = buf.output(pool, threads, color_only=True)[0]
+            else:  # 8-bit codes, compared
+                reference, error = reference_from_codes(frame.color, counts.final, buf, pool, threads)
+            buf = None
+        overdraw, flipped = _overdraw_and_inverted(counts, inverted, height, width, pool, threads)
+        if error is None:
+            error = sort_error(frame.color, reference, scene.hdr, pool, threads)
     del counts, collector
     inversions = [Inversion(renderers[pair // nrend], renderers[pair % nrend], count)
                   for pair, count in pair_counts.items()]
     inversions.sort(key=lambda inv: (-inv.pixels, inv.front, inv.behind))
-    if error is None:
-        error = sort_error(frame.color, reference, scene.hdr)
     bar(1.0)
-    return Analysis(frame=frame, reference=reference, error=error, overdraw=overdraw,
-                    inverted=inverted.reshape(height, width)[::-1].copy(), inversions=inversions,
-                    hdr=bool(scene.hdr), step1=step1, call_boxes=call_boxes, opaque_order_free=opaque_order_free,
-                    final_codes=final_codes)
+    return Analysis(frame=frame, reference=reference, error=error, overdraw=overdraw, inverted=flipped,
+                    inversions=inversions, hdr=bool(scene.hdr), step1=step1, call_boxes=call_boxes,
+                    opaque_order_free=opaque_order_free, final_codes=final_codes)

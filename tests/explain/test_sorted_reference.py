@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import threading
 import warnings
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
 
 import numpy as np
@@ -474,7 +475,41 @@ def test_the_reference_and_error_from_stored_codes_equal_those_of_the_float_outp
         b.color[:65536, c] = np.roll(second.reshape(-1), 257 * c)
     a.color[65536:] = b.color[65536:] = 77  # four rows where the codes agree
     frame, reference = a.output()[0], b.output()[0]
-    out, error = sr.reference_from_codes(frame, a, b)
-    assert np.array_equal(out, reference) and out.dtype == np.float32
     expected = sr.sort_error(frame, reference, False)
-    assert np.array_equal(error, expected) and float(expected.max()) == 255.0 and not expected[:4].any()
+    assert float(expected.max()) == 255.0 and not expected[:4].any()
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        for parts in (1, 2):  # in one range, and in row ranges on two threads
+            out, error = sr.reference_from_codes(frame, a, b, pool, parts)
+            assert np.array_equal(out, reference) and out.dtype == np.float32
+            assert np.array_equal(error, expected) and error.dtype == np.float32
+            assert np.array_equal(sr.sort_error(frame, reference, False, pool, parts), expected)
+    # Few pixels differ (the frame's values copied, those replaced): every 97th of the first rows.
+    sparse = b.color.copy()
+    sparse[:65536:97] = a.color[:65536:97]
+    sparse[1::97, 2] ^= 1  # their neighbours differ by one step, in one channel
+    a.color[:] = sparse
+    frame = a.output()[0]
+    expected = sr.sort_error(frame, reference, False)
+    assert 0 < np.count_nonzero(expected) * sr.DIFFER_SHARE < expected.size
+    out, error = sr.reference_from_codes(frame, a, b)
+    assert np.array_equal(out, reference) and np.array_equal(error, expected)
+
+
+def test_overdraw_and_inverted_images_in_row_ranges_equal_the_whole_frame_flipped():
+    """The analysis' per-pixel images taken in row ranges on two threads (and in one range) are the
+    counts' rows top first: rasterised, rasterised minus unwritten, inverted pairs."""
+    from types import SimpleNamespace
+
+    rng = np.random.default_rng(5)
+    width, height = 37, 3 * sr.ERROR_ROWS + 5
+    rasterised = rng.integers(0, 1000, width * height).astype(np.uint32)
+    unwritten = (rasterised * rng.random(width * height)).astype(np.uint32)
+    inverted = rng.integers(0, 60000, width * height).astype(np.uint16)
+    for pool in (None, ThreadPoolExecutor(max_workers=2)):
+        counts = SimpleNamespace(rasterised=rasterised.copy(), unwritten=unwritten.copy())
+        overdraw, flipped = sr._overdraw_and_inverted(counts, inverted, height, width, pool, 2)
+        assert np.array_equal(overdraw[..., 0], rasterised.reshape(height, width)[::-1])
+        assert np.array_equal(overdraw[..., 1], (rasterised - unwritten).reshape(height, width)[::-1])
+        assert np.array_equal(flipped, inverted.reshape(height, width)[::-1]) and flipped.dtype == np.uint16
+        if pool is not None:
+            pool.shutdown()

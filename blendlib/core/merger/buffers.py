@@ -334,21 +334,25 @@ class FrameBuffers:
         return stored / 255.0
 
     def output(self, pool=None, parts: int = 1, band: tuple[int, int] | None = None,
-               out: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+               out: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None, color_only: bool = False,
+               ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
         """(color (H, W, 4) float32, depth (H, W) float32, stencil (H, W) uint8), row 0 = top.
 
         ``pool`` / ``parts``: a thread pool to convert row ranges on (numpy's divisions
         release the GIL); the result does not depend on the split. ``band`` (y0, y1): only
         buffer rows ``[y0, y1)`` (from the bottom), so H = y1 - y0. ``out``: three arrays of
         those shapes and dtypes to write into (and return) instead of new ones.
+        ``color_only``: the colour alone (depth and stencil None; ``out`` not taken): the
+        sorted reference's image.
         """
         y0, y1 = (0, self.height) if band is None else band
         h, w = y1 - y0, self.width
+        if color_only and out is not None:
+            raise ValueError("output: color_only takes no out arrays")
         if out is None:
             color = np.empty((h, w, 4), dtype=np.float32)
-            depth = np.empty((h, w), dtype=np.float32)
-            stencil = np.empty((h, w), dtype=np.uint8)
+            depth = None if color_only else np.empty((h, w), dtype=np.float32)
+            stencil = None if color_only else np.empty((h, w), dtype=np.uint8)
         else:
             color, depth, stencil = out
             for array, shape, dtype in zip(out, ((h, w, 4), (h, w), (h, w)), (np.float32, np.float32, np.uint8),
@@ -378,10 +382,12 @@ class FrameBuffers:
                 # (below 2**24) convert to float32 exactly, so casting first and dividing in place
                 # gives the same values, without the mixed-type division's buffered casts.
                 np.divide(color[lo:hi], _FLOAT32_255, out=color[lo:hi])
-            depth[lo:hi] = src_depth[lo:hi]
-            np.divide(depth[lo:hi], _FLOAT32_DEPTH_MAX, out=depth[lo:hi])
+            if depth is not None:
+                depth[lo:hi] = src_depth[lo:hi]
+                np.divide(depth[lo:hi], _FLOAT32_DEPTH_MAX, out=depth[lo:hi])
 
         # Pieces of OUTPUT_ROWS rows: each piece's float32 rows are divided while still in cache.
         run_parts(pool, parts, h, rows, min_part=64, piece=OUTPUT_ROWS)
-        stencil[...] = self.stencil.reshape(n, self.height, w)[0, y0:y1][::-1]
+        if stencil is not None:
+            stencil[...] = self.stencil.reshape(n, self.height, w)[0, y0:y1][::-1]
         return color, depth, stencil
