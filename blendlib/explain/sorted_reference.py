@@ -257,15 +257,14 @@ def reference_from_codes(frame_color: np.ndarray, frame: FrameBuffers, reference
     error = np.empty((h, w), dtype=np.float32)
     mine, theirs = frame.packed(), reference.packed()
     out_pixels, error_pixels = out.reshape(-1, 4), error.reshape(-1)
-    codes = reference.color.reshape(h, w, 4)
 
     def rows(lo: int, hi: int) -> None:  # output rows [lo, hi): buffer rows [h - hi, h - lo)
         first, end = (h - hi) * w, (h - lo) * w
         differ = np.flatnonzero(mine[first:end] != theirs[first:end])
         error[lo:hi] = 0
-        if differ.size * DIFFER_SHARE > end - first:  # many differ: the reference's codes converted
-            out[lo:hi] = codes[h - hi:h - lo][::-1]
-            np.divide(out[lo:hi], np.float32(255), out=out[lo:hi])  # as FrameBuffers.output
+        convert = differ.size * DIFFER_SHARE > end - first
+        if convert:  # many differ: the reference's codes converted
+            reference.output(band=(h - hi, h - lo), out=(out[lo:hi], None, None), color_only=True)
         else:  # few: the frame's values, those pixels replaced
             out[lo:hi] = frame_color[lo:hi]
         if not differ.size:
@@ -276,7 +275,7 @@ def reference_from_codes(frame_color: np.ndarray, frame: FrameBuffers, reference
         np.subtract(hi - 1, at, out=at)
         at *= w
         at += differ % w
-        if differ.size * DIFFER_SHARE <= end - first:
+        if not convert:
             out_pixels[at] = np.divide(b, np.float32(255), dtype=np.float32)  # as FrameBuffers.output
         steps = np.maximum(a, b)
         steps -= np.minimum(a, b)  # |a - b| without leaving 8 bits

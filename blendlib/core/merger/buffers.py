@@ -334,7 +334,7 @@ class FrameBuffers:
         return stored / 255.0
 
     def output(self, pool=None, parts: int = 1, band: tuple[int, int] | None = None,
-               out: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None, color_only: bool = False,
+               out: tuple[np.ndarray, np.ndarray | None, np.ndarray | None] | None = None, color_only: bool = False,
                ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
         """(color (H, W, 4) float32, depth (H, W) float32, stencil (H, W) uint8), row 0 = top.
 
@@ -342,21 +342,23 @@ class FrameBuffers:
         release the GIL); the result does not depend on the split. ``band`` (y0, y1): only
         buffer rows ``[y0, y1)`` (from the bottom), so H = y1 - y0. ``out``: three arrays of
         those shapes and dtypes to write into (and return) instead of new ones.
-        ``color_only``: the colour alone (depth and stencil None; ``out`` not taken): the
+        ``color_only``: the colour alone (depth and stencil None, and None in ``out``): the
         sorted reference's image.
         """
         y0, y1 = (0, self.height) if band is None else band
         h, w = y1 - y0, self.width
-        if color_only and out is not None:
-            raise ValueError("output: color_only takes no out arrays")
         if out is None:
             color = np.empty((h, w, 4), dtype=np.float32)
             depth = None if color_only else np.empty((h, w), dtype=np.float32)
             stencil = None if color_only else np.empty((h, w), dtype=np.uint8)
         else:
             color, depth, stencil = out
+            if color_only and (depth is not None or stencil is not None):
+                raise ValueError("output: color_only writes no depth or stencil (None in out)")
             for array, shape, dtype in zip(out, ((h, w, 4), (h, w), (h, w)), (np.float32, np.float32, np.uint8),
                                            strict=True):
+                if array is None and color_only:
+                    continue
                 if array.shape != shape or array.dtype != dtype:
                     raise ValueError(f"out array {array.dtype} {array.shape} is not {np.dtype(dtype)} {shape}")
         n = self.samples
