@@ -95,10 +95,14 @@ def analyze(scene=None, *, advice: bool = True, max_advice: int = 5, **kwargs):
     VRM Add-on's materials (``settings``: :func:`blendlib.blender.vrm_addon.advice_settings`, read
     from the open file for a ``bpy.types.Scene``; pass it with a DrawScene). Other keyword
     arguments go to :func:`blendlib.explain.sorted_reference.analyze` (``progress``,
-    ``should_cancel``, ``workers``)."""
+    ``should_cancel``, ``workers``) and to :func:`blendlib.explain.advice.advise`
+    (``measure_map``; default: the candidates shared with a forked copy of this process where
+    that pays, :class:`blendlib.runtime.forked.ForkedMap`)."""
     from .core.scene import DrawScene
     from .explain.advice import analyze_and_advise
+    from .runtime.forked import ForkedMap
 
+    kwargs.setdefault("measure_map", ForkedMap())
     if not isinstance(scene, DrawScene):
         from . import blender
         from .blender import vrm_addon

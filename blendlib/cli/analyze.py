@@ -99,10 +99,11 @@ def run(args: argparse.Namespace) -> int:
     from ..core.records import RenderCancelled
     from ..core.scene import SceneError
     from ..explain.advice import analyze_and_advise
+    from ..runtime.forked import ForkedMap
 
     draw = load_draw_scene(args)
     try:
-        result = analyze_and_advise(draw, max_advice=args.advice, settings=advice_settings())
+        result = analyze_and_advise(draw, max_advice=args.advice, settings=advice_settings(), measure_map=ForkedMap())
     except SceneError as exc:
         raise CliError(str(exc)) from None
     except RenderCancelled:

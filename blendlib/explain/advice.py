@@ -34,7 +34,10 @@ meet, and where those of each advised pair meet; elsewhere every pixel sees the 
 in the same order. The pairs' inversions are counted as that render goes
 (:class:`_PairWatch`), and the differing pixels against the original reference, computed again
 only where the colour changed. The numbers equal those of a full analysis of the changed scene
-(tests/explain/test_advice.py checks it on random scenes and on scenes in strips).
+(tests/explain/test_advice.py checks it on random scenes and on scenes in strips). The distinct
+draw lists may be measured two at a time, in this process and a forked copy of it
+(``measure_map``, :class:`MeasureMap`: the explaining tools own no processes, their callers
+pass :class:`blendlib.runtime.forked.ForkedMap`); the figures are the same.
 
 Advice sits on top of the analysis (:mod:`.sorted_reference` knows nothing of it):
 :func:`analyze_and_advise` runs one and then the other, for the callers that want both
@@ -328,6 +331,19 @@ def _overlap(a: tuple[int, int, int, int] | None, b: tuple[int, int, int, int] |
     return (y0, y1) if y0 < y1 and max(a[2], b[2]) < min(a[3], b[3]) else None
 
 
+class MeasureMap(Protocol):
+    """Runs the advice's measurements, ``[fn(item, processes) for item in items]``, perhaps
+    several at once in processes of their own (:class:`blendlib.runtime.forked.ForkedMap`),
+    ``processes`` telling each item how many share the machine while it runs; the results must
+    be the same as in order here. ``processes`` (attribute): at most how many share the items."""
+
+    processes: int
+
+    def __call__(self, fn: Callable[[Any, int], Any], items: list,
+                 should_cancel: Callable[[], bool] | None = None,
+                 on_done: Callable[[int], None] | None = None) -> list: ...
+
+
 class _Measurer:
     """Measures changed scenes against an analysis (module doc): per distinct draw list, the
     inverted pixels of every pair advised and the pixels differing from the original reference."""
@@ -408,8 +424,9 @@ class _Measurer:
                      should_cancel=self.should_cancel, calls=calls, output=False)
         return snapshot.buffers if snapshot.buffers is not None else _cleared(scene)
 
-    def measure(self, changed: DrawScene) -> tuple[dict[tuple[Key, Key], int], int]:
-        """(inverted pixels per advised pair, pixels differing from the original reference)."""
+    def measure(self, changed: DrawScene, workers: int | None = None) -> tuple[dict[tuple[Key, Key], int], int]:
+        """(inverted pixels per advised pair, pixels differing from the original reference);
+        ``workers``: the render's threads (default the measurer's)."""
         if self.should_cancel is not None and self.should_cancel():
             raise RenderCancelled("render cancelled")
         calls, signature = self._draw_list(changed)
@@ -435,7 +452,7 @@ class _Measurer:
                 self.prefix_step1[prefix] = self._opaque_drawn(changed, calls)
             resume = (self.prefix_step1[prefix], last)
         codes = self.analysis.final_codes is not None  # the changed pixels found by their codes
-        frame = render_scene(changed, resume=resume, observer=watch, workers=self.workers,
+        frame = render_scene(changed, resume=resume, observer=watch, workers=workers or self.workers,
                              should_cancel=self.should_cancel, calls=calls, band=band, output=not codes)
         if codes:  # with no draw call after the resumed ones, the frame is the resumed buffers
             buffers = watch.buffers if watch.buffers is not None else resume[0]
@@ -445,6 +462,37 @@ class _Measurer:
         result = watch.counts(), differing
         self.cache[signature] = result
         return result
+
+    def measure_all(self, scenes: list[DrawScene], measure_map: MeasureMap | None,
+                    progress: Callable[[float], None] | None = None) -> None:
+        """Measure the distinct draw lists of ``scenes`` that need a render through
+        ``measure_map`` (:class:`MeasureMap`; None: one after the other as they are asked for),
+        their results cached for :meth:`measure`. The opaque queues several of them share are
+        drawn first, here, so no process draws one twice; a measurement that shares the
+        machine with another process draws with one thread. ``progress``: the fraction of them
+        measured."""
+        if measure_map is None or getattr(measure_map, "processes", 1) < 2:
+            return
+        todo: dict[tuple, DrawScene] = {}
+        for changed in scenes:
+            calls, signature = self._draw_list(changed)
+            if signature != self.signature and signature not in self.cache:
+                todo.setdefault(signature, changed)
+        if len(todo) < 2:
+            return
+        for changed in todo.values():
+            calls, signature = self._draw_list(changed)
+            prefix = self._opaque_prefix(signature, calls)
+            last = _last_opaque(calls)
+            if self._opaque_kept(prefix):
+                if last:
+                    self.step1()
+            elif last and self.prefix_counts.get(prefix, 0) > 1 and prefix not in self.prefix_step1:
+                self.prefix_step1[prefix] = self._opaque_drawn(changed, calls)
+        results = measure_map(lambda changed, processes: self.measure(changed, 1 if processes > 1 else None),
+                              list(todo.values()), self.should_cancel,
+                              None if progress is None else (lambda n: progress(n / len(todo))))
+        self.cache.update(zip(todo, results, strict=True))
 
     def as_analysed(self) -> tuple[dict[tuple[Key, Key], int], int]:
         """The measurement of a frame equal to the analysed one: the analysis's own figures."""
@@ -567,11 +615,14 @@ def _cleared(scene: DrawScene) -> FrameBuffers:
 def advise(scene: DrawScene, analysis: Analysis, limit: int = 5, workers: int | None = None, *,
            progress: Callable[[float], None] | None = None,
            should_cancel: Callable[[], bool] | None = None,
-           settings: Mapping[str, MaterialSettings] | None = None) -> list[dict]:
+           settings: Mapping[str, MaterialSettings] | None = None,
+           measure_map: MeasureMap | None = None) -> list[dict]:
     """Advice items for the ``limit`` largest inversion pairs (fields of docs/json.md), each checked.
     ``progress``/``should_cancel`` as for :func:`~.sorted_reference.analyze`; ``settings``: per
     material name, the settings its state comes from (:class:`MaterialSettings`; a material there
-    is advised in their terms, a self-overlap by its settings that write depth or test alpha)."""
+    is advised in their terms, a self-overlap by its settings that write depth or test alpha);
+    ``measure_map``: runs the candidates' distinct measurements (:class:`MeasureMap`; None: one
+    after the other here, each with ``workers`` threads)."""
     settings = settings or {}
     bar = Progress(progress)
     inversions = analysis.inversions[:limit]
@@ -585,8 +636,10 @@ def advise(scene: DrawScene, analysis: Analysis, limit: int = 5, workers: int | 
         else:
             plans.append((inv, _pair_candidates(scene, front, _renderer(scene, inv.behind), settings)))
     measurer = _Measurer(scene, analysis, [(inv.front, inv.behind) for inv in inversions], workers, should_cancel)
-    measurer.expect([changed for _, candidates in plans for _, changed, _ in candidates])
+    changed_scenes = [changed for _, candidates in plans for _, changed, _ in candidates]
+    measurer.expect(changed_scenes)
     total = max(1, sum(len(candidates) for _, candidates in plans))
+    measurer.measure_all(changed_scenes, measure_map, progress=bar.part(0.0, 0.95))
     done = 0
     items = []
     before_differing = measurer.differing_before
@@ -646,19 +699,21 @@ def analyze_and_advise(
     progress: Callable[[float], None] | None = None,
     should_cancel: Callable[[], bool] | None = None,
     settings: Mapping[str, MaterialSettings] | None = None,
+    measure_map: MeasureMap | None = None,
     **kwargs,
 ) -> Analysis:
     """:func:`~.sorted_reference.analyze` of ``scene``, its ``advice`` filled with a checked fix
     for each of the ``max_advice`` largest inversion pairs (:func:`advise`; 0: none). One
-    ``progress`` fraction runs over both; ``settings`` as for :func:`advise`. Other keyword arguments
-    go to ``analyze`` (``memory``, ``memory_limit``). Raises as ``analyze`` does."""
+    ``progress`` fraction runs over both; ``settings`` and ``measure_map`` as for :func:`advise`.
+    Other keyword arguments go to ``analyze`` (``memory``, ``memory_limit``). Raises as
+    ``analyze`` does."""
     bar = Progress(progress)
     share = 1.0 if max_advice <= 0 else 1.0 / (1.0 + ADVICE_WEIGHT * max_advice)
     analysis = analyze(scene, workers=workers, progress=bar.part(0.0, share), should_cancel=should_cancel,
                        keep_step1=max_advice > 0, **kwargs)
     if max_advice > 0 and analysis.inversions:
         analysis.advice = advise(scene, analysis, limit=max_advice, workers=workers, progress=bar.part(share, 1.0),
-                                 should_cancel=should_cancel, settings=settings)
+                                 should_cancel=should_cancel, settings=settings, measure_map=measure_map)
     analysis.step1 = None  # the advice's: not part of the result
     bar(1.0)
     return analysis

@@ -4,6 +4,7 @@ Advice is computed on top of an analysis (blendlib.explain.advice.analyze_and_ad
 
 from __future__ import annotations
 
+import os
 from dataclasses import replace
 
 import numpy as np
@@ -14,6 +15,7 @@ from blendlib.core.vocabulary import Cull, Pass, Queue
 from blendlib.explain import advice
 from blendlib.explain.advice import analyze_and_advise, with_prepass, with_queue_offset
 from blendlib.explain.sorted_reference import analyze, sort_error
+from blendlib.runtime.forked import ForkedMap
 from tests.explain.test_sorted_reference import BLEND, _two_quads, layered_scene, transparent
 from tests.reference import scenes as sc
 from tests.reference.random_scenes import seeded_scene
@@ -261,3 +263,39 @@ def test_a_change_that_leaves_nothing_after_the_opaque_queue_measures_as_a_full_
     measurer.expect([opaque, opaque])
     assert measurer.measure(opaque) == _full_measure(original, pairs)(opaque)
     assert measurer.prefix_step1  # drawn once, resumed from
+
+
+class _SpyMap(ForkedMap):
+    """A ForkedMap that notes which process measured each draw list and how many shared the machine."""
+
+    def __call__(self, fn, items, should_cancel=None, on_done=None):
+        marked = super().__call__(lambda item, processes: (fn(item, processes), os.getpid(), processes),
+                                  items, should_cancel, on_done)
+        self.pids = [pid for _, pid, _ in marked]
+        self.shares = [processes for _, _, processes in marked]
+        return [result for result, _, _ in marked]
+
+
+@pytest.mark.parametrize("seed", [0, 2])
+def test_advice_measured_in_two_processes_equals_advice_measured_here(monkeypatch, seed):
+    """The distinct draw lists measured in this process and a forked one give the same advice;
+    those measured while both run draw with one thread."""
+    scene = layered_scene(seed)
+    here = analyze_and_advise(scene)
+    threads = []  # the measuring renders of this process, their threads
+    render = advice.render_scene
+
+    def noted(*args, observer=None, workers=None, **kwargs):
+        if isinstance(observer, advice._PairWatch):
+            threads.append(workers)
+        return render(*args, observer=observer, workers=workers, **kwargs)
+
+    monkeypatch.setattr(advice, "render_scene", noted)
+    spy = _SpyMap(2, min_work_s=0.0)
+    shared = analyze_and_advise(scene, measure_map=spy)
+    assert shared.advice == here.advice
+    assert len(spy.pids) >= 3 and os.getpid() in spy.pids and len(set(spy.pids)) == 2
+    assert spy.shares[0] == 1 and set(spy.shares[1:]) == {2}
+    assert threads[0] is None  # the first one here, alone: the measurer's threads
+    assert threads[1:] and set(threads[1:]) == {1}  # this process's others, while the child runs
+    assert len(threads) < len(spy.pids)  # the child measured the rest
