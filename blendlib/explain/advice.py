@@ -571,11 +571,14 @@ class _Measurer:
         """The differing pixels of the analysed frame with the colours ``color`` (K, 4) float32
         at pixels ``at`` (K,) (top row first) instead of its own."""
         original = self.analysis
-        flat = (-1, 1, 4)
-        now = sort_error(color.reshape(flat), np.take(original.reference.reshape(flat), at, axis=0), original.hdr)
+        reference = np.take(original.reference.reshape(-1, 4), at, axis=0)
+        now = 0
+        # Each piece as one row: as (K, 1) pixels, sort_error would take them 256 rows at a time.
+        for k in range(0, at.size, ERROR_PIXELS):
+            piece = sort_error(color[None, k:k + ERROR_PIXELS], reference[None, k:k + ERROR_PIXELS], original.hdr)
+            now += int(np.count_nonzero(piece > original.step))
         before = original.error.reshape(-1)[at]
-        return (self.differing_before - int(np.count_nonzero(before > original.step))
-                + int(np.count_nonzero(now > original.step)))
+        return self.differing_before - int(np.count_nonzero(before > original.step)) + now
 
     def differing(self, color: np.ndarray, top: int = 0) -> int:
         """Pixels of a changed scene's frame whose sort error exceeds one step, given its rows
@@ -598,6 +601,11 @@ class _Measurer:
         if changed.size == 0:
             return self.differing_before
         return self._differing_at(np.take(color.reshape(-1, 4), changed, axis=0), changed + top * width)
+
+
+#: Changed pixels whose sort error :meth:`_Measurer.differing` computes in one piece (bounds the
+#: temporaries as ``sort_error``'s row ranges do on a frame: 256 rows of 1024 pixels).
+ERROR_PIXELS = ERROR_ROWS * 1024
 
 
 def _last_opaque(calls: list[DrawCall]) -> int:
