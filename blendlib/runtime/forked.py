@@ -137,7 +137,10 @@ def _serve_child(run: Callable[[int, int], None], done: dict[int, Any], queue: i
     cancel; an item that raises ends the child, and the parent computes it again."""
     status = 1
     try:
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        try:
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+        except ValueError:  # not the interpreter's main thread after all: Ctrl+C's default then
+            pass
         inherited = set(done)
         while (index := _take(queue)) is not None:
             run(index, 2)

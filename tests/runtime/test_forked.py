@@ -5,6 +5,7 @@ no process behind and its items are computed here."""
 from __future__ import annotations
 
 import os
+import threading
 import time
 
 import pytest
@@ -105,4 +106,15 @@ def test_a_cancel_stops_waiting_for_the_child_and_kills_it():
     with pytest.raises(Cancelled):
         ForkedMap(2, min_work_s=0.0)(fn, list(range(6)), should_cancel)
     assert time.perf_counter() - start < 5.0
+    assert _no_children()
+
+
+def test_a_map_called_from_another_thread_shares_too():
+    """The add-on runs analyses on a job thread of Blender's: the child forked from it works."""
+    out = {}
+    worker = threading.Thread(target=lambda: out.update(r=ForkedMap(2, min_work_s=0.0)(_slow_square, list(range(10)))))
+    worker.start()
+    worker.join(30)
+    assert [r[0] for r in out["r"]] == [k * k for k in range(10)]
+    assert len({r[1] for r in out["r"]}) == 2
     assert _no_children()
