@@ -39,6 +39,11 @@ draw lists may be measured two at a time, in this process and a forked copy of i
 (``measure_map``, :class:`MeasureMap`: the explaining tools own no processes, their callers
 pass :class:`blendlib.runtime.forked.ForkedMap`); the figures are the same.
 
+One concern in one module, over 700 lines: the candidates and their measurement stay side by
+side, because what a measurement may skip (the opaque queue, the rows outside its band) holds
+only for the kinds of change the candidates make — a new kind of candidate must be checked
+against :class:`_Measurer`'s assumptions in the same edit.
+
 Advice sits on top of the analysis (:mod:`.sorted_reference` knows nothing of it):
 :func:`analyze_and_advise` runs one and then the other, for the callers that want both
 (``blendlib.analyze``, ``python -m blendlib analyze``, the add-on's Analyze button).
@@ -443,14 +448,7 @@ class _Measurer:
             return self.cache[signature]
         rows = (0, height) if band is None else band
         watch = _PairWatch(self.pairs, calls, width * (rows[1] - rows[0]), int(changed.msaa), rows[0] * width)
-        resume = None
-        last = _last_opaque(calls)
-        if kept:  # its opaque queue leaves the analysed step-1 buffers
-            resume = (self.step1(), last) if last else None
-        elif last and self.prefix_counts.get(prefix, 0) > 1:
-            if prefix not in self.prefix_step1:
-                self.prefix_step1[prefix] = self._opaque_drawn(changed, calls)
-            resume = (self.prefix_step1[prefix], last)
+        resume = self._resume(changed, calls, prefix, kept)
         codes = self.analysis.final_codes is not None  # the changed pixels found by their codes
         frame = render_scene(changed, resume=resume, observer=watch, workers=workers or self.workers,
                              should_cancel=self.should_cancel, calls=calls, band=band, output=not codes)
@@ -463,6 +461,23 @@ class _Measurer:
         self.cache[signature] = result
         return result
 
+    def _resume(self, changed: DrawScene, calls: list[DrawCall], prefix: tuple,
+                kept: bool) -> tuple[FrameBuffers, int] | None:
+        """Where a changed scene's render resumes (``render_scene``'s ``resume``): the analysed
+        step-1 buffers when its opaque queue ``prefix`` leaves them (``kept``), the buffers of
+        a reordered opaque queue that several candidates share (drawn once), else None (drawn
+        from the start)."""
+        last = _last_opaque(calls)
+        if not last:
+            return None
+        if kept:
+            return self.step1(), last
+        if self.prefix_counts.get(prefix, 0) > 1:
+            if prefix not in self.prefix_step1:
+                self.prefix_step1[prefix] = self._opaque_drawn(changed, calls)
+            return self.prefix_step1[prefix], last
+        return None
+
     def measure_all(self, scenes: list[DrawScene], measure_map: MeasureMap | None,
                     progress: Callable[[float], None] | None = None) -> None:
         """Measure the distinct draw lists of ``scenes`` that need a render through
@@ -471,7 +486,7 @@ class _Measurer:
         drawn first, here, so no process draws one twice; a measurement that shares the
         machine with another process draws with one thread. ``progress``: the fraction of them
         measured."""
-        if measure_map is None or getattr(measure_map, "processes", 1) < 2:
+        if measure_map is None or measure_map.processes < 2:
             return
         todo: dict[tuple, DrawScene] = {}
         for changed in scenes:
@@ -480,15 +495,10 @@ class _Measurer:
                 todo.setdefault(signature, changed)
         if len(todo) < 2:
             return
-        for changed in todo.values():
+        for changed in todo.values():  # the buffers they resume from, drawn here before they split
             calls, signature = self._draw_list(changed)
             prefix = self._opaque_prefix(signature, calls)
-            last = _last_opaque(calls)
-            if self._opaque_kept(prefix):
-                if last:
-                    self.step1()
-            elif last and self.prefix_counts.get(prefix, 0) > 1 and prefix not in self.prefix_step1:
-                self.prefix_step1[prefix] = self._opaque_drawn(changed, calls)
+            self._resume(changed, calls, prefix, self._opaque_kept(prefix))
         results = measure_map(lambda changed, processes: self.measure(changed, 1 if processes > 1 else None),
                               list(todo.values()), self.should_cancel,
                               None if progress is None else (lambda n: progress(n / len(todo))))

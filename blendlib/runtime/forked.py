@@ -20,8 +20,8 @@ cancel, an error or a child that dies, the child is killed and reaped, and items
 but did not answer are computed here — the results are the same either way, only slower.
 
 Where forking is not safe or not possible (not Linux: macOS's system frameworks are not
-fork-safe, Windows has no fork; one core; fewer than two items), ``fn`` runs over the items
-here, in order.
+fork-safe, Windows has no fork; one core), with fewer than three items, or where the items
+after the first would be quick, ``fn`` runs over the items here, in order.
 """
 
 from __future__ import annotations
@@ -141,10 +141,11 @@ def _serve_child(run: Callable[[int, int], None], done: dict[int, Any], queue: i
             signal.signal(signal.SIGINT, signal.SIG_IGN)
         except ValueError:  # not the interpreter's main thread after all: Ctrl+C's default then
             pass
-        inherited = set(done)
+        taken = []
         while (index := _take(queue)) is not None:
             run(index, 2)
-        data = pickle.dumps({k: v for k, v in done.items() if k not in inherited}, protocol=pickle.HIGHEST_PROTOCOL)
+            taken.append(index)
+        data = pickle.dumps({k: done[k] for k in taken}, protocol=pickle.HIGHEST_PROTOCOL)
         view = memoryview(_LENGTH.pack(len(data)) + data)
         while view:
             view = view[os.write(out, view):]
@@ -156,9 +157,9 @@ def _serve_child(run: Callable[[int, int], None], done: dict[int, Any], queue: i
 
 
 def _child_results(pipe: int, should_cancel: Callable[[], bool] | None) -> dict[int, Any]:
-    """The child's ``{index: result}``, or {} if it ended without answering. Raises what
-    ``should_cancel`` leads to: the caller's ``fn`` raises on cancel, so this returns {} then and
-    the caller's next ``fn`` raises."""
+    """The child's ``{index: result}``, or {} if it ended without answering or ``should_cancel``
+    said so while waiting (the caller then computes the missing items with its ``fn``, which
+    raises on cancel)."""
     chunks = []
     while True:
         if should_cancel is not None and should_cancel():
