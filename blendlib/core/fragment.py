@@ -344,7 +344,7 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
 
             lod = None
             if state.mips is not None and uv is not None:  # one LOD per 2x2 quad (§7, "Mipmaps")
-                lod = mips.quad_lod(setup, frags.tri[at], frags.pix[at], state.width, material, texels.shape[:2])
+                lod = mips.sampling_lod(setup, frags.tri[at], frags.pix[at], state.width, material, texels.shape[:2])
             skip = None  # (M,) bool: fragments not shaded (dropped, or observed and only their alpha computed)
             position = lit_position = None  # (M, 3) world positions; (L, 3) those of the lit ones (below)
             known = None

@@ -12,6 +12,9 @@ fragment's 2×2 pixel quad, and sampling through the chain with the three filter
   pixel centres (covered or not: helper pixels), ``λ = 0.5 × log2(ρ²)`` with
   ``ρ² = max((du/dx·w)² + (dv/dx·h)², (du/dy·w)² + (dv/dy·h)²)``. llvmpipe replaces log2 by a
   piecewise-linear ``fast_log2`` (exact at powers of two): its LOD differs from this by up to 0.043.
+- :func:`sampling_lod`: :func:`quad_lod` where the level depends on it; triangles whose every quad
+  certainly samples level 0 (a bound on ρ² over the triangle's quads, :func:`_level_zero_runs`)
+  take λ = −inf instead, which samples the same level: magnified textures skip the per-quad work.
 - :func:`sample_mipmapped`: ``Point`` = GL_NEAREST_MIPMAP_NEAREST, ``Bilinear`` =
   GL_LINEAR_MIPMAP_NEAREST (the nearest level, sampled bilinearly), ``Trilinear`` =
   GL_LINEAR_MIPMAP_LINEAR (two levels blended by the LOD's fraction).
@@ -210,10 +213,39 @@ def quad_lod(setup: TriangleSetup, tri: np.ndarray, pix: np.ndarray, width: int,
     ``pix`` (N,) int64 (``y * width + x``, y up) of a texture whose level 0 is ``size`` = (h, w)
     texels (module docstring; λ = −inf where the coordinates do not change, NaN where they are not
     finite)."""
-    # Fragments of one triangle in one 2x2 quad share λ: a row's neighbours (x0, x0 + 1) come one
-    # after the other, so each run of equal (triangle, quad) is computed once and expanded.
+    x, y = pix % width, pix // width
+    return _quad_lod_runs(setup, tri, x & ~1, y & ~1, width, material, size)
+
+
+def sampling_lod(setup: TriangleSetup, tri: np.ndarray, pix: np.ndarray, width: int, material: Material,
+                 size: tuple[int, int]) -> np.ndarray:
+    """:func:`quad_lod` where it decides the sampled level, −inf for the fragments of triangles
+    whose every quad here certainly samples level 0 (:func:`_level_zero_runs`): the same level,
+    so :func:`sample_mipmapped` gives the same samples (magnified textures skip the per-quad LOD)."""
     x, y = pix % width, pix // width
     x0, y0 = x & ~1, y & ~1
+    if tri.size >= BOUND_MIN_FRAGMENTS:
+        starts = np.flatnonzero(tri[1:] != tri[:-1]) + 1  # runs of one triangle
+        starts = np.concatenate([np.zeros(1, dtype=np.int64), starts])
+        proved = _level_zero_runs(setup, tri.take(starts), np.minimum.reduceat(x0, starts),
+                                  np.maximum.reduceat(x0, starts), np.minimum.reduceat(y0, starts),
+                                  np.maximum.reduceat(y0, starts), material, size)
+        if proved.any():
+            lod = np.full(tri.size, -np.inf, dtype=np.float64)
+            if proved.all():
+                return lod
+            lengths = np.diff(np.append(starts, tri.size))
+            rest = np.flatnonzero(~proved.repeat(lengths))
+            lod[rest] = _quad_lod_runs(setup, tri[rest], x0[rest], y0[rest], width, material, size)
+            return lod
+    return _quad_lod_runs(setup, tri, x0, y0, width, material, size)
+
+
+def _quad_lod_runs(setup: TriangleSetup, tri: np.ndarray, x0: np.ndarray, y0: np.ndarray, width: int,
+                   material: Material, size: tuple[int, int]) -> np.ndarray:
+    """:func:`_quad_lods` of fragments' (triangle, quad) pairs ``tri``, ``x0``, ``y0`` (N,) int64."""
+    # Fragments of one triangle in one 2x2 quad share λ: a row's neighbours (x0, x0 + 1) come one
+    # after the other, so each run of equal (triangle, quad) is computed once and expanded.
     first = np.ones(tri.size, dtype=bool)
     if tri.size > 1:
         same = tri[1:] == tri[:-1]
@@ -225,6 +257,102 @@ def quad_lod(setup: TriangleSetup, tri: np.ndarray, pix: np.ndarray, width: int,
         at = np.flatnonzero(first)
         return _quad_lods(setup, tri[at], x0[at], y0[at], width, material, size)[runs]
     return _quad_lods(setup, tri, x0, y0, width, material, size)
+
+
+#: Fewer fragments than this skip the per-triangle bound of :func:`_level_zero_runs`.
+BOUND_MIN_FRAGMENTS = 256
+#: The bound must stay within this share of the threshold: the rest covers rounding (see below).
+BOUND_MARGIN = 0.9
+#: Relative allowance for the rounding of the bound's own arithmetic (each term is a few products).
+BOUND_ROUNDING = 1e-9
+#: Texture coordinates times the texture size up to this keep the λ's own rounding negligible.
+BOUND_MAGNITUDE = float(1 << 20)
+
+
+def _level_zero_runs(setup: TriangleSetup, tri: np.ndarray, x_lo: np.ndarray, x_hi: np.ndarray,
+                     y_lo: np.ndarray, y_hi: np.ndarray, material: Material,
+                     size: tuple[int, int]) -> np.ndarray:
+    """(R,) bool: runs of fragments, of setup triangles ``tri`` (R,) int64 whose quads' lower-left
+    pixels lie within ``[x_lo, x_hi] × [y_lo, y_hi]`` ((R,) int64 each), that certainly sample
+    level 0 (λ ≤ 0 for ``Trilinear``, λ ≤ 0.5 otherwise), so their λ need not be computed.
+
+    A coordinate is ``u = N / D`` with N and D affine in the pixel centre P (§6: the edge
+    functions weighted by 1/w, and by the corner values for N). A step e of one pixel then changes
+    it by ``(Nₑ·D(P) − N(P)·Dₑ) / (D(P)·D(P + e))``: the numerator is affine in P (its terms in the
+    step's own direction cancel), so its largest size over the box of the quads' pixels (the box
+    grown by the quads' second row and column) is at a corner, and so is D's smallest value, which
+    must be positive. The bound on ρ² that follows must stay under BOUND_MARGIN of the threshold
+    after an allowance for its own rounding, and the coordinates must stay small enough
+    (BOUND_MAGNITUDE) that the computed λ's rounding (relative 1e-15 of them) cannot cross it."""
+    h, w = size
+    trilinear = material.main_tex_filter is TextureFilter.Trilinear
+    limit = BOUND_MARGIN * (1.0 if trilinear else 2.0)
+    X = gather(setup.X, tri, axis=0).astype(np.float64)
+    Y = gather(setup.Y, tri, axis=0).astype(np.float64)
+    sign = np.where(gather(setup.area2, tri) < 0, -1.0, 1.0)
+    iw = gather(setup.iw, tri, axis=0) * sign[:, None]
+    corners = setup.uvs_of(setup.src[tri])  # (R, 3, 2)
+    if setup.weights is not None:
+        clipped = np.flatnonzero(setup.clipped[tri])
+        if clipped.size:
+            corners = corners.copy()
+            corners[clipped] = np.einsum("rkj,rjc->rkc", setup.weights[tri[clipped]], corners[clipped])
+    tiling = np.abs(np.asarray(material.main_tex_tiling, dtype=np.float64)) * np.array([w, h], dtype=np.float64)
+    offset = np.asarray(material.main_tex_offset, dtype=np.float64)
+    lo_x = x_lo.astype(np.float64) * SUBPIXEL + HALF
+    hi_x = (x_hi + 1).astype(np.float64) * SUBPIXEL + HALF
+    lo_y = y_lo.astype(np.float64) * SUBPIXEL + HALF
+    hi_y = (y_hi + 1).astype(np.float64) * SUBPIXEL + HALF
+    cx, cy = 0.5 * (lo_x + hi_x), 0.5 * (lo_y + hi_y)
+    hx, hy = 0.5 * (hi_x - lo_x), 0.5 * (hi_y - lo_y)
+    # Per edge k: E_k(centre + d) = e0 + ea·dx + eb·dy, each weighted by 1/w (D's terms).
+    d0 = np.zeros_like(cx)
+    da = np.zeros_like(cx)
+    db = np.zeros_like(cx)
+    d0_abs, da_abs, db_abs = np.zeros_like(cx), np.zeros_like(cx), np.zeros_like(cx)
+    terms = []
+    for k in range(3):
+        p, q = (k + 1) % 3, (k + 2) % 3
+        ex, ey = X[:, q] - X[:, p], Y[:, q] - Y[:, p]
+        e0 = (ex * (cy - Y[:, p]) - ey * (cx - X[:, p])) * iw[:, k]
+        ea, eb = -ey * iw[:, k], ex * iw[:, k]
+        terms.append((e0, ea, eb))
+        d0 += e0
+        da += ea
+        db += eb
+        d0_abs += np.abs(e0)
+        da_abs += np.abs(ea)
+        db_abs += np.abs(eb)
+    d_min = d0 - np.abs(da) * hx - np.abs(db) * hy
+    d_min -= BOUND_ROUNDING * (d0_abs + da_abs * hx + db_abs * hy)
+    rho_x = np.zeros_like(cx)  # bounds on ρ² times d_min⁴, per step direction
+    rho_y = np.zeros_like(cx)
+    big = np.zeros(cx.size, dtype=bool)
+    for c in range(2):
+        value = corners[:, :, c]
+        texture = np.abs(value * float(material.main_tex_tiling[c]) + offset[c]) * float(size[1 - c])
+        big |= texture.max(axis=1) > BOUND_MAGNITUDE
+        n0 = sum(e0 * value[:, k] for k, (e0, _, _) in enumerate(terms))
+        na = sum(ea * value[:, k] for k, (_, ea, _) in enumerate(terms))
+        nb = sum(eb * value[:, k] for k, (_, _, eb) in enumerate(terms))
+        n0_abs = sum(np.abs(e0 * value[:, k]) for k, (e0, _, _) in enumerate(terms))
+        na_abs = sum(np.abs(ea * value[:, k]) for k, (_, ea, _) in enumerate(terms))
+        nb_abs = sum(np.abs(eb * value[:, k]) for k, (_, _, eb) in enumerate(terms))
+        cross = np.abs(na * db - da * nb)
+        cross_abs = na_abs * db_abs + da_abs * nb_abs
+        along_x = np.abs(na * d0 - da * n0) + cross * hy
+        along_x += BOUND_ROUNDING * (na_abs * d0_abs + da_abs * n0_abs + cross_abs * hy)
+        along_y = np.abs(nb * d0 - db * n0) + cross * hx
+        along_y += BOUND_ROUNDING * (nb_abs * d0_abs + db_abs * n0_abs + cross_abs * hx)
+        rho_x += (along_x * (SUBPIXEL * tiling[c])) ** 2
+        rho_y += (along_y * (SUBPIXEL * tiling[c])) ** 2
+    with np.errstate(over="ignore", invalid="ignore"):
+        rho = np.maximum(rho_x, rho_y)
+        proved = rho <= limit * d_min ** 4
+    proved &= np.isfinite(rho)  # (an overflow to inf on both sides would compare true)
+    proved &= d_min > 0.0
+    proved &= ~big
+    return proved
 
 
 #: Fewer quads than this are computed as they come (finding the shared ones costs more).

@@ -752,6 +752,79 @@ def test_quad_lod_computes_a_quad_met_again_once_and_gives_every_fragment_its_qu
     assert quads <= sum(computed) <= quads + quads // 8, (quads, computed, frags.count)
 
 
+def _lod_threshold(filt: TextureFilter) -> float:
+    """The largest λ that samples level 0 (GL 4.5 §8.14.3): 0 for LINEAR_MIPMAP_LINEAR (λ > 0
+    minifies), 0.5 for the nearest-level filters (level ceil(λ + ½) − 1 from λ > ½)."""
+    return 0.0 if filt is TextureFilter.Trilinear else 0.5
+
+
+def _fragments_of(scene, r):
+    from blendlib.core import raster, vertex
+
+    w, h = scene.camera.width, scene.camera.height
+    setup = vertex.setup_triangles(r.mesh, r.matrix_world, scene.camera)
+    rows = raster.coverage_rows(setup, vertex.cull_select(setup, Cull.Off), w, h)
+    return setup, raster.rasterize_rows(rows, 0, rows.count, w)
+
+
+def _assert_skips_only_level_zero(setup, frags, width, material, size):
+    """``sampling_lod`` equals ``quad_lod`` but where it gives −inf, and there ``quad_lod`` samples
+    level 0; returns the number of fragments it skipped."""
+    exact = mips.quad_lod(setup, frags.tri, frags.pix, width, material, size)
+    got = mips.sampling_lod(setup, frags.tri, frags.pix, width, material, size)
+    same = (got == exact) | (np.isnan(got) & np.isnan(exact))
+    skipped = ~same
+    assert np.all(got[skipped] == -np.inf)
+    worst = exact[skipped].max(initial=-np.inf)
+    assert worst <= _lod_threshold(material.main_tex_filter), worst
+    return int(skipped.sum()), exact
+
+
+@pytest.mark.parametrize("filt", list(TextureFilter))
+def test_sampling_lod_skips_the_triangles_that_sample_level_zero_and_samples_the_same(filt):
+    """Near strips of a receding plane (texels magnified throughout) take λ = −inf, the rest their
+    own λ; every fragment samples the same texels through the chain."""
+    scene = mip_sweep(filt, strips=16, tiling=(0.5, 3.0))
+    r = scene.renderers[0]
+    setup, frags = _fragments_of(scene, r)
+    size = (32, 32)
+    skipped, exact = _assert_skips_only_level_zero(setup, frags, scene.camera.width, r.material, size)
+    level_zero = int((exact <= _lod_threshold(filt)).sum())
+    # Most of the level-0 fragments are skipped, and minified ones remain.
+    assert skipped >= level_zero // 2 and skipped > 0, (skipped, level_zero)
+    assert level_zero < frags.count
+    chain = mips.build_chain(_texels(np.asarray(r.material.main_tex.pixels, np.float64)))
+    uv = np.random.default_rng(5).uniform(-2, 2, (frags.count, 2))
+    got = mips.sampling_lod(setup, frags.tri, frags.pix, scene.camera.width, r.material, size)
+    np.testing.assert_array_equal(mips.sample_mipmapped(chain, uv, got, filt, TextureWrap.Repeat),
+                                  mips.sample_mipmapped(chain, uv, exact, filt, TextureWrap.Repeat))
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_sampling_lod_bound_holds_under_perspective_clipping_and_tiling(seed):
+    """Random triangles, some through the near plane (clipped) and some seen edge-on, random UVs,
+    tilings (negative too), offsets and texture sizes, each filter: a triangle skipped by the bound
+    never has a quad that would sample past level 0."""
+    rng = np.random.default_rng(seed)
+    skipped_total = 0
+    for filt in TextureFilter:
+        count = 24
+        centre = rng.uniform([-1.5, -1.0, -6.0], [1.5, 1.0, 3.5], (count, 1, 3))
+        positions = (centre + rng.normal(0.0, rng.uniform(0.05, 1.5, (count, 1, 1)), (count, 3, 3))).reshape(-1, 3)
+        uvs = rng.uniform(-1.0, 1.0, (count, 3, 2)) * rng.uniform(0.01, 1.0, (count, 1, 1))
+        mesh = sc.make_mesh(positions, np.arange(3 * count).reshape(count, 3), uvs=uvs)
+        tiling = tuple((rng.choice([-1.0, 1.0]) * 2.0 ** rng.uniform(-3, 3)).item() for _ in range(2))
+        material = Material(main_tex_filter=filt, main_tex_mipmaps=True, main_tex_tiling=tiling,
+                            main_tex_offset=tuple(rng.uniform(-5, 5, 2).tolist()))
+        scene = DrawScene(camera=sc.camera(96, 64, eye=(0, 0, 4), near=0.5), renderers=(sc.renderer(mesh, material),))
+        setup, frags = _fragments_of(scene, scene.renderers[0])
+        size = (int(2 ** rng.integers(0, 9)), int(2 ** rng.integers(0, 9)))
+        with np.errstate(all="ignore"):
+            skipped, _ = _assert_skips_only_level_zero(setup, frags, 96, material, size)
+        skipped_total += skipped
+    assert skipped_total > 0
+
+
 def test_trilinear_blends_two_levels_by_the_lod_fraction():
     """GL_LINEAR_MIPMAP_LINEAR: (1 − f)·level d + f·level d+1 with d = floor λ, f = λ − d; the
     nearest-level filters take level ceil(λ + ½) − 1."""

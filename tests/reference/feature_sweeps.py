@@ -6,7 +6,7 @@ family that covers every value of the new enums.
 - :func:`vertex_color_sweep`: every ``VertexColor`` x colour encoding x texture or none x Lambert
   or Unlit, colours varying per corner (and one colour per triangle), a mesh without colours.
 - :func:`mip_sweep`: a receding textured plane (LOD from 0 to the last level) per filter, with and
-  without mipmaps, and an alpha-tested plane with Preserve Coverage.
+  without mipmaps, and an alpha-tested plane with Preserve Coverage; whole, or cut into strips.
 - :func:`outline_sweep`: spheres with an outline pass (Cull Front, Offset 1, 1) in World and Screen
   mode of both MToon formulas, under uniform, non-uniform and mirroring matrices.
 """
@@ -151,16 +151,32 @@ def mip_texture(seed: int = 23, size: int = 32) -> Texture:
     return Texture(px, encoding="sRGB", name="mips")
 
 
-def mip_sweep(filt: TextureFilter = TextureFilter.Trilinear, color_space: ColorSpace = ColorSpace.Gamma) -> DrawScene:
-    """A long receding plane tiled 4 x 24 (LOD from below 0 to past the last level) with mipmaps,
-    the same without (left), and an alpha-tested one with Preserve Coverage (right), filter ``filt``."""
+def receding_plane(strips: int = 1):
+    """The plane x in [-1, 1], y in [0, 40] facing +Z with UVs 0..1, cut across y into ``strips``
+    equal strips of two triangles each."""
+    ys = 40.0 * np.linspace(0.0, 1.0, strips + 1) ** 2
+    pos = [(x, y, 0.0) for y in ys for x in (-1.0, 1.0)]
+    tri, uv = [], []
+    for j in range(strips):
+        a = 2 * j
+        v0, v1 = j / strips, (j + 1) / strips
+        tri += [(a, a + 1, a + 3), (a, a + 3, a + 2)]
+        uv += [[(0, v0), (1, v0), (1, v1)], [(0, v0), (1, v1), (0, v1)]]
+    return make_mesh(pos, tri, uvs=uv)
+
+
+def mip_sweep(filt: TextureFilter = TextureFilter.Trilinear, color_space: ColorSpace = ColorSpace.Gamma,
+              strips: int = 1, tiling: tuple[float, float] = (4.0, 24.0)) -> DrawScene:
+    """A long receding plane tiled ``tiling`` (4 x 24: LOD from below 0 to past the last level) with mipmaps,
+    the same without (left), and an alpha-tested one with Preserve Coverage (right), filter ``filt``;
+    ``strips``: the planes cut into that many strips across (:func:`receding_plane`): with a
+    coarser tiling the near strips' texels are magnified throughout and the far ones' minified."""
     tex = mip_texture()
-    plane = make_mesh([(-1, 0, 0), (1, 0, 0), (1, 40, 0), (-1, 40, 0)], [(0, 1, 2), (0, 2, 3)],
-                      uvs=[[(0, 0), (1, 0), (1, 1)], [(0, 0), (1, 1), (0, 1)]])
+    plane = receding_plane(strips)
 
     def material(name: str, **kw) -> Material:
         return Material(name=name, main_tex=tex, main_tex_filter=filt, main_tex_wrap=TextureWrap.Repeat,
-                        main_tex_tiling=(4.0, 24.0), lighting=Lighting.Unlit, **kw)
+                        main_tex_tiling=tiling, lighting=Lighting.Unlit, **kw)
 
     renderers = (
         renderer(plane, material("Mipmapped", main_tex_mipmaps=True), name="A", matrix=translate(-0.2, 0, 0)),
@@ -248,6 +264,8 @@ FEATURE_SWEEPS = {
     "mips_bilinear": lambda: mip_sweep(TextureFilter.Bilinear),
     "mips_trilinear": lambda: mip_sweep(TextureFilter.Trilinear),
     "mips_trilinear_linear": lambda: mip_sweep(TextureFilter.Trilinear, ColorSpace.Linear),
+    "mips_strips_point": lambda: mip_sweep(TextureFilter.Point, strips=16, tiling=(0.5, 3.0)),
+    "mips_strips_trilinear": lambda: mip_sweep(TextureFilter.Trilinear, strips=16, tiling=(0.5, 3.0)),
     "outline": outline_sweep,
     "outline_color": lambda: outline_sweep(colored=True),
     "outline_color_linear": lambda: outline_sweep(colored=True, color_space=ColorSpace.Linear),
