@@ -297,8 +297,9 @@ def _level_zero_runs(setup: TriangleSetup, tri: np.ndarray, x_lo: np.ndarray, x_
         if clipped.size:
             corners = corners.copy()
             corners[clipped] = np.einsum("rkj,rjc->rkc", setup.weights[tri[clipped]], corners[clipped])
-    tiling = np.abs(np.asarray(material.main_tex_tiling, dtype=np.float64)) * np.array([w, h], dtype=np.float64)
+    tiling = np.asarray(material.main_tex_tiling, dtype=np.float64)
     offset = np.asarray(material.main_tex_offset, dtype=np.float64)
+    extent = np.array([w, h], dtype=np.float64)  # texels across u and v
     lo_x = x_lo.astype(np.float64) * SUBPIXEL + HALF
     hi_x = (x_hi + 1).astype(np.float64) * SUBPIXEL + HALF
     lo_y = y_lo.astype(np.float64) * SUBPIXEL + HALF
@@ -330,22 +331,24 @@ def _level_zero_runs(setup: TriangleSetup, tri: np.ndarray, x_lo: np.ndarray, x_
     big = np.zeros(cx.size, dtype=bool)
     for c in range(2):
         value = corners[:, :, c]
-        texture = np.abs(value * float(material.main_tex_tiling[c]) + offset[c]) * float(size[1 - c])
+        texture = np.abs(value * tiling[c] + offset[c]) * extent[c]
         big |= texture.max(axis=1) > BOUND_MAGNITUDE
-        n0 = sum(e0 * value[:, k] for k, (e0, _, _) in enumerate(terms))
-        na = sum(ea * value[:, k] for k, (_, ea, _) in enumerate(terms))
-        nb = sum(eb * value[:, k] for k, (_, _, eb) in enumerate(terms))
-        n0_abs = sum(np.abs(e0 * value[:, k]) for k, (e0, _, _) in enumerate(terms))
-        na_abs = sum(np.abs(ea * value[:, k]) for k, (_, ea, _) in enumerate(terms))
-        nb_abs = sum(np.abs(eb * value[:, k]) for k, (_, _, eb) in enumerate(terms))
+        n0, na, nb = np.zeros_like(cx), np.zeros_like(cx), np.zeros_like(cx)  # N's terms, as D's
+        n0_abs, na_abs, nb_abs = np.zeros_like(cx), np.zeros_like(cx), np.zeros_like(cx)
+        for k, (e0, ea, eb) in enumerate(terms):
+            for total, total_abs, term in ((n0, n0_abs, e0), (na, na_abs, ea), (nb, nb_abs, eb)):
+                product = term * value[:, k]
+                total += product
+                total_abs += np.abs(product)
         cross = np.abs(na * db - da * nb)
         cross_abs = na_abs * db_abs + da_abs * nb_abs
         along_x = np.abs(na * d0 - da * n0) + cross * hy
         along_x += BOUND_ROUNDING * (na_abs * d0_abs + da_abs * n0_abs + cross_abs * hy)
         along_y = np.abs(nb * d0 - db * n0) + cross * hx
         along_y += BOUND_ROUNDING * (nb_abs * d0_abs + db_abs * n0_abs + cross_abs * hx)
-        rho_x += (along_x * (SUBPIXEL * tiling[c])) ** 2
-        rho_y += (along_y * (SUBPIXEL * tiling[c])) ** 2
+        scale = SUBPIXEL * abs(tiling[c]) * extent[c]  # a coordinate's step in texels
+        rho_x += (along_x * scale) ** 2
+        rho_y += (along_y * scale) ** 2
     with np.errstate(over="ignore", invalid="ignore"):
         rho = np.maximum(rho_x, rho_y)
         proved = rho <= limit * d_min ** 4
