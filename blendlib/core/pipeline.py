@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import os
 import threading
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Hashable, Iterator, Mapping
 from concurrent.futures import ThreadPoolExecutor, wait
 from dataclasses import replace
 
@@ -30,6 +30,7 @@ from .merger import FrameBuffers, Outcome, compare, lut_eligible, merge
 from .prepare import FrameContext, Member, PreparedCall, prepare_batch
 from .records import DrawState, Frame, FrameObserver, RenderCancelled, ShadedFragments
 from .scene import DrawScene, SceneError, SceneMemo, validate_scene
+from .shaded_cache import ShadedCache, call_slots, state_key
 from .vocabulary import ColorSpace, Lighting, TextureFilter
 
 __all__ = ["Frame", "FrameObserver", "RenderCancelled", "render_scene"]
@@ -78,6 +79,8 @@ def render_scene(
     memo: SceneMemo | None = None,
     calls: list[DrawCall] | None = None,
     output: bool = True,
+    shaded_cache: ShadedCache | None = None,
+    call_keys: Mapping[int, Hashable] | None = None,
 ) -> Frame:
     """Render a draw scene exactly as Unity's built-in pipeline would (docs/pipeline.md).
 
@@ -106,6 +109,10 @@ def render_scene(
     frame need it too).
     ``output=False``: the buffers are not converted into the Frame's arrays (its ``color``,
     ``depth`` and ``stencil`` are None): for an observer that reads them at its last ``draw_end``.
+    ``shaded_cache`` with ``call_keys`` (call index → a key equal for calls that draw the same,
+    whatever their place in the draw list): shaded chunks are taken from the cache where an
+    earlier render given it shaded them in the same circumstances, and kept there
+    (:mod:`.shaded_cache`; calls are then not fused); the frame is the same either way.
     Raises :class:`blendlib.core.scene.SceneError` (one line) for input that cannot render.
     """
     keep_setups = memo is not None  # a memo of this render alone would only hold setups to its end
@@ -145,6 +152,11 @@ def render_scene(
                          reads_call=None if observer is None else observer.reads_call,
                          reads_hidden=None if observer is None else observer.reads_hidden,
                          colors_read=None if observer is None else observer.colors_read)
+    if shaded_cache is not None and call_keys is not None:
+        frame.shaded_cache = shaded_cache
+        frame.shaded_slots = call_slots(shaded_cache, todo, call_keys,
+                                        lambda c: bool(c.state.zwrite or c.state.stencil))
+        frame.shaded_origin = shaded_cache.origin(None if resume is None else resume[0])
     try:
         _draw_all(frame, todo, should_cancel, progress, observer)
         color, depth, stencil = buf.output(pool, workers, band, out) if output else (None, None, None)
@@ -185,7 +197,7 @@ def _draw_all(frame: FrameContext, todo: list[DrawCall], should_cancel: Callable
     for runs in _batches(todo, exact, cuts):
         _check(should_cancel)
         prepared = prepare_batch(frame, runs)
-        if observer is None:  # an observer is told of each call's own fragments
+        if observer is None and frame.shaded_cache is None:  # an observer is told of each call's own fragments
             prepared = fuse_shared_shading(fuse_constant_calls(prepared, frame.memo), frame.memo)
         for calls, step in _steps([call for run in runs for call in run], prepared, exact):
             if observer is not None:
@@ -386,7 +398,9 @@ def _draw_band(frame: FrameContext, items: list[tuple[PreparedCall, raster.Rows]
             if state.zbound is not None:
                 state = replace(state, zfloor=floors.rows(y0, y1))
             if prepared.members is None:
-                _draw_chunks(frame, prepared, rows, state, observer)
+                slot = frame.shaded_slots.get(prepared.call.index) if frame.shaded_cache is not None else None
+                _draw_chunks(frame, prepared, rows, state, observer,
+                             None if slot is None else (*slot, frame.shaded_origin, y0, y1))
             else:
                 _draw_members(frame, prepared, rows, state)
         if state.pass_state.zwrite:
@@ -398,12 +412,14 @@ def _draw_band(frame: FrameContext, items: list[tuple[PreparedCall, raster.Rows]
 
 
 def _shaded_chunks(frame: FrameContext, prepared: PreparedCall, rows: raster.Rows, state: DrawState,
-                   watched: np.ndarray | None = None) -> Iterator[tuple[int, int, ShadedFragments, bool]]:
+                   watched: np.ndarray | None = None,
+                   slot: tuple | None = None) -> Iterator[tuple[int, int, ShadedFragments, bool]]:
     """``rows`` of a prepared call in chunks of :attr:`FrameContext.chunk_candidates`, in draw
     order: (first row, end row, the chunk's shaded fragments, whether the observer is told of
     them) for each chunk holding any, until the render's stop flag is set. With ``watched``
     ((H,) bool buffer rows), a chunk in no watched row is shaded as an unobserved render shades
-    it (``state.unobserved``)."""
+    it (``state.unobserved``). ``slot``: the key prefix of the call's chunks in the render's
+    shaded cache (:mod:`.shaded_cache`), None when they are not kept."""
     plain = None if watched is None or state.unobserved is None else replace(state.unobserved, zfloor=state.zfloor)
     for a, b in raster.row_chunks(rows, frame.chunk_candidates):
         if frame.stop_flag.is_set():
@@ -411,7 +427,15 @@ def _shaded_chunks(frame: FrameContext, prepared: PreparedCall, rows: raster.Row
         seen = state.observed and (watched is None or bool(watched[rows.y[a:b]].any()))
         used = state if seen or plain is None else plain
         if used.samples == 1:
-            shaded = prepared.shade(prepared.setup, rows, a, b, used)
+            used_key = None if slot is None else state_key(used)
+            found, shaded = False, None
+            if used_key is not None:
+                key = (*slot, a, b, used_key)
+                found, shaded = frame.shaded_cache.get(key)
+            if not found:
+                shaded = prepared.shade(prepared.setup, rows, a, b, used)
+                if used_key is not None:
+                    frame.shaded_cache.put(key, shaded)
         else:
             shaded = msaa.sampled_chunk(prepared.shade, prepared.setup, rows, a, b, used)
         if shaded is not None:
@@ -419,7 +443,7 @@ def _shaded_chunks(frame: FrameContext, prepared: PreparedCall, rows: raster.Row
 
 
 def _draw_chunks(frame: FrameContext, prepared: PreparedCall, rows: raster.Rows, state: DrawState,
-                 observer: FrameObserver | None) -> None:
+                 observer: FrameObserver | None, slot: tuple | None = None) -> None:
     """Raster, shade and merge ``rows`` of one prepared call, chunk by chunk in draw order, with
     ``state`` (the call's, with the band's depth floors); the observer told of every fragment
     (of the chunks in its :attr:`.FrameObserver.watched_rows`)."""
@@ -427,7 +451,7 @@ def _draw_chunks(frame: FrameContext, prepared: PreparedCall, rows: raster.Rows,
     if observer is not None and not state.observed:  # it reads no fragment, or none of this call's
         observer = None
     watched = None if observer is None else observer.watched_rows
-    for _a, _b, shaded, seen in _shaded_chunks(frame, prepared, rows, state, watched):
+    for _a, _b, shaded, seen in _shaded_chunks(frame, prepared, rows, state, watched, slot):
         merged = shaded if shaded.alive is None else shaded.select(shaded.alive)
         if observer is None or not seen:
             _merge(buf, p, merged, tables)

@@ -64,7 +64,8 @@ from ..core.drawlist import DrawCall, draw_calls, sort_key_distance
 from ..core.merger import FrameBuffers, Outcome
 from ..core.pipeline import render_scene
 from ..core.records import FrameObserver, RenderCancelled
-from ..core.scene import DrawScene, Renderer
+from ..core.scene import DrawScene, Renderer, SceneMemo
+from ..core.shaded_cache import ShadedCache
 from ..core.vocabulary import LAST_OPAQUE_QUEUE, Cull, Material, SortMode, preset, queue_text
 from .fragment_store import is_sorted_queue, union_box
 from .progress import Progress
@@ -381,6 +382,12 @@ class _Measurer:
         self.prefix_step1: dict[tuple, FrameBuffers] = {}
         self._opaque_counts: Counter | None = None
         self._draw_lists: dict[int, tuple[DrawScene, list[DrawCall], tuple]] = {}
+        #: Renderers checked, textures converted and vertex setups made once for every measurement:
+        #: the changed scenes share the renderers a change leaves alone, and the camera.
+        self.memo = SceneMemo()
+        #: The chunks the measurements shade, kept for the next ones: a fix that reorders draw
+        #: calls draws the same calls, and most of them in the same circumstances.
+        self.shaded = ShadedCache()
 
     def expect(self, scenes: list[DrawScene]) -> None:
         """Note the changed scenes about to be measured: a reordered opaque queue that several of
@@ -426,7 +433,7 @@ class _Measurer:
         """``scene``'s buffers after its last draw call of queue ≤ 2500 (``calls``: its draw list)."""
         snapshot = LastBuffers()
         render_scene(scene, until_draw=_last_opaque(calls), observer=snapshot, workers=self.workers,
-                     should_cancel=self.should_cancel, calls=calls, output=False)
+                     should_cancel=self.should_cancel, calls=calls, output=False, memo=self.memo)
         return snapshot.buffers if snapshot.buffers is not None else _cleared(scene)
 
     def measure(self, changed: DrawScene, workers: int | None = None) -> tuple[dict[tuple[Key, Key], int], int]:
@@ -451,7 +458,9 @@ class _Measurer:
         resume = self._resume(changed, calls, prefix, kept)
         codes = self.analysis.final_codes is not None  # the changed pixels found by their codes
         frame = render_scene(changed, resume=resume, observer=watch, workers=workers or self.workers,
-                             should_cancel=self.should_cancel, calls=calls, band=band, output=not codes)
+                             should_cancel=self.should_cancel, calls=calls, band=band, output=not codes,
+                             memo=self.memo, shaded_cache=self.shaded,
+                             call_keys={c.index: entry for c, entry in zip(calls, signature, strict=True)})
         if codes:  # with no draw call after the resumed ones, the frame is the resumed buffers
             buffers = watch.buffers if watch.buffers is not None else resume[0]
             differing = self.differing_codes(buffers.color, rows)

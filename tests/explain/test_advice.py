@@ -130,8 +130,9 @@ def test_measurements_equal_a_full_analysis_of_each_changed_scene(keep_step1):
     """Every candidate of every advised pair, on random scenes (stencil, ZWrite and ZTest
     variations, Cull Off, several passes, opaque and overlay queues): the inverted pixels of
     every advised pair and the differing pixels equal those of a full analysis of the changed
-    scene, also where candidates that reorder the opaque queue alike resume from one drawing of it."""
-    checked = shared = 0
+    scene, also where candidates that reorder the opaque queue alike resume from one drawing of it,
+    and where a measurement takes chunks an earlier one shaded (:mod:`blendlib.core.shaded_cache`)."""
+    checked = shared = taken = 0
     for name, scene in _advice_scenes():
         original = analyze(scene, keep_step1=keep_step1)
         pairs = [(inv.front, inv.behind) for inv in original.inversions[:5]]
@@ -144,7 +145,8 @@ def test_measurements_equal_a_full_analysis_of_each_changed_scene(keep_step1):
             assert measurer.measure(changed) == full(changed), (name, inv)
             checked += 1
         shared += len(measurer.prefix_step1)
-    assert checked > 40 and shared >= 1
+        taken += measurer.shaded.hits
+    assert checked > 40 and shared >= 1 and taken > 20
 
 
 def _strips_scene(seed: int):
