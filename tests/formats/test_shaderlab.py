@@ -197,6 +197,20 @@ def test_the_scan_damage_is_reported_with_a_position():
     assert err.value.message == "Pass inside a Pass: is the '}' closing the Pass at 18:8 missing?"
 
 
+
+def test_a_word_where_a_colour_goes_is_reported_with_its_position():
+    """A fixed-function ``Color`` followed by a word (here a stray line run into the next command,
+    as the fuzz test found: ``i.color ZWrite Off``) is a positioned error, not a crash; the
+    literal and the reference forms import."""
+    with pytest.raises(ShaderLabError) as err:
+        parse_shaderlab('Shader "T" {\n SubShader { Pass {\n  Color ZWrite Off\n } }\n}\n', "t.shader")
+    assert (err.value.line, err.value.column) == (3, 9)
+    assert str(err.value) == ("t.shader:3:9: expected a colour (r, g, b, a) or a [Property] for Color, "
+                              "found 'ZWrite'")
+    for colour in ("(1, 0.5, 0, 1)", "[_Tint]"):
+        parse_shaderlab('Shader "T" {\n Properties { _Tint ("Tint", Color) = (1, 1, 1, 1) }\n'
+                        f' SubShader {{ Pass {{\n  Color {colour}\n }} }}\n}}\n', "t.shader")
+
 ALWAYS, OTHER = LightMode.Always, LightMode.Other
 
 

@@ -235,7 +235,11 @@ class _Values:
         """A colour argument (``Color``, ``Material``'s): the literal, or the reference's value."""
         if command.color is not None:
             return command.color
-        return tuple(float(c) for c in self.raw(command.values[0], "color"))
+        value = command.values[0]
+        if not value.reference:  # a word where the colour goes (a stray line's word, say)
+            raise self.error(f"expected a colour (r, g, b, a) or a [Property] for {value.what}, "
+                             f"found {value.token.describe()}", value.token)
+        return tuple(float(c) for c in self.raw(value, "color"))
 
     def read(self, command: str, value: Value, index: int = 0) -> Any:
         """The value of argument ``index`` of ``command`` (a command's, a Stencil or Material
