@@ -155,8 +155,8 @@ def render_scene(
     if shaded_cache is not None and call_keys is not None:
         frame.shaded_cache = shaded_cache
         frame.shaded_slots = call_slots(shaded_cache, todo, call_keys,
-                                        lambda c: bool(c.state.zwrite or c.state.stencil))
-        frame.shaded_origin = shaded_cache.origin(None if resume is None else resume[0])
+                                        lambda c: bool(c.state.zwrite or c.state.stencil),
+                                        None if resume is None else resume[0])
     try:
         _draw_all(frame, todo, should_cancel, progress, observer)
         color, depth, stencil = buf.output(pool, workers, band, out) if output else (None, None, None)
@@ -197,7 +197,8 @@ def _draw_all(frame: FrameContext, todo: list[DrawCall], should_cancel: Callable
     for runs in _batches(todo, exact, cuts):
         _check(should_cancel)
         prepared = prepare_batch(frame, runs)
-        if observer is None and frame.shaded_cache is None:  # an observer is told of each call's own fragments
+        # An observer is told of each call's own fragments; a shaded cache keeps each call's own chunks.
+        if observer is None and frame.shaded_cache is None:
             prepared = fuse_shared_shading(fuse_constant_calls(prepared, frame.memo), frame.memo)
         for calls, step in _steps([call for run in runs for call in run], prepared, exact):
             if observer is not None:
@@ -398,9 +399,8 @@ def _draw_band(frame: FrameContext, items: list[tuple[PreparedCall, raster.Rows]
             if state.zbound is not None:
                 state = replace(state, zfloor=floors.rows(y0, y1))
             if prepared.members is None:
-                slot = frame.shaded_slots.get(prepared.call.index) if frame.shaded_cache is not None else None
-                _draw_chunks(frame, prepared, rows, state, observer,
-                             None if slot is None else (*slot, frame.shaded_origin, y0, y1))
+                slot = frame.shaded_slots.get(prepared.call.index)  # kept only with a shaded cache
+                _draw_chunks(frame, prepared, rows, state, observer, None if slot is None else (*slot, y0, y1))
             else:
                 _draw_members(frame, prepared, rows, state)
         if state.pass_state.zwrite:

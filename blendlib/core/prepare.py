@@ -27,6 +27,7 @@ from .merger import BlendTables, FrameBuffers
 from .outline import outline_key, width_factors
 from .records import DrawState
 from .scene import Camera, SceneMemo
+from .shaded_cache import ShadedCache
 from .vertex import TriangleSetup
 from .vocabulary import ColorSpace, CompareFunction, Lighting, Material, Pass, VertexColor
 
@@ -67,12 +68,10 @@ class FrameContext:
     degenerate: list[tuple[str, int]] = field(default_factory=list)  # (object, zero-area triangles)
     #: The shading-space lights of ForwardAdd draws, by light: id → (light, :class:`shade.Lights`).
     call_lights: dict = field(default_factory=dict)
-    #: Shaded chunks kept across renders (:class:`.shaded_cache.ShadedCache`), or None; with it,
-    #: each call's key prefix by call index (:func:`.shaded_cache.call_slots`; a call missing is
-    #: not kept) and the key of the buffers the render started from.
-    shaded_cache: object | None = None
+    #: Shaded chunks kept across renders, or None; with it, each call's key prefix by call index
+    #: (:func:`.shaded_cache.call_slots`; a call missing is not kept, and none without a cache).
+    shaded_cache: ShadedCache | None = None
     shaded_slots: dict = field(default_factory=dict)
-    shaded_origin: int | None = None
 
     @property
     def samples(self) -> int:

@@ -83,19 +83,21 @@ class ShadedCache:
             self.nbytes += size
 
 
-def call_slots(cache: ShadedCache, calls, keys, writes) -> dict[int, tuple]:
+def call_slots(cache: ShadedCache, calls, keys, writes, resumed=None) -> dict[int, tuple]:
     """Per draw call index of ``calls`` (in draw order), its chunks' key prefix in ``cache``:
     (its key, the keys of the calls before it that write depth or stencil, in order; each key
-    by its :meth:`ShadedCache.number`). ``keys``: call index → key (a call missing has none:
-    neither it nor, when it writes depth or stencil, any call after it is kept);
-    ``writes(call)``: whether it writes depth or stencil."""
+    by its :meth:`ShadedCache.number`; the :meth:`ShadedCache.origin` of ``resumed``, the
+    buffers the render starts from, None: cleared ones). ``keys``: call index → key (a call
+    missing has none: neither it nor, when it writes depth or stencil, any call after it is
+    kept); ``writes(call)``: whether it writes depth or stencil."""
+    origin = cache.origin(resumed)
     slots: dict[int, tuple] = {}
     history: tuple = ()
     for call in calls:
         key = keys.get(call.index)
         number = None if key is None else cache.number(key)
         if number is not None:
-            slots[call.index] = (number, history)
+            slots[call.index] = (number, history, origin)
         if writes(call):
             if number is None:
                 break

@@ -72,8 +72,9 @@ def test_without_the_depth_writes_before_it_in_its_key_a_chunk_would_be_taken_wr
     chunk, the pane's chunk of the first order is taken in the second, and the frame differs."""
     real = shaded_cache.call_slots
 
-    def without_history(cache, calls, keys, writes):
-        return {index: (number, ()) for index, (number, _history) in real(cache, calls, keys, writes).items()}
+    def without_history(cache, calls, keys, writes, resumed=None):
+        return {index: (number, (), origin)
+                for index, (number, _history, origin) in real(cache, calls, keys, writes, resumed).items()}
 
     monkeypatch.setattr(pipeline, "call_slots", without_history)
     cache = ShadedCache()
