@@ -200,7 +200,9 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
     any_varying = not bool(flat.all())
     of_row = None  # (P,) int64: each row's row in the chunk, when rows were cut (below)
     beyond = None  # (N,) bool, observed: fragments beyond the spans the light may reach (dark)
+    reach_cut = False  # a render's rows cut to the light's reach: the dark left are too few to test for
     if state.dark_skip and positions is not None and n >= ROW_REACH_MIN_RUN * length.size:
+        reach_cut = not state.observed
         # The parts of rows out of the ForwardAdd light's reach hold fragments _dark would call
         # dark. A render cuts them off before they are rasterised; observed, every fragment is
         # rasterised and told of, and the spans spare only the world positions and reach test of
@@ -371,7 +373,10 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
                     lit_position = position
             else:
                 position = varying(positions, position_flat)
-                if state.dark_skip and position is not None:
+                # After the cut, only the rows' margins (and rows the cut could not place) hold
+                # dark fragments: shaded and merged as the reference does (colour 0 added: the
+                # stored values stay), that costs less than finding them.
+                if state.dark_skip and position is not None and not reach_cut:
                     skip = _dark(state, position, pix_at, dark_corners)
             color = None  # the vertex colours, when interpolated for the alpha first
             if p.alpha_test and not state.observed and uv is not None:
@@ -602,8 +607,11 @@ def _unsaturated(alpha: np.ndarray, width: int, rows) -> np.ndarray:
     if (y_hi - y_lo) * (x_hi - x_lo) > 4 * int(rows.length.sum()):
         pix = raster.rasterize_rows(rows, 0, rows.count, width, bary=False).pix
         return _segment_sums(alpha[pix] != 255, rows.length) > 0  # not np.take: see _dark
+    unset = alpha.reshape(-1, width)[y_lo:y_hi, x_lo:x_hi] != 255
+    if not unset.any():  # the common case (an opaque base pass wrote 255 under the whole box)
+        return np.zeros(rows.count, dtype=bool)
     running = np.zeros((y_hi - y_lo, x_hi - x_lo + 1), dtype=np.int32)
-    (alpha.reshape(-1, width)[y_lo:y_hi, x_lo:x_hi] != 255).cumsum(axis=1, out=running[:, 1:])
+    unset.cumsum(axis=1, out=running[:, 1:])
     at = y - y_lo
     return running[at, x1 - x_lo] != running[at, x0 - x_lo]
 

@@ -353,13 +353,22 @@ def _capture_equal_to_reference(scene):
 
 def _count_unlit(monkeypatch, tested: dict | None = None) -> dict[tuple[str, bool], int]:
     """Counts, by (renderer, whether the chunk is observed), the fragments left unlit: those
-    ``fragment._dark`` calls dark and, observed, those ``fragment._known_dark`` calls dark beyond
-    the light's reached spans without testing them. ``tested``, when given, counts likewise the
-    fragments ``_dark`` tests."""
+    ``fragment._dark`` calls dark, unobserved those ``fragment._reached_spans`` cuts off the
+    rows (a render then tests none of the rest: its rows' margins shade as the reference does)
+    and, observed, those ``fragment._known_dark`` calls dark beyond the light's reached spans
+    without testing them. ``tested``, when given, counts likewise the fragments ``_dark`` tests."""
     from blendlib.core import fragment
 
     unlit: dict[tuple[str, bool], int] = {}
-    original, known_dark = fragment._dark, fragment._known_dark
+    original, known_dark, reached = fragment._dark, fragment._known_dark, fragment._reached_spans
+
+    def spans(setup, rows, start, stop, state, *args, **kwargs):
+        out = reached(setup, rows, start, stop, state, *args, **kwargs)
+        if out is not None and not state.observed:
+            key = (state.call.renderer.name, False)
+            cut = int(rows.length[start:stop].sum()) - int(np.maximum(out[1] - out[0], 0).sum())
+            unlit[key] = unlit.get(key, 0) + cut
+        return out
 
     def dark(state, position, pix, corners):
         out = original(state, position, pix, corners)
@@ -377,6 +386,7 @@ def _count_unlit(monkeypatch, tested: dict | None = None) -> dict[tuple[str, boo
 
     monkeypatch.setattr(fragment, "_dark", dark)
     monkeypatch.setattr(fragment, "_known_dark", known)
+    monkeypatch.setattr(fragment, "_reached_spans", spans)
     return unlit
 
 
