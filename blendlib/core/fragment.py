@@ -356,21 +356,18 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
             if beyond is not None:
                 known = _known_dark(state, beyond[at], pix_at)
             if known is not None:
-                # Positions and the reach test for the fragments within the spans alone (runs keep
-                # their order: a triangle's fragments there stay one run). ``skip`` then holds at
-                # least 1/SPARSE_SKIP_SHARE of them (_known_dark), so the sparse branch below, which
-                # would read every fragment's position, is not taken: lit_position serves the lit.
+                # Positions for the fragments within the spans alone (runs keep their order: a
+                # triangle's fragments there stay one run), all of them lit: as after a render's
+                # cut (reach_cut), only the rows' margins hold dark ones there, shaded and merged
+                # as the reference does. ``skip`` holds at least 1/SPARSE_SKIP_SHARE of them
+                # (_known_dark), so the sparse branch below, which would read every fragment's
+                # position, is not taken: lit_position serves the lit.
                 within = np.flatnonzero(~known)
                 w_within = gather(w, within, axis=1)
-                position = raster.interpolate_runs(w_within, positions[keep], _segment_sums(~known, counts[keep]),
-                                                   position_flat[keep], channels_first=True).T
-                skip = known.copy()
-                dark = _dark(state, position, pix_at.take(within), dark_corners)
-                if dark is not None:
-                    skip[within[dark]] = True
-                    lit_position = gather(position.T, np.flatnonzero(~dark), axis=1).T
-                else:
-                    lit_position = position
+                lit_position = position = raster.interpolate_runs(
+                    w_within, positions[keep], _segment_sums(~known, counts[keep]), position_flat[keep],
+                    channels_first=True).T
+                skip = known
             else:
                 position = varying(positions, position_flat)
                 # After the cut, only the rows' margins (and rows the cut could not place) hold

@@ -454,12 +454,14 @@ def test_a_draw_list_does_not_merge_unreached_fragments_that_change_nothing(monk
 @pytest.mark.parametrize("color_space", [ColorSpace.Gamma, ColorSpace.Linear])
 def test_a_capture_tests_the_reach_only_of_fragments_within_the_reached_spans(color_space, monkeypatch):
     """Observed, every fragment of a ForwardAdd draw is rasterised and told of, but the world
-    positions and the reach test (``_dark``) are computed only for fragments within the row spans
-    the light may reach (:func:`fragment._reached_spans`, which a render uses to cut its rows): those
-    beyond are dark by that function's guarantee. On the floor and wall most are beyond; on the
-    veil, whose pass adds alpha to an unsaturated one, they are merged with rgb 0 all the same.
-    Each draw's counts and the frame equal the scalar reference's; before, every fragment told of
-    was tested."""
+    positions are computed only for fragments within the row spans the light may reach
+    (:func:`fragment._reached_spans`, which a render uses to cut its rows): those beyond are dark
+    by that function's guarantee. Within them only the rows' margins hold dark fragments, so none
+    is tested for reach (``_dark``): they are lit, which gives rgb 0 there, and merged as the
+    reference merges them. On the floor and wall most are beyond; on the veil, whose pass adds
+    alpha to an unsaturated one, they are merged with rgb 0 all the same. Each draw's counts and
+    the frame equal the scalar reference's; in round nineteen the fragments within the spans
+    were tested, and before that every fragment told of."""
     tested: dict[tuple[str, bool], int] = {}
     unlit = _count_unlit(monkeypatch, tested)
     capture = _capture_equal_to_reference(_reach_scene(color_space))
@@ -467,7 +469,7 @@ def test_a_capture_tests_the_reach_only_of_fragments_within_the_reached_spans(co
         told = sum(s.fragments for s in capture.stats
                    if s.call.renderer.name == name and s.call.state.light_mode is LightMode.ForwardAdd)
         assert unlit[(name, True)] > told // 4, (name, told, unlit)
-        assert tested[(name, True)] < told - unlit[(name, True)] // 2, (name, told, tested, unlit)
+        assert tested.get((name, True), 0) == 0, (name, told, tested, unlit)
 
 
 def test_unreached_fragments_of_a_textured_mesh_without_uvs_keep_the_texels_alpha(monkeypatch):
