@@ -350,11 +350,8 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
             skip = None  # (M,) bool: fragments not shaded (dropped, or observed and only their alpha computed)
             position = lit_position = None  # (M, 3) world positions; (L, 3) those of the lit ones (below)
             known = None
-            dark_corners = ([c[keep] for c in (normals, colors) if c is not None]  # what _dark reads
-                            if state.dark_skip and positions is not None else None)
-            pix_at = None if dark_corners is None else frags.pix[at]  # the pixels _dark and _known_dark read
             if beyond is not None:
-                known = _known_dark(state, beyond[at], pix_at)
+                known = _known_dark(state, beyond[at], frags.pix[at])
             if known is not None:
                 # Positions for the fragments within the spans alone (runs keep their order: a
                 # triangle's fragments there stay one run), all of them lit: as after a render's
@@ -374,7 +371,7 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
                 # dark fragments: shaded and merged as the reference does (colour 0 added: the
                 # stored values stay), that costs less than finding them.
                 if state.dark_skip and position is not None and not reach_cut:
-                    skip = _dark(state, position, pix_at, dark_corners)
+                    skip = _dark(state, position, frags.pix[at], [c[keep] for c in (normals, colors) if c is not None])
             color = None  # the vertex colours, when interpolated for the alpha first
             if p.alpha_test and not state.observed and uv is not None:
                 # Alpha first (it reads neither lighting nor the outline): fragments the alpha test
