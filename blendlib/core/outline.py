@@ -43,7 +43,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import shade
-from .scene import Camera, Mesh, cofactors3_many
+from .scene import Camera, Mesh, cofactors3_many, matmul4_many
 from .vocabulary import ColorSpace, Material, OutlineFormula, OutlineMode, Pass, TextureFilter
 
 
@@ -63,12 +63,11 @@ def _matmul4(a: np.ndarray, b: np.ndarray) -> np.ndarray:
                       for j in range(4)] for i in range(4)], dtype=np.float64)
 
 
-def _signed_cofactors(m: np.ndarray) -> tuple[np.ndarray, float]:
-    """§1's normal matrix of ``m``'s upper 3x3 (cofactors, negated for a negative determinant) and
-    the determinant."""
-    c, det = cofactors3_many(m[None])
-    c, det = c[0], float(det[0])
-    return (-c if det < 0 else c), det
+def _signed_cofactors_many(ms: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """§1's normal matrix of each of ``ms`` (I, 4, 4), of its upper 3x3 (cofactors, negated for a
+    negative determinant) (I, 3, 3), and the determinants (I,) float64."""
+    c, det = cofactors3_many(ms)
+    return np.where((det < 0)[:, None, None], -c, c), det
 
 
 def _rows(m: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray, affine: bool) -> list[np.ndarray]:
@@ -134,34 +133,91 @@ def outline_clip(mesh: Mesh, matrix_world: np.ndarray, camera: Camera, p: Pass,
                  factors: np.ndarray | None = None) -> np.ndarray:
     """Clip coordinates (4, 3T) float64 of every corner of ``mesh``'s T triangles (corner k of
     triangle t at column 3t + k) under pass ``p``'s outline program (module docstring); ``factors``
-    (3T,) float64 the outline-width texture's per corner (:func:`width_factors`; None: ×1)."""
-    m = np.asarray(matrix_world, dtype=np.float64)
+    (3T,) float64 the outline-width texture's per corner (:func:`width_factors`; None: x1)."""
+    return outline_clip_many([(mesh, matrix_world, p, factors)], camera)[0]
+
+
+def outline_clip_many(items: list[tuple[Mesh, np.ndarray, Pass, np.ndarray | None]],
+                      camera: Camera) -> list[np.ndarray]:
+    """:func:`outline_clip` of several (mesh, matrix_world, pass, factors) at once, one (4, 3T)
+    array each, equal to its own call bit for bit.
+
+    The program runs per corner, so the corners of every item of one mode and formula are
+    concatenated and each step runs once for all of them (an avatar's outlined meshes cost one
+    set of array operations, not one each). What differs per item (its matrices, width, maximum
+    distance) becomes a per-corner array of that item's value: each element then meets the same
+    IEEE operations, in the same order, as in the item's own call."""
+    out: list[np.ndarray | None] = [None] * len(items)
+    groups: dict[tuple, list[int]] = {}
+    for k, (_mesh, _m, p, _f) in enumerate(items):
+        groups.setdefault((p.outline_mode, p.outline_formula), []).append(k)
     view = np.asarray(camera.view_matrix, dtype=np.float64)
     proj = np.asarray(camera.projection, dtype=np.float64)
-    tri = np.asarray(mesh.triangles, dtype=np.int64).reshape(-1)
-    pos = np.asarray(mesh.positions, dtype=np.float64)[tri]  # (3T, 3)
+    for (mode, formula), members in groups.items():
+        clip = _clip_group([items[k] for k in members], view, proj, mode, formula)
+        at = 0
+        for k in members:
+            n = 3 * items[k][0].triangle_count
+            out[k] = np.ascontiguousarray(clip[:, at:at + n])
+            at += n
+    return out
+
+
+def _per_corner(values: list, owner: np.ndarray | None) -> np.ndarray:
+    """Per-item values (floats, or arrays of shape S) → each item's at every one of its corners
+    (``owner`` (C,) int64: each corner's item): (C,) or (*S, C) float64, each row contiguous (one
+    item, ``owner`` None: the value itself, broadcast as a scalar would be)."""
+    if owner is None:
+        return np.asarray(values[0], dtype=np.float64)
+    stacked = np.asarray(values, dtype=np.float64)  # (I, *S)
+    shape = stacked.shape[1:]
+    return np.take(stacked.reshape(len(values), -1).T, owner, axis=1).reshape(*shape, owner.size)
+
+
+def _widths(base: list[float], factors: list[np.ndarray | None], owner: np.ndarray | None) -> float | np.ndarray:
+    """``_times(base[i], factors[i])`` of every item, per corner (one item: as it gives it)."""
+    if owner is None:
+        return _times(base[0], factors[0])
+    if all(f is None for f in factors):
+        return _per_corner(base, owner)
+    counts = np.bincount(owner, minlength=len(base))
+    return np.concatenate([np.full(int(n), b) if f is None else _times(b, f)
+                           for b, f, n in zip(base, factors, counts, strict=True)])
+
+
+def _clip_group(items: list[tuple[Mesh, np.ndarray, Pass, np.ndarray | None]], view: np.ndarray,
+                proj: np.ndarray, mode: OutlineMode, formula: OutlineFormula) -> np.ndarray:
+    """Clip coordinates (4, C) float64 of the corners of ``items`` (one mode and formula), items
+    one after another (module docstring)."""
+    counts = np.array([3 * mesh.triangle_count for mesh, _m, _p, _f in items], dtype=np.int64)
+    owner = None if len(items) == 1 else np.arange(len(items), dtype=np.int64).repeat(counts)
+    pos = np.concatenate([np.asarray(mesh.positions, dtype=np.float64)[np.asarray(mesh.triangles, dtype=np.int64)
+                                                                         .reshape(-1)] for mesh, _m, _p, _f in items])
     px, py, pz = (np.ascontiguousarray(pos[:, k]) for k in range(3))
-    normal = np.asarray(mesh.normals, dtype=np.float64).reshape(-1, 3)
+    normal = np.concatenate([np.asarray(mesh.normals, dtype=np.float64).reshape(-1, 3) for mesh, _m, _p, _f in items])
     nx, ny, nz = _normalised(*(np.ascontiguousarray(normal[:, k]) for k in range(3)))
-    width = float(p.outline_width)
-    mv = _matmul4(view, m)
-    mvp = _matmul4(proj, mv)
-    old = p.outline_formula is OutlineFormula.MToon0x
-    if p.outline_mode is OutlineMode.World:
-        nmat, det = _signed_cofactors(m)
-        wx, wy, wz = _rows(nmat, nx, ny, nz, affine=False)
+    ms = np.array([np.asarray(m, dtype=np.float64) for _mesh, m, _p, _f in items]).reshape(-1, 4, 4)
+    widths = [float(p.outline_width) for _mesh, _m, p, _f in items]
+    factors = [f for _mesh, _m, _p, f in items]
+    mvs = matmul4_many(view, ms)  # §1's matmul4 of each item, as _matmul4 gives it
+    mvp = _per_corner(list(matmul4_many(proj, mvs)), owner)
+    old = formula is OutlineFormula.MToon0x
+    if mode is OutlineMode.World:
+        nmats, dets = _signed_cofactors_many(ms)
+        wx, wy, wz = _rows(_per_corner(list(nmats), owner), nx, ny, nz, affine=False)
         if old:
             scale = _length(wx, wy, wz)
-            scale /= abs(det)
-            scale *= _times(0.01 * width, factors)
+            scale /= _per_corner([abs(float(det)) for det in dets], owner)
+            scale *= _widths([0.01 * w for w in widths], factors, owner)
             px, py, pz = (np.add(a, np.multiply(scale, b)) for a, b in ((px, nx), (py, ny), (pz, nz)))
             return np.array(_rows(mvp, px, py, pz, affine=True))
         ux, uy, uz = _normalised(wx, wy, wz)
-        world = _rows(m[:3], px, py, pz, affine=True)
-        moved = [np.add(a, np.multiply(b, _times(width, factors))) for a, b in zip(world, (ux, uy, uz), strict=True)]
+        world = _rows(_per_corner([m[:3] for m in ms], owner), px, py, pz, affine=True)
+        moved = [np.add(a, np.multiply(b, _widths(widths, factors, owner)))
+                 for a, b in zip(world, (ux, uy, uz), strict=True)]
         return np.array(_rows(_matmul4(proj, view), *moved, affine=True))
     clip = np.array(_rows(mvp, px, py, pz, affine=True))
-    vmat, _ = _signed_cofactors(mv)
+    vmat = _per_corner(list(_signed_cofactors_many(mvs)[0]), owner)
     vx, vy, vz = _rows(vmat, nx, ny, nz, affine=False)
     cx, cy = _rows(proj[:2, :3], vx, vy, vz, affine=False)
     length = _length(cx, cy)
@@ -171,16 +227,16 @@ def outline_clip(mesh: Mesh, matrix_world: np.ndarray, camera: Camera, p: Pass,
     with np.errstate(divide="ignore", invalid="ignore"):
         view_z = np.divide(vz, _length(vx, vy, vz))
     if old:
-        reach = np.minimum(w, float(p.outline_max_distance))
+        reach = np.minimum(w, _per_corner([float(p.outline_max_distance) for _mesh, _m, p, _f in items], owner))
         dx *= reach
         dy *= reach
         dx *= aspect
         facing = np.subtract(1.0, np.abs(view_z))
-        k = _times(0.01 * width, factors)
+        k = _widths([0.01 * width for width in widths], factors, owner)
         dx, dy = np.multiply(k, dx), np.multiply(k, dy)
     else:
         reach = np.minimum(w, float(proj[1, 1]))
-        reach *= _times(2.0 * width, factors)
+        reach *= _widths([2.0 * width for width in widths], factors, owner)
         dx *= reach
         dy *= reach
         dx *= aspect

@@ -126,6 +126,19 @@ def cofactors3_many(matrices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return c, det
 
 
+def matmul4_many(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The 4x4 products of docs/pipeline.md §1 of ``a`` (4, 4) with each of ``b`` (R, 4, 4):
+    (R, 4, 4) float64, element
+    ``[k, i, j] = ((a[i,0]*b[k,0,j] + a[i,1]*b[k,1,j]) + a[i,2]*b[k,2,j]) + a[i,3]*b[k,3,j]``
+    (one multiply or add per array operation: the same roundings as written out)."""
+    a = np.asarray(a, dtype=np.float64)
+    b = np.asarray(b, dtype=np.float64)
+    out = a[None, :, 0, None] * b[:, None, 0, :]
+    for t in (1, 2, 3):
+        out = out + a[None, :, t, None] * b[:, None, t, :]
+    return out
+
+
 def affine_inverse(matrix) -> np.ndarray:
     """Inverse (4, 4) float64 of an affine 4x4 matrix (last row 0 0 0 1), by cofactors.
 

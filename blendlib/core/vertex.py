@@ -13,9 +13,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from .gather import gather
-from .outline import outline_clip
+from .outline import outline_clip_many
 from .parts import PIECE, run_parts
-from .scene import Camera, Mesh, cofactors3_many
+from .scene import Camera, Mesh, cofactors3_many, matmul4_many  # noqa: F401 (matmul4_many: also vertex.matmul4_many)
 from .vocabulary import Cull, Pass
 
 SUBPIXEL = 256
@@ -27,19 +27,6 @@ _MAX_POLY = 3 + 6  # a triangle clipped by six planes has at most nine vertices
 _NONFINITE_BIT, _NO_WINDOW_BIT = 6, 7
 _PLANES_MASK = np.uint8(0x3F)
 _NONFINITE_MASK = np.uint8(1 << _NONFINITE_BIT)
-
-
-def matmul4_many(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """The 4x4 products of docs/pipeline.md §1 of ``a`` (4, 4) with each of ``b`` (R, 4, 4):
-    (R, 4, 4) float64, element
-    ``[k, i, j] = ((a[i,0]*b[k,0,j] + a[i,1]*b[k,1,j]) + a[i,2]*b[k,2,j]) + a[i,3]*b[k,3,j]``
-    (one multiply or add per array operation: the same roundings as written out)."""
-    a = np.asarray(a, dtype=np.float64)
-    b = np.asarray(b, dtype=np.float64)
-    out = a[None, :, 0, None] * b[:, None, 0, :]
-    for t in (1, 2, 3):
-        out = out + a[None, :, t, None] * b[:, None, t, :]
-    return out
 
 
 def normal_matrices(matrices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -355,9 +342,10 @@ def setup_renderers(items: list[SetupInput], camera: Camera, pool=None, parts: i
     v_offsets = np.concatenate([[0], v_counts.cumsum()])
     t_offsets = np.concatenate([[0], t_counts.cumsum()])
     v_count, t_count = int(v_offsets[-1]), int(t_offsets[-1])
-    programs = [(int(v_offsets[k]), int(v_offsets[k + 1]), outline_clip(item.mesh, item.matrix_world, camera,
-                                                                          item.program, item.width_factors))
-                for k, item in enumerate(items) if item.program is not None]
+    programmed = [k for k, item in enumerate(items) if item.program is not None]
+    clips = outline_clip_many([(items[k].mesh, items[k].matrix_world, items[k].program, items[k].width_factors)
+                               for k in programmed], camera)
+    programs = [(int(v_offsets[k]), int(v_offsets[k + 1]), clip) for k, clip in zip(programmed, clips, strict=True)]
 
     # Per-vertex work first (V <= 3T), gathered per corner afterwards. Coordinates are kept
     # channels first ((3, V) positions, (4, V) clip coordinates): every column contiguous.

@@ -925,6 +925,41 @@ def test_screen_outline_grows_by_a_share_of_the_screen_height():
     assert np.allclose(clip[0] - plain[0], 0.01 * 5.0 * np.minimum(w, 1.0) * (48 / 64))
 
 
+def test_outlines_of_several_meshes_at_once_equal_the_scalar_program_corner_by_corner():
+    """The vertex stage runs every outlined renderer's program in one set of array operations
+    (``outline_clip_many``): each corner must still get the bits of its own program, with its own
+    matrix (mirrored ones included), width, maximum distance and width texture, whatever mode and
+    formula the others have. Expected values: the scalar reference's ``outline_clip``, corner by corner."""
+    from tests.reference import scalar_shading as sh
+
+    cam = sc.camera(64, 48, eye=(0.3, 0.8, 3.0), fov=55.0)
+    meshes = (sc.uv_sphere(0.6, 8, 5), sc.cube(0.8), sc.quad(-0.5, -0.5, 0.5, 0.5))
+    matrices = (np.eye(4), sc.translate(0.4, -0.2, 0.1) @ sc.scale(1.5, 0.7, 1.2), sc.scale(-1.0, 1.0, 2.0))
+    rng = np.random.default_rng(7)
+    items = []
+    for k, mode in enumerate((OutlineMode.World, OutlineMode.Screen) * 3):
+        for formula in (OutlineFormula.MToon0x, OutlineFormula.MToon10):
+            mesh, matrix = meshes[k % 3], matrices[(k + int(formula is OutlineFormula.MToon10)) % 3]
+            p = Pass(outline_mode=mode, outline_formula=formula, outline_width=0.004 * (k + 1) * (3 if k % 2 else 1),
+                     outline_max_distance=0.5 + k)
+            factors = rng.random(3 * mesh.triangle_count) if k % 3 == 1 else None
+            items.append((mesh, matrix, p, factors))
+    clips = outline.outline_clip_many(items, cam)
+    V, P = cam.view_matrix.tolist(), cam.projection.tolist()
+    for (mesh, matrix, p, factors), clip in zip(items, clips, strict=True):
+        positions = np.asarray(mesh.positions, dtype=np.float64)
+        normals = np.asarray(mesh.normals, dtype=np.float64).reshape(-1, 3)
+        corners = np.asarray(mesh.triangles).reshape(-1)
+        expected = [sh.outline_clip(p, positions[v].tolist(), normals[c].tolist(), matrix.tolist(), V, P,
+                                    None if factors is None else float(factors[c]))
+                    for c, v in enumerate(corners)]
+        assert clip.shape == (4, corners.size)
+        assert np.array_equal(clip.T, np.array(expected)), (p.outline_mode, p.outline_formula)
+    # The same corners one renderer at a time give the same bits.
+    for item, clip in zip(items, clips, strict=True):
+        assert np.array_equal(outline.outline_clip(item[0], item[1], cam, item[2], item[3]), clip)
+
+
 def test_outline_off_is_the_plain_vertex_stage_and_a_pass_like_any():
     base = Pass()
     ring = Pass(name="Outline", cull=Cull.Front, outline_mode=OutlineMode.World, outline_width=0.5,
