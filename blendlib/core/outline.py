@@ -43,7 +43,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import shade
-from .scene import Camera, Mesh, cofactors3_many, matmul4_many
+from .scene import Camera, Mesh, matmul4_many, normal_matrices
 from .vocabulary import ColorSpace, Material, OutlineFormula, OutlineMode, Pass, TextureFilter
 
 
@@ -53,21 +53,6 @@ def outline_key(p: Pass) -> tuple | None:
     if p.outline_mode is OutlineMode.Off:
         return None
     return (p.outline_mode, p.outline_formula, float(p.outline_width), float(p.outline_max_distance))
-
-
-def _matmul4(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """docs/pipeline.md §1's ``matmul4``, (4, 4) float64."""
-    # Python floats: the same IEEE double operations as numpy's, without a numpy scalar per product.
-    a, b = np.asarray(a, dtype=np.float64).tolist(), np.asarray(b, dtype=np.float64).tolist()
-    return np.array([[((a[i][0] * b[0][j] + a[i][1] * b[1][j]) + a[i][2] * b[2][j]) + a[i][3] * b[3][j]
-                      for j in range(4)] for i in range(4)], dtype=np.float64)
-
-
-def _signed_cofactors_many(ms: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """§1's normal matrix of each of ``ms`` (I, 4, 4), of its upper 3x3 (cofactors, negated for a
-    negative determinant) (I, 3, 3), and the determinants (I,) float64."""
-    c, det = cofactors3_many(ms)
-    return np.where((det < 0)[:, None, None], -c, c), det
 
 
 def _rows(m: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray, affine: bool) -> list[np.ndarray]:
@@ -158,7 +143,7 @@ def outline_clip_many(items: list[tuple[Mesh, np.ndarray, Pass, np.ndarray | Non
         at = 0
         for k in members:
             n = 3 * items[k][0].triangle_count
-            out[k] = np.ascontiguousarray(clip[:, at:at + n])
+            out[k] = clip[:, at:at + n]
             at += n
     return out
 
@@ -199,11 +184,11 @@ def _clip_group(items: list[tuple[Mesh, np.ndarray, Pass, np.ndarray | None]], v
     ms = np.array([np.asarray(m, dtype=np.float64) for _mesh, m, _p, _f in items]).reshape(-1, 4, 4)
     widths = [float(p.outline_width) for _mesh, _m, p, _f in items]
     factors = [f for _mesh, _m, _p, f in items]
-    mvs = matmul4_many(view, ms)  # §1's matmul4 of each item, as _matmul4 gives it
+    mvs = matmul4_many(view, ms)
     mvp = _per_corner(list(matmul4_many(proj, mvs)), owner)
     old = formula is OutlineFormula.MToon0x
     if mode is OutlineMode.World:
-        nmats, dets = _signed_cofactors_many(ms)
+        nmats, dets = normal_matrices(ms)
         wx, wy, wz = _rows(_per_corner(list(nmats), owner), nx, ny, nz, affine=False)
         if old:
             scale = _length(wx, wy, wz)
@@ -215,9 +200,9 @@ def _clip_group(items: list[tuple[Mesh, np.ndarray, Pass, np.ndarray | None]], v
         world = _rows(_per_corner([m[:3] for m in ms], owner), px, py, pz, affine=True)
         moved = [np.add(a, np.multiply(b, _widths(widths, factors, owner)))
                  for a, b in zip(world, (ux, uy, uz), strict=True)]
-        return np.array(_rows(_matmul4(proj, view), *moved, affine=True))
+        return np.array(_rows(matmul4_many(proj, view[None])[0], *moved, affine=True))
     clip = np.array(_rows(mvp, px, py, pz, affine=True))
-    vmat = _per_corner(list(_signed_cofactors_many(mvs)[0]), owner)
+    vmat = _per_corner(list(normal_matrices(mvs)[0]), owner)
     vx, vy, vz = _rows(vmat, nx, ny, nz, affine=False)
     cx, cy = _rows(proj[:2, :3], vx, vy, vz, affine=False)
     length = _length(cx, cy)

@@ -139,6 +139,13 @@ def matmul4_many(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return out
 
 
+def normal_matrices(matrices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The normal matrices of docs/pipeline.md §1 of ``matrices`` (R, 4, 4): sign-corrected
+    cofactors of the upper 3x3 (R, 3, 3) and determinants (R,) float64."""
+    c, det = cofactors3_many(matrices)
+    return np.where((det < 0)[:, None, None], -c, c), det
+
+
 def affine_inverse(matrix) -> np.ndarray:
     """Inverse (4, 4) float64 of an affine 4x4 matrix (last row 0 0 0 1), by cofactors.
 

@@ -15,7 +15,7 @@ import numpy as np
 from .gather import gather
 from .outline import outline_clip_many
 from .parts import PIECE, run_parts
-from .scene import Camera, Mesh, cofactors3_many, matmul4_many  # noqa: F401 (matmul4_many: also vertex.matmul4_many)
+from .scene import Camera, Mesh, matmul4_many, normal_matrices
 from .vocabulary import Cull, Pass
 
 SUBPIXEL = 256
@@ -27,13 +27,6 @@ _MAX_POLY = 3 + 6  # a triangle clipped by six planes has at most nine vertices
 _NONFINITE_BIT, _NO_WINDOW_BIT = 6, 7
 _PLANES_MASK = np.uint8(0x3F)
 _NONFINITE_MASK = np.uint8(1 << _NONFINITE_BIT)
-
-
-def normal_matrices(matrices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The normal matrices of docs/pipeline.md §1 of ``matrices`` (R, 4, 4): sign-corrected
-    cofactors of the upper 3x3 (R, 3, 3) and determinants (R,) float64."""
-    c, det = cofactors3_many(matrices)
-    return np.where((det < 0)[:, None, None], -c, c), det
 
 
 def _affine_rows(m: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray, rows: int,
