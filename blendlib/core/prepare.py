@@ -291,11 +291,9 @@ def _setups(frame: FrameContext, items: list[tuple], pool=None, parts: int = 1) 
     """The geometry through the frame's camera of each of ``items`` (renderer, its vertex colours
     or None, the pass of its vertex program or None): kept ones from the memo, the others set up
     together (:func:`vertex.setup_renderers`: each equals its own setup) and kept for the next
-    frame. Setups with a vertex program (outlines) are not kept; ones with vertex colours are kept
-    per colour space too."""
-    kept = [None if program is not None else _kept_geometry(frame, r) for r, _, program in items]
-    keys = [frame.camera_key if colors is None else (frame.camera_key, frame.color_space)
-            for _, colors, _ in items]
+    frame (:func:`_setup_key`)."""
+    kept = [_kept_geometry(frame, r) for r, _, _ in items]
+    keys = [_setup_key(frame, colors, program) for _, colors, program in items]
     out = [None if k is None else k.get(key) for k, key in zip(kept, keys, strict=True)]
     todo = [i for i, g in enumerate(out) if g is None]
     if todo:
@@ -310,15 +308,27 @@ def _setups(frame: FrameContext, items: list[tuple], pool=None, parts: int = 1) 
             if held is None:
                 held = sum(r.mesh.triangle_count * len(d) for r, d in frame.memo.entries("geometry"))
             triangles = items[i][0].mesh.triangle_count
-            if len(kept[i]) >= MEMO_CAMERAS:  # the oldest camera goes
-                kept[i].pop(next(iter(kept[i])))
-                held -= triangles
+            cameras = list(dict.fromkeys(key[0] for key in kept[i]))
+            if keys[i][0] not in cameras and len(cameras) >= MEMO_CAMERAS:  # the oldest camera's setups go
+                for key in [key for key in kept[i] if key[0] == cameras[0]]:
+                    del kept[i][key]
+                    held -= triangles
             if held + triangles <= MEMO_SETUP_BUDGET:
                 kept[i][keys[i]] = out[i]
                 held += triangles
     if frame.band is not None:  # a band's rows are its own (the cut moves frame to frame): not kept
         out = [_Geometry(g.setup) for g in out]
     return out
+
+
+def _setup_key(frame: FrameContext, colors: np.ndarray | None, program: Pass | None) -> tuple:
+    """What a kept vertex setup of a renderer is for: the frame's camera (first), the colour
+    space when the setup holds values converted into it (vertex colours, an outline's width
+    factors) and the vertex program (:func:`.outline.outline_key`; all else the program reads
+    is the renderer's own)."""
+    converted = colors is not None or program is not None
+    return (frame.camera_key, frame.color_space if converted else None,
+            None if program is None else outline_key(program))
 
 
 def _draw_state(frame: FrameContext, call: DrawCall, setup, inputs: CallInputs,

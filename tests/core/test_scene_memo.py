@@ -253,3 +253,50 @@ def test_setups_are_kept_per_renderer_and_camera(monkeypatch):
     monkeypatch.setattr(prepare, "MEMO_SETUP_TRIANGLES", 0)
     assert frame(dataclasses.replace(moved, camera=far.camera)) == n
     assert frame(dataclasses.replace(moved, camera=far.camera)) == n
+
+
+def test_outline_setups_are_kept_per_camera_program_and_colour_space(monkeypatch):
+    """An outlined renderer's two setups (the plain vertex stage and its outline program) are both
+    kept: the same view sets up nothing again; a new outline width (a new material, so a new
+    renderer) sets up that renderer's two; another colour space re-converts the outline-width
+    factors, so only the outline setups are made again. Every frame equals a plain render."""
+    from blendlib.core import vertex
+    from blendlib.core.vocabulary import ColorSpace
+    from tests.reference.feature_sweeps import outline_sweep
+
+    draw = outline_sweep(width_textures=True)
+    outlined = [r for r in draw.renderers if any(p.outline_mode.name != "Off" for p in r.material.passes)]
+    assert len(outlined) == 8 and len(draw.renderers) == 9
+    set_up = []
+    real = vertex.setup_renderers
+    monkeypatch.setattr(vertex, "setup_renderers",
+                        lambda items, *a, **k: set_up.extend(i.program is not None for i in items)
+                        or real(items, *a, **k))
+    memo = SceneMemo()
+
+    def frame(scene) -> list[bool]:
+        """Whether each setup the memo's render made had a vertex program."""
+        set_up.clear()
+        got = render_scene(scene, memo=memo)
+        made = list(set_up)
+        assert_same(got, render_scene(scene))
+        return made
+
+    assert sorted(frame(draw)) == [False] * 9 + [True] * 8
+    assert frame(draw) == []
+    material = outlined[2].material
+    wider = replace_outline_width(material, 2.0)
+    k = draw.renderers.index(outlined[2])
+    changed = with_renderer(draw, k, material=wider)
+    memo.retain(changed)
+    assert sorted(frame(changed)) == [False, True]
+    linear = dataclasses.replace(changed, color_space=ColorSpace.Linear)
+    assert frame(linear) == [True] * 8  # the factors in the other colour space; plain setups kept
+    assert frame(linear) == []
+
+
+def replace_outline_width(material, factor: float):
+    """``material`` with its outline pass's width times ``factor``."""
+    passes = tuple(dataclasses.replace(p, outline_width=p.outline_width * factor) if p.outline_mode.name != "Off"
+                   else p for p in material.passes)
+    return dataclasses.replace(material, passes=passes)
