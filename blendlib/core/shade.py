@@ -539,26 +539,29 @@ def shade_texels(
     return out
 
 
-def alpha_of(material: Material, tex_alpha: np.ndarray | None, color_alpha: np.ndarray | None, n: int) -> np.ndarray:
+def alpha_of(material: Material, tex_alpha: np.ndarray | None, color_alpha: np.ndarray | None, n: int,
+             out: np.ndarray | None = None) -> np.ndarray:
     """The fragments' alpha (n,) float64 (:func:`shade_texels`: it reads neither lighting nor the
     outline): ``tex_alpha`` (n,) the sampled texels' alpha (None: no texture), ``color_alpha``
     (n,) the interpolated vertex colours' (None: white). Particle: ``((2 * vc.a) * _TintColor.a) *
-    tex.a``; else ``(tex.a * _Color.a) * _AlphaScale``, times ``vc.a`` with ``Multiply``."""
+    tex.a``; else ``(tex.a * _Color.a) * _AlphaScale``, times ``vc.a`` with ``Multiply``.
+    ``out``: an (n,) float64 array (a view) to write them into, returned."""
+    out = np.empty(n, dtype=np.float64) if out is None else out
     if material.vertex_color is VertexColor.Particle:
         tint = float(material.tint_color[3])
         if color_alpha is None:
-            out = np.full(n, 2.0 * tint, dtype=np.float64)
+            out[...] = 2.0 * tint
         else:
-            out = np.multiply(color_alpha, 2.0)
+            np.multiply(color_alpha, 2.0, out=out)
             out *= tint
         if tex_alpha is not None:
             out *= tex_alpha
         return out
     if tex_alpha is None:
         # tex = (1, 1, 1, 1): 1.0 * c == c exactly, so alpha is the material's.
-        out = np.full(n, float(material.color[3]) * float(material.alpha_scale), dtype=np.float64)
+        out[...] = float(material.color[3]) * float(material.alpha_scale)
     else:
-        out = np.multiply(tex_alpha, float(material.color[3]))
+        np.multiply(tex_alpha, float(material.color[3]), out=out)
         out *= float(material.alpha_scale)
     if material.vertex_color is VertexColor.Multiply and color_alpha is not None:
         out *= color_alpha
@@ -573,9 +576,12 @@ def _lit(
     n = normal.shape[0]
     mode = material.vertex_color
     out = np.empty((n, 4), dtype=np.float64)
-    out[:, 3] = alpha_of(material, None if tex is None else tex[:, 3], None if color is None else color[:, 3], n)
+    alpha_of(material, None if tex is None else tex[:, 3], None if color is None else color[:, 3], n, out=out[:, 3])
+    constant = None  # the albedo (3,) as Python floats when it is the same for every fragment
     if mode is VertexColor.Particle:
         tint = gamma_color_to_shading(material.tint_color[:3], color_space) + (float(material.tint_color[3]),)
+        if color is None and tex is None:
+            constant = tuple(2.0 * tint[c] for c in range(3))
 
         def base(c: int) -> np.ndarray:  # (2 * i.color) * _TintColor, white when there is no colour
             if color is None:
@@ -592,6 +598,8 @@ def _lit(
     else:
         col = gamma_color_to_shading(material.color[:3], color_space) + (float(material.color[3]),)
         tinted = mode is VertexColor.Multiply and color is not None
+        if tex is None and not tinted:
+            constant = tuple(float(col[c]) for c in range(3))
 
         def albedo(c: int) -> np.ndarray:
             v = np.full(n, col[c], dtype=np.float64) if tex is None else np.multiply(tex[:, c], col[c])
@@ -601,7 +609,7 @@ def _lit(
 
     if material.lighting is Lighting.Unlit:
         for c in range(3):
-            out[:, c] = albedo(c)
+            out[:, c] = albedo(c) if constant is None else constant[c]
         return out
     nx, ny, nz = _unit_normals(normal)
     add = lights.add
@@ -619,6 +627,18 @@ def _lit(
     ndl += np.multiply(nz, lz, out=nz)
     np.maximum(0.0, ndl, out=ndl)
     for c in range(3):
+        if constant is not None:
+            # The same operations on one albedo for all: (light*albedo)*ndl (+ ambient*albedo),
+            # each product of two doubles rounded as the per-fragment one is; the last one
+            # writes the colour's column (ny: free scratch by now).
+            lit = float(constant[c]) * float(light[c])
+            if add is None:
+                np.add(np.multiply(ndl, lit, out=ny), float(constant[c]) * float(lights.ambient[c]), out=out[:, c])
+            elif atten is not None:
+                np.multiply(np.multiply(ndl, lit, out=ny), atten, out=out[:, c])
+            else:
+                np.multiply(ndl, lit, out=out[:, c])
+            continue
         a = albedo(c)
         if add is None:
             term = np.multiply(a, lights.ambient[c])
