@@ -89,6 +89,7 @@ class TriangleSetup:
     skipped_nonfinite: int = 0
     degenerate: int = 0
     _slope: np.ndarray | None = None
+    _world_normal_corners: np.ndarray | None = None  # (T, 3, 3) float64, kept by world_normals_of
     object_colors: np.ndarray | None = None
     placement: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
     world_corners: np.ndarray | None = None
@@ -111,10 +112,17 @@ class TriangleSetup:
         return self.object_colors.take(src, axis=0)
 
     def world_normals_of(self, src: np.ndarray) -> np.ndarray:
-        """World-space corner normals (K, 3, 3) float64 of source triangles ``src`` (K,)."""
+        """World-space corner normals (K, 3, 3) float64 of source triangles ``src`` (K,). A small
+        mesh's are made for all its triangles at the first call and kept with the setup (the
+        same per-corner sums): its passes' chunks, and the viewport's later frames through a
+        kept setup, gather them instead of transforming their triangles' again."""
         if self.normal_matrix is None:
             return self.object_normals.take(src, axis=0)
-        return _world_normals(self.object_normals.take(src, axis=0), self.normal_matrix)
+        if self.object_normals.shape[0] > KEPT_WORLD_NORMALS:
+            return _world_normals(self.object_normals.take(src, axis=0), self.normal_matrix)
+        if self._world_normal_corners is None:  # threads of one setup may both make it: the same values
+            self._world_normal_corners = np.ascontiguousarray(_world_normals(self.object_normals, self.normal_matrix))
+        return self._world_normal_corners.take(src, axis=0)
 
     def uvs_of(self, src: np.ndarray) -> np.ndarray:
         """Corner UVs (K, 3, 2) float64 of source triangles ``src`` (K,)."""
@@ -270,6 +278,11 @@ def _to_window(clip: np.ndarray, camera: Camera) -> tuple[np.ndarray, ...]:
         fx[~finite] = 0.0
         fy[~finite] = 0.0
     return fx.astype(np.int64), fy.astype(np.int64), zw, iw, finite
+
+
+#: Meshes of up to this many triangles keep their world-space corner normals with their setup
+#: (:meth:`TriangleSetup.world_normals_of`; 72 bytes a triangle).
+KEPT_WORLD_NORMALS = 1 << 14
 
 
 def _world_normals(normals: np.ndarray, nmat: np.ndarray) -> np.ndarray:

@@ -1160,3 +1160,34 @@ def test_rasterized_barycentrics_equal_the_per_pixel_formula(global_index, seed,
         frags = raster.rasterize_rows(rows, start, stop, width)
         np.testing.assert_array_equal(frags.pix, pix[first:first + n])
         assert frags.bary.view(np.uint64).tolist() == weights[:, first:first + n].view(np.uint64).tolist()
+
+
+def test_kept_world_normals_equal_the_normals_of_each_chunk_s_triangles(monkeypatch):
+    """A small mesh's world-space corner normals are made once for all its triangles and kept with
+    its setup; each call's gather equals §1's sums over that call's triangles alone, bit for bit,
+    as does a large mesh's (not kept), under a non-uniform and a mirroring matrix."""
+    from blendlib.core import vertex
+
+    sphere = sc.uv_sphere(0.9, 14, 9)
+    camera = sc.camera(80, 60, eye=(0.0, 0.0, 2.5))
+    matrix = sc.translate(0.2, -0.1, 0.3) @ sc.scale(-1.3, 0.7, 1.1)
+    rng = np.random.default_rng(5)
+    subsets = [rng.choice(sphere.triangles.shape[0], size=k, replace=False) for k in (1, 17, 60)]
+
+    def expected(setup, src):
+        """§1: ``(N[i][0]*x + N[i][1]*y) + N[i][2]*z`` per corner, with the setup's normal matrix."""
+        corners = np.asarray(setup.object_normals, dtype=np.float64)[src]
+        n = setup.normal_matrix
+        return np.stack([(n[i, 0] * corners[..., 0] + n[i, 1] * corners[..., 1]) + n[i, 2] * corners[..., 2]
+                         for i in range(3)], axis=-1)
+
+    for kept in (True, False):
+        if not kept:
+            monkeypatch.setattr(vertex, "KEPT_WORLD_NORMALS", 10)
+        (setup,) = vertex.setup_renderers([vertex.SetupInput(sphere, matrix)], camera)
+        assert setup.normal_matrix is not None and np.linalg.det(setup.normal_matrix) != 0
+        for src in subsets:
+            got = setup.world_normals_of(src)
+            assert got.shape == (src.size, 3, 3)
+            np.testing.assert_array_equal(got, expected(setup, src))
+        assert (setup._world_normal_corners is not None) == kept
