@@ -261,7 +261,8 @@ MEMO_SETUP_TRIANGLES = 1 << 17
 #: Cameras per renderer whose setups a memo keeps: the viewport's reduced and full frame sizes.
 MEMO_CAMERAS = 2
 #: At most this many triangles' setups (over all renderers and cameras) in one memo: about
-#: 120-200 bytes each, so some 300 MB; renderers beyond it are set up every frame.
+#: 120-200 bytes each, 72 more with world normals kept (:data:`.vertex.KEPT_WORLD_NORMALS`), so
+#: some 300-500 MB; renderers beyond it are set up every frame.
 MEMO_SETUP_BUDGET = 1 << 21
 
 
