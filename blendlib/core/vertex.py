@@ -116,13 +116,24 @@ class TriangleSetup:
         mesh's are made for all its triangles at the first call and kept with the setup (the
         same per-corner sums): its passes' chunks, and the viewport's later frames through a
         kept setup, gather them instead of transforming their triangles' again."""
-        if self.normal_matrix is None:
-            return self.object_normals.take(src, axis=0)
-        if self.object_normals.shape[0] > KEPT_WORLD_NORMALS:
+        if self.normal_matrix is not None and self.object_normals.shape[0] > KEPT_WORLD_NORMALS:
             return _world_normals(self.object_normals.take(src, axis=0), self.normal_matrix)
-        if self._world_normal_corners is None:  # threads of one setup may both make it: the same values
-            self._world_normal_corners = np.ascontiguousarray(_world_normals(self.object_normals, self.normal_matrix))
-        return self._world_normal_corners.take(src, axis=0)
+        return self.all_world_normals().take(src, axis=0)
+
+    def all_world_normals(self) -> np.ndarray:
+        """World-space corner normals (T, 3, 3) float64 of every source triangle: kept with the
+        setup for a mesh of at most :data:`KEPT_WORLD_NORMALS` triangles (made at the first call)."""
+        if self.normal_matrix is None:
+            return self.object_normals
+        if self._world_normal_corners is not None:
+            return self._world_normal_corners
+        corners = _world_normals(self.object_normals, self.normal_matrix)
+        if self.object_normals.shape[0] > KEPT_WORLD_NORMALS:
+            return corners
+        # Kept contiguous (np.take of a strided view copies it whole first); threads of one setup
+        # may both make it: the same values.
+        self._world_normal_corners = np.ascontiguousarray(corners)
+        return self._world_normal_corners
 
     def uvs_of(self, src: np.ndarray) -> np.ndarray:
         """Corner UVs (K, 3, 2) float64 of source triangles ``src`` (K,)."""
@@ -178,8 +189,7 @@ def concatenate_setups(setups: list[TriangleSetup], positions: bool = False) -> 
                                   else s.weights for s in setups])
     normals = uvs = None
     if setups[0].object_normals is not None:
-        normals = np.concatenate([s.object_normals if s.normal_matrix is None else
-                                  _world_normals(s.object_normals, s.normal_matrix) for s in setups])
+        normals = np.concatenate([s.all_world_normals() for s in setups])
     if setups[0].object_uvs is not None:
         uvs = cat("object_uvs")
     colors = cat("object_colors") if setups[0].object_colors is not None else None
