@@ -419,11 +419,32 @@ def pixel_histories(scene: DrawScene, pixels: Iterable[tuple[int, int]], *,
     """The histories of several pixels (X from the left, Y from the top) from one render, and
     the frame. Costs one render plus a replay of each pixel's fragments."""
     pixels = [_check_pixel(scene, x, y) for x, y in pixels]
+    return _histories(scene, pixels, None, progress, should_cancel, workers)
+
+
+def pixel_history(scene: DrawScene, x: int, y: int, *, progress: Callable[[float], None] | None = None,
+                  should_cancel: Callable[[], bool] | None = None, workers: int | None = None) -> PixelHistory:
+    """The history of pixel (``x`` from the left, ``y`` from the top). An untouched pixel has an
+    empty history (a valid answer). Raises :class:`SceneError` for a pixel outside the image.
+
+    Only the pixel's row is rendered (a band render, whose every pixel equals the whole frame's:
+    pixels never depend on one another, a mipmap's LOD included): the vertex setup of every
+    renderer and that row's fragments, a fraction of a render on large frames."""
+    x, y = _check_pixel(scene, x, y)
+    row = int(scene.camera.height) - 1 - y  # buffer rows count from the bottom
+    return _histories(scene, [(x, y)], (row, row + 1), progress, should_cancel, workers)[0][0]
+
+
+def _histories(scene: DrawScene, pixels: list[tuple[int, int]], band: tuple[int, int] | None, progress,
+               should_cancel, workers) -> tuple[list[PixelHistory], Frame]:
+    """:func:`pixel_histories` of checked ``pixels``, rendering buffer rows ``band`` (y0, y1)
+    only when given (every pixel must lie there; the Frame is then those rows, top row first)."""
     w, h = int(scene.camera.width), int(scene.camera.height)
     window = np.array([(h - 1 - y) * w + x for x, y in pixels], dtype=np.int64)
     observer = _PixelObserver(window, w, h)
     frame = render_scene(scene, progress=progress, should_cancel=should_cancel, workers=workers,
-                         observer=observer)
+                         observer=observer, band=band)
+    top = 0 if band is None else h - band[1]  # the image row of the Frame's first row
     per_pixel: dict[int, list[tuple]] = {int(p): [] for p in window}
     for call, pix, tri, depth, colors, outcome in observer.records:
         for k in range(pix.size):  # only fragments on the asked pixels
@@ -431,16 +452,9 @@ def pixel_histories(scene: DrawScene, pixels: Iterable[tuple[int, int]], *,
     clear, _, _ = _stored(_clear_buffers(scene))
     out = []
     for (x, y), p in zip(pixels, window, strict=True):
-        final = tuple(float(v) for v in frame.color[y, x])
+        final = tuple(float(v) for v in frame.color[y - top, x])
         out.append(PixelHistory(x, y, clear, final, _replay(scene, per_pixel[int(p)]), int(scene.msaa)))
     return out, frame
-
-
-def pixel_history(scene: DrawScene, x: int, y: int, **kwargs) -> PixelHistory:
-    """The history of pixel (``x`` from the left, ``y`` from the top): one render of the scene.
-    An untouched pixel has an empty history (a valid answer). Raises :class:`SceneError` for a
-    pixel outside the image."""
-    return pixel_histories(scene, [(x, y)], **kwargs)[0][0]
 
 
 # ------------------------------------------------------------------ stepping

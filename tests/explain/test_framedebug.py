@@ -189,6 +189,30 @@ def test_a_history_is_told_only_of_chunks_in_its_pixels_rows(monkeypatch):
     assert all(h.fragments for h in histories)
 
 
+
+@pytest.mark.parametrize(("seed", "samples"), [(8, 1), (15, 1), (17, 1), (21, 1), (23, 1), (9, 4), (15, 4)])
+def test_one_pixel_s_history_renders_its_row_and_equals_the_whole_frame_s(seed, samples, monkeypatch):
+    """``pixel_history`` renders only the pixel's row (a band of one row, y counted from the
+    bottom), and every pixel's history (mipmapped textures, stencil, MSAA coverage included)
+    equals the one ``pixel_histories`` takes from a render of the whole frame, its final colour
+    the whole frame's pixel."""
+    scene = seeded_scene(seed, features=True, msaa=samples)
+    w, h = scene.camera.width, scene.camera.height
+    every, frame = fd.pixel_histories(scene, _all_pixels(scene))
+    bands = []
+
+    def banded(*args, band=None, **kwargs):
+        bands.append(band)
+        return render_scene(*args, band=band, **kwargs)
+
+    monkeypatch.setattr(fd, "render_scene", banded)
+    for whole in every:
+        one = fd.pixel_history(scene, whole.x, whole.y)
+        assert one.to_json() == whole.to_json(), (seed, samples, whole.x, whole.y, describe(scene))
+        assert one.final == tuple(float(v) for v in frame.color[whole.y, whole.x])
+    assert bands == [(h - 1 - y, h - y) for y in range(h) for _ in range(w)]
+    assert sum(len(x.fragments) for x in every) > w * h // 4  # the frame is well covered
+
 def test_empty_history_and_bad_pixels():
     scene = seeded_scene(3)  # draws nothing
     hist = fd.pixel_history(scene, 0, 0)
