@@ -100,11 +100,7 @@ def light_falloff(r2: float) -> float:
 def world_half_extent(renderer: Renderer) -> np.ndarray:
     """(3,) float64 half size of the renderer's world-space bounding box: the axis-aligned box
     around its mesh's local bounding box transformed to world space (Unity's ``Renderer.bounds``)."""
-    positions = np.asarray(renderer.mesh.positions, dtype=np.float64)
-    if positions.size == 0:
-        return np.zeros(3, dtype=np.float64)
-    half = (positions.max(axis=0) - positions.min(axis=0)) / 2.0
-    return np.abs(np.asarray(renderer.matrix_world, dtype=np.float64)[:3, :3]) @ half
+    return np.abs(np.asarray(renderer.matrix_world, dtype=np.float64)[:3, :3]) @ renderer.mesh.half_size
 
 
 def light_reaches(light: ForwardLight, renderer: Renderer) -> bool:
@@ -113,8 +109,8 @@ def light_reaches(light: ForwardLight, renderer: Renderer) -> bool:
     if light.type is LightType.Directional:
         return True
     center = np.asarray(renderer.bounds_center, dtype=np.float64)
-    nearest = np.clip(np.asarray(light.position, dtype=np.float64), center - world_half_extent(renderer),
-                      center + world_half_extent(renderer))
+    half = world_half_extent(renderer)
+    nearest = np.clip(np.asarray(light.position, dtype=np.float64), center - half, center + half)
     delta = nearest - np.asarray(light.position, dtype=np.float64)
     return _dot3(delta, delta) < float(light.range) ** 2
 

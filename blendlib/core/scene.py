@@ -57,6 +57,16 @@ class Mesh:
     def triangle_count(self) -> int:
         return int(self.triangles.shape[0])
 
+    @functools.cached_property
+    def half_size(self) -> np.ndarray:
+        """(3,) float64: half the size of the local (object-space) bounding box of ``positions``,
+        zero for a mesh without vertices; computed once per mesh (the draw list asks for it per
+        light and frame: :func:`.drawlist.world_half_extent`)."""
+        positions = np.asarray(self.positions, dtype=np.float64)
+        if positions.size == 0:
+            return np.zeros(3, dtype=np.float64)
+        return (positions.max(axis=0) - positions.min(axis=0)) / 2.0
+
 
 @dataclass(frozen=True, eq=False)
 class Renderer:
