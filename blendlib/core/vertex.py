@@ -434,9 +434,10 @@ def setup_renderers(items: list[SetupInput], camera: Camera, pool=None, parts: i
         # Object-space degenerate triangles (zero area) are reported; they draw nothing. The
         # cross product is zero when each component is: its z component first, the other two
         # only for the triangles where that one is zero (few).
-        pa = [pos_columns[k].take(a) for k in range(3)]
-        e1 = [pos_columns[k].take(b) - pa[k] for k in range(3)]
-        e2 = [pos_columns[k].take(c) - pa[k] for k in range(3)]
+        # Edges e1 = b - a and e2 = c - a; their z components only for those few triangles.
+        pa = [pos_columns[k].take(a) for k in range(2)]
+        e1 = [pos_columns[k].take(b) - pa[k] for k in range(2)]
+        e2 = [pos_columns[k].take(c) - pa[k] for k in range(2)]
         with np.errstate(over="ignore", invalid="ignore"):
             flat = (e1[0] * e2[1] - e1[1] * e2[0]) == 0
             flat &= ok
@@ -445,6 +446,10 @@ def setup_renderers(items: list[SetupInput], camera: Camera, pool=None, parts: i
             some = np.flatnonzero(flat)
             if some.size:
                 f, g = [v.take(some) for v in e1], [v.take(some) for v in e2]
+                sa, sb, sc = a.take(some), b.take(some), c.take(some)
+                z = pos_columns[2]
+                f.append(z.take(sb) - z.take(sa))
+                g.append(z.take(sc) - z.take(sa))
                 degenerate[some] = ((f[1] * g[2] - f[2] * g[1]) == 0) & ((f[2] * g[0] - f[0] * g[2]) == 0)
 
     run_parts(pool, parts, t_count, triangle_part, piece=PIECE)
