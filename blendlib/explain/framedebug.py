@@ -25,7 +25,7 @@ from __future__ import annotations
 import math
 import threading
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -171,9 +171,25 @@ class _StatsObserver(FrameObserver):
 
 def draw_list(scene: DrawScene, *, progress: Callable[[float], None] | None = None,
               should_cancel: Callable[[], bool] | None = None, workers: int | None = None) -> list[DrawStats]:
-    """Every draw call of ``scene`` in order with its statistics (one render of the scene)."""
-    return FrameCapture.capture(scene, progress=progress, should_cancel=should_cancel, workers=workers,
-                                memory=0).stats
+    """Every draw call of ``scene`` in order with its statistics: one render of the scene that
+    keeps no colour (:func:`colourless_calls`), since no statistic depends on one."""
+    calls = draw_calls(scene)
+    observer = _StatsObserver(samples=int(scene.msaa))
+    render_scene(scene, progress=progress, should_cancel=should_cancel, workers=workers, observer=observer,
+                 calls=colourless_calls(calls), output=False)
+    return observer.stats(calls)
+
+
+def colourless_calls(calls: list[DrawCall]) -> list[DrawCall]:
+    """``calls`` with every pass drawn as ``ColorMask 0``: the same fragments and outcomes, no colour.
+
+    A fragment's outcome (written, or failed by the depth, stencil or alpha test) and what it
+    does to the depth and stencil buffers never read the colour buffer, nor the fragment's
+    colour: only its alpha, where the alpha test or AlphaToMask reads it, which a pass with an
+    alpha test or AlphaToMask still shades (:func:`.prepare.chunk_shading`). So a render of these
+    calls gives an observer that reads no colour the fragments, outcomes and triangles of the
+    real calls (same indices), without lighting or blending; its colour buffer stays clear."""
+    return [replace(c, state=replace(c.state, color_mask=frozenset())) for c in calls]
 
 
 # ------------------------------------------------------------------ pixel history

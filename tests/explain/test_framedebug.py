@@ -96,6 +96,28 @@ def test_draw_list_counts_equal_the_scalar_reference(seed):
     assert sum(s.fragments for s in stats) > 0 or seed == 3
 
 
+@pytest.mark.parametrize(("seed", "samples"), [(16, 1), (21, 1), (27, 1), (29, 1), (56, 1), (64, 1), (27, 4), (56, 4)])
+def test_a_colourless_draw_list_counts_as_the_scalar_reference_and_names_the_real_passes(seed, samples):
+    """The draw list renders every pass as ``ColorMask 0`` (its statistics never read a colour):
+    on scenes with lights, vertex colours, mipmaps, outlines, alpha tests and stencil, with and
+    without MSAA, its counts still equal the scalar reference's, and its draw calls are the
+    scene's own, their colour masks and blend states intact."""
+    scene = seeded_scene(seed, features=True, msaa=samples)
+    stats = fd.draw_list(scene)
+    _, log = _reference(scene)
+    counts = log.counts()
+    written = log.samples_written() if samples > 1 else {}
+    calls = draw_calls(scene)
+    assert [s.call.state for s in stats] == [c.state for c in calls]
+    assert any(c.state.color_mask for c in calls) and any(c.light is not None for c in calls)
+    for s in stats:
+        assert (s.fragments, s.written) == counts.get(s.call.index, (0, 0)), (seed, samples, s, describe(scene))
+        assert s.triangles == log.triangles.get(s.call.index, 0), (seed, s)
+        if samples > 1:
+            assert s.samples_written == written.get(s.call.index, 0), (seed, s)
+    assert any(s.written for s, c in zip(stats, calls, strict=True) if c.state.alpha_test)  # alpha still tested
+
+
 def test_draw_list_json_items_follow_spec():
     cam = sc.camera(16, 16, eye=(0, 0, 5))
     glass = sc.unlit((1, 1, 1, 0.5), queue=Queue.Transparent,
