@@ -432,9 +432,9 @@ def setup_renderers(items: list[SetupInput], camera: Camera, pool=None, parts: i
         keep_whole[lo:hi] = out_or == 0  # finite, inside every plane, with window positions
         to_clip[lo:hi] = ok & (planes_or != 0) & ((out_and & _PLANES_MASK) == 0)
         # Object-space degenerate triangles (zero area) are reported; they draw nothing. The
-        # cross product is zero when each component is: its z component first, the other two
-        # only for the triangles where that one is zero (few).
-        # Edges e1 = b - a and e2 = c - a; their z components only for those few triangles.
+        # cross product of the edges e1 = b - a, e2 = c - a is zero when each component is: its
+        # z component (from x and y) first, the other two only for the triangles where that one
+        # is zero (few), so the corners' z are gathered for those alone.
         pa = [pos_columns[k].take(a) for k in range(2)]
         e1 = [pos_columns[k].take(b) - pa[k] for k in range(2)]
         e2 = [pos_columns[k].take(c) - pa[k] for k in range(2)]
