@@ -235,38 +235,47 @@ class _PairWatch(FrameObserver):
             which, sample = np.nonzero(written)
             pix = (np.take(frags.pix, which) - self.first) * self.samples + sample
             depth = frags.depth[which, sample].astype(np.int32)
-        else:
-            pix = frags.pix if written.all() else frags.pix[written]
+        elif written.all():
+            pix = frags.pix - self.first if self.first else frags.pix
+            depth = frags.depth.astype(np.int32)
+        else:  # np.take: boolean and fancy indexing cost more
+            kept = np.flatnonzero(written)
+            pix = frags.pix.take(kept)
             if self.first:
-                pix = pix - self.first
-            depth = (frags.depth if written.all() else frags.depth[written]).astype(np.int32)
+                pix -= self.first
+            depth = frags.depth.take(kept).astype(np.int32)
         if frags.disjoint:
             before = None  # one fragment per pixel in this chunk
         else:  # each fragment's nearest earlier one of the chunk at its pixel, as a pixel order
             order = np.argsort(pix, kind="stable")
-            pix, depth = pix[order], depth[order]
+            pix, depth = pix.take(order), depth.take(order)
             start = np.ones(pix.size, dtype=bool)
-            start[1:] = pix[1:] != pix[:-1]
-            group = np.cumsum(start) - 1
-            big = np.int64(1 << 31)
-            running = np.minimum.accumulate(depth - group * big) + group * big  # within each pixel
+            np.not_equal(pix[1:], pix[:-1], out=start[1:])
+            offset = np.cumsum(start)  # the pixel's group, from 1
+            offset *= np.int64(1 << 31)
+            running = np.subtract(depth, offset)
+            np.minimum.accumulate(running, out=running)
+            running += offset  # the running minimum within each pixel
             before = np.full(pix.size, self.NONE, dtype=np.int32)
-            later = ~start
-            before[later] = running[np.flatnonzero(later) - 1]
+            later = np.flatnonzero(~start)
+            before[later] = running.take(later - 1)
         for (front, behind), hit in self.inverted.items():
             if behind != key:
                 continue
-            nearest = self.nearest[front][pix]
+            nearest = self.nearest[front].take(pix)
             if front == key and before is not None:
-                nearest = np.minimum(nearest, before)
-            hit[pix[nearest < depth]] = True
+                np.minimum(nearest, before, out=nearest)
+            hit[pix.compress(nearest < depth)] = True
         if key in self.nearest:
             near = self.nearest[key]
             if before is None:
-                near[pix] = np.minimum(near[pix], depth)
-            else:  # the chunk's nearest at each of its pixels
+                near[pix] = np.minimum(near.take(pix), depth)
+            else:  # the chunk's nearest at each of its pixels (each pixel's last fragment)
                 last = np.flatnonzero(np.append(start[1:], True))
-                near[pix[last]] = np.minimum(near[pix[last]], np.minimum(before[last], depth[last]))
+                at = pix.take(last)
+                low = np.minimum(before.take(last), depth.take(last))
+                np.minimum(low, near.take(at), out=low)
+                near[at] = low
 
     def draw_end(self, call, buffers, triangles) -> None:
         self.buffers = buffers  # after the last call: the changed frame's buffers
