@@ -555,5 +555,5 @@ def draw_list_json(stats: list[DrawStats]) -> list[dict]:
 
 
 __all__ = ["DrawStats", "FrameCapture", "PixelFragment", "PixelHistory", "RESULT_NAMES", "SNAPSHOT_MEMORY",
-           "SampleResult", "draw_list", "draw_list_json", "float32_json", "pixel_histories", "pixel_history",
-           "snapshot_bytes"]
+           "SampleResult", "colourless_calls", "draw_list", "draw_list_json", "float32_json", "pixel_histories",
+           "pixel_history", "snapshot_bytes"]
