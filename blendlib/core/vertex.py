@@ -446,10 +446,10 @@ def setup_renderers(items: list[SetupInput], camera: Camera, pool=None, parts: i
             some = np.flatnonzero(flat)
             if some.size:
                 f, g = [v.take(some) for v in e1], [v.take(some) for v in e2]
-                sa, sb, sc = a.take(some), b.take(some), c.take(some)
                 z = pos_columns[2]
-                f.append(z.take(sb) - z.take(sa))
-                g.append(z.take(sc) - z.take(sa))
+                za = z.take(a.take(some))
+                f.append(z.take(b.take(some)) - za)
+                g.append(z.take(c.take(some)) - za)
                 degenerate[some] = ((f[1] * g[2] - f[2] * g[1]) == 0) & ((f[2] * g[0] - f[0] * g[2]) == 0)
 
     run_parts(pool, parts, t_count, triangle_part, piece=PIECE)
