@@ -117,14 +117,17 @@ def quantize_unorm(values: np.ndarray) -> np.ndarray:
     return unorm_codes_in_place(np.array(values, dtype=np.float64)).astype(np.uint8)
 
 
-def unorm_codes_in_place(v: np.ndarray, low: bool = True, high: bool = True) -> np.ndarray:
+def unorm_codes_in_place(v: np.ndarray, low: bool = True, high: bool = True, floor: bool = True) -> np.ndarray:
     """:func:`quantize_unorm`'s codes as float64 values, computed in ``v`` (float64, overwritten),
     for a caller that owns ``v`` and stores the codes itself. ``low=False`` / ``high=False``: the
-    caller knows no value is below 0 / above 1 (a NaN stays NaN either way), so that clamp is left out."""
+    caller knows no value is below 0 / above 1 (a NaN stays NaN either way), so that clamp is left out.
+    ``floor=False``: ``v * 255 + 0.5`` without the floor, for a caller that stores the values
+    into an unsigned integer array: the values lie in [0.5, 255.5] (or are NaN), where the
+    cast's truncation toward zero is the floor, so the stored codes are the same."""
     if low:
         np.maximum(v, 0.0, out=v)
     if high:
         np.minimum(v, 1.0, out=v)
     v *= 255.0
     v += 0.5
-    return np.floor(v, out=v)
+    return np.floor(v, out=v) if floor else v

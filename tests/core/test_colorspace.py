@@ -41,3 +41,23 @@ def test_quantize_encoded_keeps_the_shape():
     got = colorspace.quantize_encoded(v)
     assert got.shape == (7, 5, 3)
     assert got.reshape(-1).tolist() == [_code(float(x)) for x in v.reshape(-1)]
+
+
+def test_unorm_codes_without_the_floor_store_the_same_codes():
+    """``unorm_codes_in_place(floor=False)`` leaves ``v * 255 + 0.5`` for a caller that stores it
+    into uint8 (the 8-bit blend): the cast's truncation must give ``floor(clamp01(v) * 255 + 0.5)``
+    (docs/pipeline.md §8) at every code's half-way point, just either side of it, at 0 and 1, and
+    for values the clamps hold (below 0, above 1, infinities)."""
+    halves = (np.arange(256, dtype=np.float64) + 0.5) / 255.0
+    values = np.concatenate([halves, np.nextafter(halves, 0.0), np.nextafter(halves, 1.0),
+                             np.arange(256, dtype=np.float64) / 255.0,
+                             [0.0, -0.0, 1.0, -1e-300, -3.5, 1.0000001, 7.0, np.inf, -np.inf]])
+    expected = np.array([math.floor(min(max(v, 0.0), 1.0) * 255 + 0.5) for v in values.tolist()], dtype=np.uint8)
+    stored = np.empty(values.size, dtype=np.uint8)
+    stored[:] = colorspace.unorm_codes_in_place(values.copy(), floor=False)
+    np.testing.assert_array_equal(stored, expected)
+    # The blend leaves out a clamp where it knows the values lie within it: the same codes.
+    inside = values[(values >= 0.0) & (values <= 1.0)]
+    stored = np.empty(inside.size, dtype=np.uint8)
+    stored[:] = colorspace.unorm_codes_in_place(inside.copy(), low=False, high=False, floor=False)
+    np.testing.assert_array_equal(stored, expected[(values >= 0.0) & (values <= 1.0)])

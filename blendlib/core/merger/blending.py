@@ -26,15 +26,25 @@ from .buffers import FrameBuffers
 
 
 def _apply_op(op: BlendOp, s: np.ndarray, fs, d: np.ndarray, fd) -> np.ndarray:
+    """The blend equation of one channel, a new array (N,) float64: ``s * fs + d * fd`` for Add
+    (Sub and RevSub alike), the operands in that order, the sum made in one product's array, and
+    a ``One`` factor's product left out (x * 1.0 is x, bit for bit)."""
     if op is BlendOp.Min:
         return np.minimum(s, d)
     if op is BlendOp.Max:
         return np.maximum(s, d)
-    if op is BlendOp.Add:
-        return s * fs + d * fd
-    if op is BlendOp.Sub:
-        return s * fs - d * fd
-    return d * fd - s * fs  # RevSub
+    if op is BlendOp.RevSub:
+        s, fs, d, fd = d, fd, s, fs  # d * fd - s * fs
+    combine = np.add if op is BlendOp.Add else np.subtract
+    one_s = isinstance(fs, float) and fs == 1.0
+    one_d = isinstance(fd, float) and fd == 1.0
+    if one_s and one_d:
+        return combine(s, d)
+    if one_s:
+        second = np.multiply(d, fd)
+        return combine(s, second, out=second)
+    first = np.multiply(s, fs)
+    return combine(first, d if one_d else np.multiply(d, fd), out=first)
 
 
 def blend(p: Pass, src: np.ndarray, dst: np.ndarray) -> np.ndarray:
@@ -233,10 +243,10 @@ def _blend_ldr(buf: FrameBuffers, p: Pass, stored: np.ndarray, rgba: np.ndarray)
     codes = stored.view(np.uint8).reshape(-1, 4)
     n = stored.shape[0]
     # Channels first, clamped into a new array (the caller's colours must survive — MSAA applies
-    # them to every sample) by the clamp's first pass, and every later operation on contiguous rows.
+    # them to every sample) by one clip, min(max(v, 0), 1) with NaN kept as it is, and every later
+    # operation on contiguous rows.
     src = np.empty((4, n), dtype=np.float64)
-    np.maximum(rgba.T, 0.0, out=src)
-    np.minimum(src, 1.0, out=src)
+    np.clip(rgba.T, 0.0, 1.0, out=src)
     result = list(src)
     if p.blend:
         dst = np.empty((4, n), dtype=np.float64)
@@ -251,7 +261,7 @@ def _blend_ldr(buf: FrameBuffers, p: Pass, stored: np.ndarray, rgba: np.ndarray)
         if buf.linear and c < 3:
             out[:, c] = colorspace.quantize_encoded(result[c])
         else:  # in place: each result row is this function's own array; clamps only where needed
-            out[:, c] = colorspace.unorm_codes_in_place(result[c], *_clamps(p, c))
+            out[:, c] = colorspace.unorm_codes_in_place(result[c], *_clamps(p, c), floor=False)
     return out.view(stored.dtype).reshape(-1)
 
 
