@@ -110,8 +110,8 @@ def light_reaches(light: ForwardLight, renderer: Renderer) -> bool:
         return True
     center = np.asarray(renderer.bounds_center, dtype=np.float64)
     half = world_half_extent(renderer)
-    nearest = np.clip(np.asarray(light.position, dtype=np.float64), center - half, center + half)
-    delta = nearest - np.asarray(light.position, dtype=np.float64)
+    position = np.asarray(light.position, dtype=np.float64)
+    delta = np.clip(position, center - half, center + half) - position  # from the light to the box's nearest point
     return _dot3(delta, delta) < float(light.range) ** 2
 
 
