@@ -223,12 +223,13 @@ class Texels:
     QUAD_TEXELS = 1 << 14
 
     def quads(self, wrap: TextureWrap) -> np.ndarray | None:
-        """(4, (h+1)*(w+1), 4) float64, made on first use for textures of at most
-        :attr:`QUAD_TEXELS` texels (None for larger ones): entry ``[k, (j+1)*(w+1) + i+1]`` holds
-        channel ``k`` of the four texels bilinear filtering blends with its corner at texel
-        (j, i), for j in -1..h-1 and i in -1..w-1 — (j, i), (j, i+1), (j+1, i), (j+1, i+1), each
-        index wrapped by ``wrap`` as :func:`sample` wraps it — so a sample gathers one row of four
-        per channel instead of four texels."""
+        """(4, 4, (h+1)*(w+1)) float64, made on first use for textures of at most
+        :attr:`QUAD_TEXELS` texels (None for larger ones): entries ``[k, m, (j+1)*(w+1) + i+1]``
+        for m = 0..3 hold channel ``k`` of the four texels bilinear filtering blends with its
+        corner at texel (j, i), for j in -1..h-1 and i in -1..w-1 — (j, i), (j, i+1), (j+1, i),
+        (j+1, i+1), each index wrapped by ``wrap`` as :func:`sample` wraps it — so a sample
+        gathers the four by one index, each from a contiguous row (four gathers of one value
+        and contiguous arithmetic cost less than one gather of four and strided arithmetic)."""
         cache = self.__dict__.setdefault("_quads", {})
         table = cache.get(wrap)
         h, w = self.shape[:2]
@@ -243,7 +244,7 @@ class Texels:
             columns = _wrap(np.arange(-1.0, w + 1.0), w, wrap)
             texel = rows[:, None] + columns[None, :]  # (h+2, w+2): the texel at extended (j, i)
             corners = np.stack([texel[:-1, :-1], texel[:-1, 1:], texel[1:, :-1], texel[1:, 1:]], axis=-1)
-            table = cache[wrap] = np.ascontiguousarray(planes[:, corners.reshape(-1, 4)])
+            table = cache[wrap] = np.ascontiguousarray(planes[:, corners.reshape(-1, 4).T])
         return table
 
 
@@ -353,14 +354,14 @@ def sample(texels: Texels, uv: np.ndarray, filt: TextureFilter, wrap: TextureWra
         return out.T
     quads = texels.quads(wrap)
     corner = None if quads is None else _quad_index(i0, j0, h, w, wrap, bounds)
-    if corner is not None:  # one gather of a texel's four neighbours per channel
-        four = np.empty((u.size, 4), np.float64)
+    if corner is not None:  # per channel, the four neighbours by one index from their own rows
+        four = np.empty((4, u.size), np.float64)
         for row, k in varying:
-            gather(quads[k], corner, axis=0, out=four)
-            lo = np.multiply(four[:, 0], bu, out=out[row])
-            lo += np.multiply(four[:, 1], au, out=scratch)
-            hi = np.multiply(four[:, 2], bu, out=four[:, 2])
-            hi += np.multiply(four[:, 3], au, out=scratch)
+            t00, t01, t10, t11 = (gather(quads[k, m], corner, out=four[m]) for m in range(4))
+            lo = np.multiply(t00, bu, out=out[row])
+            lo += np.multiply(t01, au, out=scratch)
+            hi = np.multiply(t10, bu, out=t10)
+            hi += np.multiply(t11, au, out=scratch)
             lo *= bv
             lo += np.multiply(hi, av, out=hi)
         return out.T
