@@ -412,18 +412,31 @@ def _quad_lod_at(setup: TriangleSetup, tri: np.ndarray, x0: np.ndarray, y0: np.n
 
 
 def _sample_levels(chain: MipChain, u: np.ndarray, v: np.ndarray, level: np.ndarray, filt: TextureFilter,
-                   wrap: TextureWrap, channels: tuple[int, ...]) -> np.ndarray:
-    """Each fragment's texel sample (N, C) float64 of ``channels`` at (u, v) in its level ``level`` (N,) int64."""
-    out = np.empty((u.size, len(channels)), dtype=np.float64)
+                   wrap: TextureWrap, channels: tuple[int, ...], uv: np.ndarray | None = None) -> np.ndarray:
+    """Each fragment's texel sample (C, N) float64 (channels first) of ``channels`` at (u, v) (N,)
+    float64 in its level ``level`` (N,) int64; ``uv`` (N, 2): the same coordinates as one array,
+    when the caller has it."""
     present = np.flatnonzero(np.bincount(level))  # the levels in use (a count, not np.unique's sort)
     if present.size == 1:
-        out[:] = shade.sample(chain.levels[int(present[0])], np.stack([u, v], axis=1), filt, wrap, channels)
-        return out
+        return _sample_at(chain.levels[int(present[0])], u, v, filt, wrap, channels, uv)
+    out = np.empty((len(channels), u.size), dtype=np.float64)
     for index in present.tolist():
         at = np.flatnonzero(level == index)
-        uv = np.stack([u[at], v[at]], axis=1)
-        out[at] = shade.sample(chain.levels[index], uv, filt, wrap, channels)
+        out[:, at] = _sample_at(chain.levels[index], gather(u, at), gather(v, at), filt, wrap, channels)
     return out
+
+
+def _sample_at(texels: shade.Texels, u: np.ndarray, v: np.ndarray, filt: TextureFilter, wrap: TextureWrap,
+               channels: tuple[int, ...], uv: np.ndarray | None = None) -> np.ndarray:
+    """:func:`.shade.sample` of one level at (u, v) (N,) float64 (or ``uv`` (N, 2), the same
+    coordinates), as (C, N) float64: the sampler reads the coordinates as columns (contiguous
+    ones from a channels-first pair) and writes channels first."""
+    if uv is None:
+        uv = np.empty((2, u.size), dtype=np.float64)
+        uv[0] = u
+        uv[1] = v
+        uv = uv.T
+    return np.ascontiguousarray(shade.sample(texels, uv, filt, wrap, channels).T)
 
 
 def sample_mipmapped(chain: MipChain, uv: np.ndarray, lod: np.ndarray, filt: TextureFilter,
@@ -437,6 +450,8 @@ def sample_mipmapped(chain: MipChain, uv: np.ndarray, lod: np.ndarray, filt: Tex
     - ``Trilinear``: level 0 bilinearly unless λ > 0; then ``d = floor(λ)``: the last level alone
       when ``d`` reaches it, else ``t0 * (1 − f) + t1 * f`` of levels ``d`` and ``d + 1`` sampled
       bilinearly, ``f = λ − d``.
+
+    The result is the transposed view of a channels-first (C, N) array: each channel contiguous.
     """
     u, v = uv[:, 0], uv[:, 1]
     last = chain.last
@@ -444,14 +459,25 @@ def sample_mipmapped(chain: MipChain, uv: np.ndarray, lod: np.ndarray, filt: Tex
     if filt is not TextureFilter.Trilinear:
         far = np.flatnonzero(lod > 0.5)
         level[far] = np.minimum(np.ceil(lod[far] + 0.5) - 1.0, float(last)).astype(np.int64)
-        return _sample_levels(chain, u, v, level, filt, wrap, channels)
+        return _sample_levels(chain, u, v, level, filt, wrap, channels, uv).T
     minified = np.flatnonzero(lod > 0.0)
     floor = np.floor(lod[minified])
     level[minified] = np.minimum(floor, float(last)).astype(np.int64)
-    out = _sample_levels(chain, u, v, level, filt, wrap, channels)
-    mixed = minified[floor < last]
+    out = _sample_levels(chain, u, v, level, filt, wrap, channels, uv)
+    below = floor < last
+    mixed = minified[below]
     if mixed.size:
-        f = (lod[mixed] - floor[floor < last])[:, None]
-        upper = _sample_levels(chain, u[mixed], v[mixed], level[mixed] + 1, filt, wrap, channels)
-        out[mixed] = out[mixed] * (1.0 - f) + upper * f
-    return out
+        f = lod[mixed] - floor[below]
+        g = 1.0 - f
+        every = mixed.size == u.size  # (then mixed is 0..N-1)
+        upper = _sample_levels(chain, u if every else gather(u, mixed), v if every else gather(v, mixed),
+                               level[mixed] + 1, filt, wrap, channels, uv if every else None)
+        # t0 * (1 - f) + t1 * f per element, one channel at a time.
+        lower = out if every else gather(out, mixed, axis=1)
+        for c in range(lower.shape[0]):
+            lower[c] *= g
+            upper[c] *= f
+            lower[c] += upper[c]
+        if not every:
+            out[:, mixed] = lower
+    return out.T
