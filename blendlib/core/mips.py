@@ -306,40 +306,30 @@ def _level_zero_runs(setup: TriangleSetup, tri: np.ndarray, x_lo: np.ndarray, x_
     hi_y = (y_hi + 1).astype(np.float64) * SUBPIXEL + HALF
     cx, cy = 0.5 * (lo_x + hi_x), 0.5 * (lo_y + hi_y)
     hx, hy = 0.5 * (hi_x - lo_x), 0.5 * (hi_y - lo_y)
-    # Per edge k: E_k(centre + d) = e0 + ea·dx + eb·dy, each weighted by 1/w (D's terms).
-    d0 = np.zeros_like(cx)
-    da = np.zeros_like(cx)
-    db = np.zeros_like(cx)
-    d0_abs, da_abs, db_abs = np.zeros_like(cx), np.zeros_like(cx), np.zeros_like(cx)
-    terms = []
-    for k in range(3):
-        p, q = (k + 1) % 3, (k + 2) % 3
-        ex, ey = X[:, q] - X[:, p], Y[:, q] - Y[:, p]
-        e0 = (ex * (cy - Y[:, p]) - ey * (cx - X[:, p])) * iw[:, k]
-        ea, eb = -ey * iw[:, k], ex * iw[:, k]
-        terms.append((e0, ea, eb))
-        d0 += e0
-        da += ea
-        db += eb
-        d0_abs += np.abs(e0)
-        da_abs += np.abs(ea)
-        db_abs += np.abs(eb)
+    # Per edge k (columns; from vertex k+1 to vertex k+2): E_k(centre + d) = e0 + ea·dx + eb·dy,
+    # each weighted by 1/w (D's terms); the three edges at once, (R, 3) each.
+    xp, yp = X[:, _NEXT], Y[:, _NEXT]
+    ex, ey = X[:, _AFTER] - xp, Y[:, _AFTER] - yp
+    e0 = ex * (cy[:, None] - yp)
+    e0 -= ey * (cx[:, None] - xp)
+    e0 *= iw
+    ea = -ey * iw
+    eb = ex * iw
+    d0, da, db = _edge_sum(e0), _edge_sum(ea), _edge_sum(eb)
+    d0_abs, da_abs, db_abs = _edge_sum(np.abs(e0)), _edge_sum(np.abs(ea)), _edge_sum(np.abs(eb))
     d_min = d0 - np.abs(da) * hx - np.abs(db) * hy
     d_min -= BOUND_ROUNDING * (d0_abs + da_abs * hx + db_abs * hy)
     rho_x = np.zeros_like(cx)  # bounds on ρ² times d_min⁴, per step direction
     rho_y = np.zeros_like(cx)
     big = np.zeros(cx.size, dtype=bool)
     for c in range(2):
-        value = corners[:, :, c]
+        value = np.ascontiguousarray(corners[:, :, c])  # (R, 3)
         texture = np.abs(value * tiling[c] + offset[c]) * extent[c]
         big |= texture.max(axis=1) > BOUND_MAGNITUDE
-        n0, na, nb = np.zeros_like(cx), np.zeros_like(cx), np.zeros_like(cx)  # N's terms, as D's
-        n0_abs, na_abs, nb_abs = np.zeros_like(cx), np.zeros_like(cx), np.zeros_like(cx)
-        for k, (e0, ea, eb) in enumerate(terms):
-            for total, total_abs, term in ((n0, n0_abs, e0), (na, na_abs, ea), (nb, nb_abs, eb)):
-                product = term * value[:, k]
-                total += product
-                total_abs += np.abs(product)
+        # N's terms, as D's: the corner values weighted by the edges' terms.
+        p0, pa, pb = e0 * value, ea * value, eb * value
+        n0, na, nb = _edge_sum(p0), _edge_sum(pa), _edge_sum(pb)
+        n0_abs, na_abs, nb_abs = _edge_sum(np.abs(p0)), _edge_sum(np.abs(pa)), _edge_sum(np.abs(pb))
         cross = np.abs(na * db - da * nb)
         cross_abs = na_abs * db_abs + da_abs * nb_abs
         along_x = np.abs(na * d0 - da * n0) + cross * hy
@@ -356,6 +346,18 @@ def _level_zero_runs(setup: TriangleSetup, tri: np.ndarray, x_lo: np.ndarray, x_
     proved &= d_min > 0.0
     proved &= ~big
     return proved
+
+
+#: Edge k of a triangle runs from vertex _NEXT[k] to vertex _AFTER[k] (opposite vertex k).
+_NEXT = np.array([1, 2, 0])
+_AFTER = np.array([2, 0, 1])
+
+
+def _edge_sum(terms: np.ndarray) -> np.ndarray:
+    """(R,) float64: the sum of the three edges' terms (R, 3), edge after edge."""
+    total = terms[:, 0] + terms[:, 1]
+    total += terms[:, 2]
+    return total
 
 
 #: Fewer quads than this are computed as they come (finding the shared ones costs more).
