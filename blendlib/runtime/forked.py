@@ -12,6 +12,10 @@ The copy is not free either: a page either process writes while both live is cop
 (a fault of about 4 µs here), 20–35 ms for each process's first measurement of a 720p frame.
 So :class:`ForkedMap` runs the first item here, timed, and shares the others with a forked
 child only when they would take long enough one after the other (:data:`FORK_MIN_WORK_S`).
+Before it forks, the freed memory this process keeps for reuse
+(:func:`.allocator.keep_freed_memory`) is given back: shared, each of those pages would be
+copied when either process reused it; given back, a page allocated anew is only zeroed (96 MB
+written while a child lives: 82 ms on reused pages, 18 ms on pages given back first).
 The items' numbers wait in a pipe that both processes read (a read of 4 bytes from a pipe is
 atomic), so whichever is free takes the next one; the child sends back its results (pickled)
 when the pipe is empty and leaves through ``os._exit``, never running the parent's exit
@@ -35,6 +39,8 @@ import sys
 import time
 from collections.abc import Callable, Sequence
 from typing import Any
+
+from .allocator import give_back_freed_memory
 
 #: How often the parent polls ``should_cancel`` while it waits for the child (seconds).
 _POLL_S = 0.01
@@ -104,6 +110,10 @@ class ForkedMap:
         os.write(queue_write, b"".join(_INDEX.pack(i) for i in range(1, len(items))))  # far below 64 KB
         os.close(queue_write)  # an empty queue reads as end of file
         result_read, result_write = os.pipe()
+        # Freed memory this process keeps (allocator.keep_freed_memory) would be shared with the
+        # child: each page either process then reuses is copied first. Given back now, a page
+        # allocated anew is only zeroed, about four times cheaper (module doc).
+        give_back_freed_memory()
         try:
             pid = os.fork()
         except OSError:

@@ -118,3 +118,26 @@ def test_a_map_called_from_another_thread_shares_too():
     assert [r[0] for r in out["r"]] == [k * k for k in range(10)]
     assert len({r[1] for r in out["r"]}) == 2
     assert _no_children()
+
+
+def test_freed_memory_is_given_back_before_the_child_is_forked(monkeypatch):
+    """Pages this process keeps freed would be shared with the child and copied on each reuse:
+    they are given back once, here, before the fork (and not by the child)."""
+    from blendlib.runtime import forked
+
+    calls = []
+    monkeypatch.setattr(forked, "give_back_freed_memory",
+                        lambda: calls.append((os.getpid(), _no_children())) or True)
+    results = ForkedMap(2, min_work_s=0.0)(_slow_square, list(range(8)))
+    assert [r[0] for r in results] == [k * k for k in range(8)]
+    assert len({r[1] for r in results}) == 2  # a child did share the items
+    assert calls == [(os.getpid(), True)]  # once, in this process, while no child lived yet
+
+
+def test_no_memory_is_given_back_when_nothing_is_forked(monkeypatch):
+    from blendlib.runtime import forked
+
+    calls = []
+    monkeypatch.setattr(forked, "give_back_freed_memory", lambda: calls.append(1) or True)
+    assert [r[0] for r in ForkedMap(1)(_slow_square, list(range(4)))] == [0, 1, 4, 9]
+    assert calls == []
