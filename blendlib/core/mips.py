@@ -28,6 +28,7 @@ import numpy as np
 
 from . import raster, shade
 from .gather import gather
+from .scene import CYCLIC_AFTER, CYCLIC_NEXT
 from .vertex import HALF, SUBPIXEL, TriangleSetup
 from .vocabulary import Material, TextureFilter, TextureWrap
 
@@ -308,8 +309,8 @@ def _level_zero_runs(setup: TriangleSetup, tri: np.ndarray, x_lo: np.ndarray, x_
     hx, hy = 0.5 * (hi_x - lo_x), 0.5 * (hi_y - lo_y)
     # Per edge k (columns; from vertex k+1 to vertex k+2): E_k(centre + d) = e0 + ea·dx + eb·dy,
     # each weighted by 1/w (D's terms); the three edges at once, (R, 3) each.
-    xp, yp = X[:, _NEXT], Y[:, _NEXT]
-    ex, ey = X[:, _AFTER] - xp, Y[:, _AFTER] - yp
+    xp, yp = X[:, CYCLIC_NEXT], Y[:, CYCLIC_NEXT]
+    ex, ey = X[:, CYCLIC_AFTER] - xp, Y[:, CYCLIC_AFTER] - yp
     e0 = ex * (cy[:, None] - yp)
     e0 -= ey * (cx[:, None] - xp)
     e0 *= iw
@@ -346,11 +347,6 @@ def _level_zero_runs(setup: TriangleSetup, tri: np.ndarray, x_lo: np.ndarray, x_
     proved &= d_min > 0.0
     proved &= ~big
     return proved
-
-
-#: Edge k of a triangle runs from vertex _NEXT[k] to vertex _AFTER[k] (opposite vertex k).
-_NEXT = np.array([1, 2, 0])
-_AFTER = np.array([2, 0, 1])
 
 
 def _edge_sum(terms: np.ndarray) -> np.ndarray:

@@ -121,8 +121,10 @@ def cofactors3(matrix) -> tuple[list[list[float]], float]:
     return c[0].tolist(), float(det[0])
 
 
-_NEXT = np.array([1, 2, 0])
-_AFTER = np.array([2, 0, 1])
+#: For each index i of 0..2: (i + 1) % 3 and (i + 2) % 3 (a 3x3 matrix's other rows, a triangle
+#: edge's two vertices).
+CYCLIC_NEXT = np.array([1, 2, 0])
+CYCLIC_AFTER = np.array([2, 0, 1])
 
 
 def cofactors3_many(matrices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -130,7 +132,7 @@ def cofactors3_many(matrices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     determinants (R,) float64. Element by element ``c[i][j] = a[i+1][j+1]*a[i+2][j+2] -
     a[i+1][j+2]*a[i+2][j+1]`` (indices mod 3) and ``det = (a00*c00 + a01*c01) + a02*c02``."""
     m = np.asarray(matrices, dtype=np.float64)[:, :3, :3]
-    i1, i2, j1, j2 = _NEXT[:, None], _AFTER[:, None], _NEXT[None, :], _AFTER[None, :]
+    i1, i2, j1, j2 = CYCLIC_NEXT[:, None], CYCLIC_AFTER[:, None], CYCLIC_NEXT[None, :], CYCLIC_AFTER[None, :]
     c = m[:, i1, j1] * m[:, i2, j2] - m[:, i1, j2] * m[:, i2, j1]
     det = (m[:, 0, 0] * c[:, 0, 0] + m[:, 0, 1] * c[:, 0, 1]) + m[:, 0, 2] * c[:, 0, 2]
     return c, det
