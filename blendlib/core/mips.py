@@ -409,32 +409,34 @@ def _quad_lod_at(setup: TriangleSetup, tri: np.ndarray, x0: np.ndarray, y0: np.n
         return 0.5 * np.log2(rho2)
 
 
-def _sample_levels(chain: MipChain, u: np.ndarray, v: np.ndarray, level: np.ndarray, filt: TextureFilter,
-                   wrap: TextureWrap, channels: tuple[int, ...], uv: np.ndarray | None = None) -> np.ndarray:
-    """Each fragment's texel sample (C, N) float64 (channels first) of ``channels`` at (u, v) (N,)
-    float64 in its level ``level`` (N,) int64; ``uv`` (N, 2): the same coordinates as one array,
-    when the caller has it."""
+def _sample_levels(chain: MipChain, uv: np.ndarray, level: np.ndarray, filt: TextureFilter, wrap: TextureWrap,
+                   channels: tuple[int, ...]) -> np.ndarray:
+    """Each fragment's texel sample (C, N) float64 (channels first) of ``channels`` at ``uv`` (N, 2)
+    float64 in its level ``level`` (N,) int64."""
     present = np.flatnonzero(np.bincount(level))  # the levels in use (a count, not np.unique's sort)
     if present.size == 1:
-        return _sample_at(chain.levels[int(present[0])], u, v, filt, wrap, channels, uv)
-    out = np.empty((len(channels), u.size), dtype=np.float64)
+        return _sample_at(chain.levels[int(present[0])], uv, filt, wrap, channels)
+    out = np.empty((len(channels), uv.shape[0]), dtype=np.float64)
     for index in present.tolist():
         at = np.flatnonzero(level == index)
-        out[:, at] = _sample_at(chain.levels[index], gather(u, at), gather(v, at), filt, wrap, channels)
+        out[:, at] = _sample_at(chain.levels[index], _coordinates_at(uv, at), filt, wrap, channels)
     return out
 
 
-def _sample_at(texels: shade.Texels, u: np.ndarray, v: np.ndarray, filt: TextureFilter, wrap: TextureWrap,
-               channels: tuple[int, ...], uv: np.ndarray | None = None) -> np.ndarray:
-    """:func:`.shade.sample` of one level at (u, v) (N,) float64 (or ``uv`` (N, 2), the same
-    coordinates), as (C, N) float64: the sampler reads the coordinates as columns (contiguous
-    ones from a channels-first pair) and writes channels first."""
-    if uv is None:
-        uv = np.empty((2, u.size), dtype=np.float64)
-        uv[0] = u
-        uv[1] = v
-        uv = uv.T
+def _sample_at(texels: shade.Texels, uv: np.ndarray, filt: TextureFilter, wrap: TextureWrap,
+               channels: tuple[int, ...]) -> np.ndarray:
+    """:func:`.shade.sample` of one level at ``uv`` (N, 2) float64 as (C, N) float64: the sampler
+    reads the coordinates as columns (contiguous ones from a channels-first pair's transposed
+    view) and writes channels first."""
     return np.ascontiguousarray(shade.sample(texels, uv, filt, wrap, channels).T)
+
+
+def _coordinates_at(uv: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """Rows ``index`` (M,) of ``uv`` (N, 2), as the transposed view of a channels-first (2, M) pair."""
+    out = np.empty((2, index.size), dtype=np.float64)
+    gather(uv[:, 0], index, out=out[0])
+    gather(uv[:, 1], index, out=out[1])
+    return out.T
 
 
 def sample_mipmapped(chain: MipChain, uv: np.ndarray, lod: np.ndarray, filt: TextureFilter,
@@ -451,25 +453,24 @@ def sample_mipmapped(chain: MipChain, uv: np.ndarray, lod: np.ndarray, filt: Tex
 
     The result is the transposed view of a channels-first (C, N) array: each channel contiguous.
     """
-    u, v = uv[:, 0], uv[:, 1]
     last = chain.last
-    level = np.zeros(u.size, dtype=np.int64)
+    level = np.zeros(uv.shape[0], dtype=np.int64)
     if filt is not TextureFilter.Trilinear:
         far = np.flatnonzero(lod > 0.5)
         level[far] = np.minimum(np.ceil(lod[far] + 0.5) - 1.0, float(last)).astype(np.int64)
-        return _sample_levels(chain, u, v, level, filt, wrap, channels, uv).T
+        return _sample_levels(chain, uv, level, filt, wrap, channels).T
     minified = np.flatnonzero(lod > 0.0)
     floor = np.floor(lod[minified])
     level[minified] = np.minimum(floor, float(last)).astype(np.int64)
-    out = _sample_levels(chain, u, v, level, filt, wrap, channels, uv)
+    out = _sample_levels(chain, uv, level, filt, wrap, channels)
     below = floor < last
     mixed = minified[below]
     if mixed.size:
         f = lod[mixed] - floor[below]
         g = 1.0 - f
-        every = mixed.size == u.size  # (then mixed is 0..N-1)
-        upper = _sample_levels(chain, u if every else gather(u, mixed), v if every else gather(v, mixed),
-                               level[mixed] + 1, filt, wrap, channels, uv if every else None)
+        every = mixed.size == level.size  # (then mixed is 0..N-1)
+        upper = _sample_levels(chain, uv if every else _coordinates_at(uv, mixed), level[mixed] + 1, filt, wrap,
+                               channels)
         # t0 * (1 - f) + t1 * f per element, one channel at a time.
         lower = out if every else gather(out, mixed, axis=1)
         for c in range(lower.shape[0]):
