@@ -365,19 +365,18 @@ def setup_renderers(items: list[SetupInput], camera: Camera, pool=None, parts: i
 
     # Per-vertex work first (V <= 3T), gathered per corner afterwards. Coordinates are kept
     # channels first ((3, V) positions, (4, V) clip coordinates): every column contiguous.
+    # The positions are converted while copied, range by range in the vertex parts below (one
+    # pass, no float64 temporary, on the pool's threads).
     pos_columns = np.empty((3, v_count), dtype=np.float64)
-    for k, v in enumerate(vertices):  # converted while copied: one pass, no float64 temporary
-        pos_columns[:, v_offsets[k]:v_offsets[k + 1]] = v.T
-    # Vertex indices per triangle (T, 3), and per corner (3, T): gathers through a strided index
-    # array (a column of the former) cost markedly more on large meshes.
+    # Vertex indices per triangle (T, 3): the mesh's own array (its integer dtype) for one
+    # renderer, made int64 range by range where read (on the pool's threads: a million
+    # triangles' conversion costs milliseconds); offset per renderer for several.
     if len(items) == 1:
-        tris = np.asarray(triangles[0], dtype=np.int64)
-        corners = np.ascontiguousarray(triangles[0].T, dtype=np.int64)
+        tris = np.asarray(triangles[0])
     else:
         tris = np.empty((t_count, 3), dtype=np.int64)
         for k, t in enumerate(triangles):
             np.add(t, v_offsets[k], out=tris[t_offsets[k]:t_offsets[k + 1]], dtype=np.int64)
-        corners = np.ascontiguousarray(tris.T)
     clip_v = np.empty((4, v_count), dtype=np.float64)
     finite_v = np.empty(v_count, dtype=bool)
     outcode_v = np.empty(v_count, dtype=np.uint8)
@@ -392,6 +391,12 @@ def setup_renderers(items: list[SetupInput], camera: Camera, pool=None, parts: i
     entries = None if len(items) == 1 else mvps.reshape(-1, 16).T.repeat(v_counts, axis=1).reshape(4, 4, -1)
 
     def vertex_part(lo: int, hi: int) -> None:
+        for k in range(int(np.searchsorted(v_offsets, lo, side="right")) - 1, len(vertices)):
+            a, b = max(lo, int(v_offsets[k])), min(hi, int(v_offsets[k + 1]))
+            if a >= hi:
+                break
+            if a < b:
+                pos_columns[:, a:b] = vertices[k][a - v_offsets[k]:b - v_offsets[k]].T
         p = pos_columns[:, lo:hi]
         m = mvps[0] if entries is None else entries[:, :, lo:hi]
         _affine_rows(m, p[0], p[1], p[2], 4, out=clip_v[:, lo:hi])
@@ -422,7 +427,9 @@ def setup_renderers(items: list[SetupInput], camera: Camera, pool=None, parts: i
     degenerate_t = np.empty(t_count, dtype=bool)
 
     def triangle_part(lo: int, hi: int) -> None:
-        a, b, c = corners[0, lo:hi], corners[1, lo:hi], corners[2, lo:hi]
+        # Per corner, contiguous int64: gathers through a strided index array (a column of the
+        # (T, 3) array) cost markedly more on large meshes.
+        a, b, c = (tris[lo:hi, k].astype(np.int64) for k in range(3))
         ca, cb, cc = outcode_v.take(a), outcode_v.take(b), outcode_v.take(c)
         out_or = ca | cb | cc
         out_and = ca & cb & cc
@@ -466,7 +473,7 @@ def setup_renderers(items: list[SetupInput], camera: Camera, pool=None, parts: i
     iw = np.empty(tw.shape, dtype=np.float64)
 
     def gather_part(lo: int, hi: int) -> None:
-        t = tw[lo:hi]  # vertex indices, checked in range by the scene's validation
+        t = tw[lo:hi].astype(np.int64, copy=False)  # vertex indices, checked in range by the scene's validation
         gather(Xv, t, out=X[lo:hi])
         gather(Yv, t, out=Y[lo:hi])
         gather(zwv, t, out=zw[lo:hi])
