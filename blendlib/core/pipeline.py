@@ -280,13 +280,18 @@ def _draw_step(frame: FrameContext, step: list[PreparedCall], floors: RowFloors,
         _draw_band(frame, [(pr, pr.rows) for pr in step], lo, hi, floors, observer,
                    lambda: _check(should_cancel), marks)
         return
-    splits = [pr.rows.split_at(cuts) for pr in step]
     edges = [lo, *(int(c) for c in cuts), hi]
-    futures = [frame.pool.submit(_draw_band, frame, [(pr, split[k]) for pr, split in zip(step, splits, strict=True)],
-                                 edges[k], min(max(edges[k + 1], edges[k]), frame.height), floors, observer,
-                                 _no_check, marks)
+    futures = [frame.pool.submit(_draw_band_of, frame, step, cuts, k, edges[k],
+                                 min(max(edges[k + 1], edges[k]), frame.height), floors, observer, marks)
                for k in range(cuts.size + 1)]
     _wait(futures, should_cancel, frame.stop_flag)
+
+
+def _draw_band_of(frame: FrameContext, step: list[PreparedCall], cuts: np.ndarray, k: int, y0: int, y1: int,
+                  floors: RowFloors, observer: FrameObserver | None, marks: list[int] | tuple) -> None:
+    """:func:`_draw_band` of screen band ``k`` of ``cuts`` (rows ``[y0, y1)``), on a band worker:
+    each worker takes its own rows of the step's calls (:meth:`.raster.Rows.band_of`)."""
+    _draw_band(frame, [(pr, pr.rows.band_of(cuts, k)) for pr in step], y0, y1, floors, observer, _no_check, marks)
 
 
 def _no_check() -> None:

@@ -90,8 +90,21 @@ class Rows:
     def split_at(self, cuts: np.ndarray) -> list[Rows]:
         """One :class:`Rows` per band of :func:`band_cuts` (band k: ``cuts[k-1] <= y < cuts[k]``),
         empty ones included, order kept within each."""
-        band = np.searchsorted(cuts, self.y, side="right")
-        return [self.take(band == k) for k in range(cuts.size + 1)]
+        return [self.band_of(cuts, k) for k in range(cuts.size + 1)]
+
+    def band_of(self, cuts: np.ndarray, k: int) -> Rows:
+        """Band ``k`` of :meth:`split_at` alone: the rows with ``cuts[k-1] <= y < cuts[k]`` (no
+        lower bound for the first band, no upper bound for the last), order kept. Each band's
+        worker takes its own (the renderer's threads split the rows at once, not one after
+        the other on the calling thread)."""
+        if k == 0:
+            mask = self.y < cuts[0]
+        elif k == cuts.size:
+            mask = self.y >= cuts[-1]
+        else:
+            mask = self.y >= cuts[k - 1]
+            mask &= self.y < cuts[k]
+        return self.take(mask)
 
 
 def join_rows(parts: list[Rows], tri_offsets=None) -> Rows:
