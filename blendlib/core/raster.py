@@ -23,6 +23,11 @@ _SHIFT = SUBPIXEL.bit_length() - 1
 assert SUBPIXEL == 1 << _SHIFT  # divisions by S are shifts
 #: Span ends are found by float64 division below this numerator bound (exact there), else in int64.
 FLOAT_DIVISION_LIMIT = 2**53
+#: By an edge's side (sign of dy, plus one): what :func:`_spans` adds to its float64 bound on a
+#: row's last pixel (dy > 0 bounds it: + 0) and subtracts it from for the first (dy < 0: 0 - q);
+#: the infinities leave the other side as it is.
+_UPPER_ADDEND = np.array([np.inf, np.inf, 0.0])
+_LOWER_ADDEND = np.array([0.0, -np.inf, -np.inf])
 
 
 @dataclass(eq=False)
@@ -271,8 +276,6 @@ def _spans(X: np.ndarray, Y: np.ndarray, area2: np.ndarray, selected: np.ndarray
     y = each(y_lo - starts)
     y += np.arange(total, dtype=np.int64)
     py = y * SUBPIXEL + HALF
-    x0 = each(x_lo)
-    x1 = each(x_hi)
     # The floor divisions below run in float64 when that is exact: a quotient of integers below
     # 2**53 in magnitude is correctly rounded, so it lands on the integer below it only when it
     # is that integer (its distance to any other is at least 1/|divisor|, the rounding error
@@ -283,19 +286,26 @@ def _spans(X: np.ndarray, Y: np.ndarray, area2: np.ndarray, selected: np.ndarray
     # A sample away from the centre adds dx*(oy - S/2) - dy*(ox - S/2): at most 2*S*L more.
     in_float = 6 * reach * reach + (1 if samples is None else 3) * SUBPIXEL * reach + 1 < FLOAT_DIVISION_LIMIT
     if samples is not None:
-        return _sample_spans(ax, ay, bx, by, cx, cy, x0, x1, y, py, each, selected, swap, area2, samples,
-                             in_float)
+        return _sample_spans(ax, ay, bx, by, cx, cy, each(x_lo), each(x_hi), y, py, each, selected, swap, area2,
+                             samples, in_float)
     # Edges p -> q: b->c (opposite a), c->a (opposite b), a->b (opposite c). Per row of edge k,
     # E = c - dy*Px with c = dx*Py + k; the test E >= bias is dy*Px <= c - bias, i.e. with
     # num = c - bias - (S/2)*dy: x <= num // (S*dy) for dy > 0, x >= -(num // (S*|dy|)) for
     # dy < 0, and for dy = 0 the row is kept when num >= 0. Per-triangle terms are summed once
     # per triangle (integer sums: the same values in any order) before they reach the rows.
-    c_rows, dy_rows, dy_t_all = [], [], []
+    # In float64 the bounds stay floats to the end (each one an integer, exactly), and an edge's
+    # bound reaches its side through an addend gathered per row: 0 where the edge bounds that
+    # side, an infinity that leaves the side as it is where it does not (a masked minimum,
+    # ``where=``, costs ten times a plain one over rows of mixed edges).
+    if in_float:
+        x0, x1 = each(x_lo.astype(np.float64)), each(x_hi.astype(np.float64))
+    else:
+        x0, x1 = each(x_lo), each(x_hi)
+    c_rows, dy_t_all, empty_rows = [], [], []
     for edge, (xp, yp, xq, yq) in enumerate(((bx, by, cx, cy), (cx, cy, ax, ay), (ax, ay, bx, by))):
         dx_t, dy_t = xq - xp, yq - yp
         bias_t = ((dy_t > 0) | ((dy_t == 0) & (dx_t >= 0))).astype(np.int64)  # 0 on top-left edges
         k_t = dy_t * xp - dx_t * yp  # E = dx*(Py - yp) - dy*(Px - xp) = (dx*Py + k) - dy*Px
-        dy = each(dy_t)
         num = each(dx_t) * py
         if edge < 2:  # the rows keep c for the barycentrics
             num += each(k_t)
@@ -303,33 +313,41 @@ def _spans(X: np.ndarray, Y: np.ndarray, area2: np.ndarray, selected: np.ndarray
             num += each(-(bias_t + HALF * dy_t))
         else:
             num += each(k_t - (bias_t + HALF * dy_t))
-        q = _floor_quotients(num, each(SUBPIXEL * np.maximum(np.abs(dy_t), 1)), in_float)
-        np.minimum(x1, q, out=x1, where=dy > 0)
-        np.negative(q, out=q)
-        np.maximum(x0, q, out=x0, where=dy < 0)
-        if not dy_t.all():  # horizontal edges: the row is empty when the pixel centre row fails them
-            empty = np.flatnonzero((dy == 0) & (num < 0))
-            x1[empty] = x0[empty] - 1
-        dy_rows.append(dy)
+        den = each(SUBPIXEL * np.maximum(np.abs(dy_t), 1))
+        if in_float:
+            q = np.divide(num, den, dtype=np.float64)
+            np.floor(q, out=q)
+            side = np.sign(dy_t)
+            side += 1  # 0, 1, 2 for dy < 0, = 0, > 0 (np.where over mixed signs costs several gathers)
+            upper = each(gather(_UPPER_ADDEND, side))
+            upper += q
+            np.minimum(x1, upper, out=x1)
+            np.subtract(each(gather(_LOWER_ADDEND, side)), q, out=q)
+            np.maximum(x0, q, out=x0)
+        else:
+            q = num // den
+            dy = each(dy_t)
+            np.minimum(x1, q, out=x1, where=dy > 0)
+            np.negative(q, out=q)
+            np.maximum(x0, q, out=x0, where=dy < 0)
+        flat_t = dy_t == 0
+        if flat_t.any():  # horizontal edges: the row is empty when the pixel centre row fails them
+            flat = np.flatnonzero(each(flat_t))
+            empty_rows.append(flat[gather(num, flat) < 0])
         dy_t_all.append(dy_t)
+    if in_float:
+        x0, x1 = x0.astype(np.int64), x1.astype(np.int64)
+    for empty in empty_rows:  # bounds only narrow a row: emptied after every edge is the same
+        x1[empty] = x0[empty] - 1
     length = x1 - x0 + 1
     keep = np.flatnonzero(length > 0)
     if keep.size != length.size:  # rows without a covered pixel centre are dropped
-        y, x0, length, c0, c1, dy0, dy1 = (gather(v, keep) for v in (y, x0, length, *c_rows, *dy_rows[:2]))
+        y, x0, length, c0, c1 = (gather(v, keep) for v in (y, x0, length, *c_rows))
         of_row = gather(of_row, keep)
     else:
-        (c0, c1), (dy0, dy1) = c_rows, dy_rows[:2]
-    return Rows(tri=each(selected), y=y, x0=x0, length=length, c0=c0, c1=c1, dy0=dy0,
-                dy1=dy1, swap=each(swap), area=each(np.abs(area2)))
-
-
-def _floor_quotients(num: np.ndarray, den: np.ndarray, in_float: bool) -> np.ndarray:
-    """``num // den`` (int64), in float64 when ``in_float`` (exact there: see :func:`_spans`)."""
-    if in_float:
-        q = np.divide(num, den, dtype=np.float64)
-        np.floor(q, out=q)
-        return q.astype(np.int64)
-    return num // den
+        c0, c1 = c_rows
+    return Rows(tri=each(selected), y=y, x0=x0, length=length, c0=c0, c1=c1, dy0=each(dy_t_all[0]),
+                dy1=each(dy_t_all[1]), swap=each(swap), area=each(np.abs(area2)))
 
 
 def _sample_spans(ax, ay, bx, by, cx, cy, x_lo: np.ndarray, x_hi: np.ndarray, y: np.ndarray, py: np.ndarray,
