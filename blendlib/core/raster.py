@@ -28,6 +28,9 @@ FLOAT_DIVISION_LIMIT = 2**53
 #: the infinities leave the other side as it is.
 _UPPER_ADDEND = np.array([np.inf, np.inf, 0.0])
 _LOWER_ADDEND = np.array([0.0, -np.inf, -np.inf])
+#: By whether an MSAA sample's span on a row is empty (0) or not (1): what moves its first pixel
+#: out of the row's hull (and is taken from its last).
+_EMPTY_ADDEND = np.array([np.inf, 0.0])
 
 
 @dataclass(eq=False)
@@ -361,9 +364,11 @@ def _sample_spans(ax, ay, bx, by, cx, cy, x_lo: np.ndarray, x_hi: np.ndarray, y:
     S/2)``); a row's span is the union hull of its samples' spans."""
     # The bounds are computed in float64 when exact there (in_float: every numerator an integer
     # below 2**53, so sums and products of them are exact and a quotient floors correctly, see
-    # _spans), else in int64; per edge, the row values are converted once.
+    # _spans), else in int64; per edge, the row values are converted once. In float64 an edge's
+    # bound reaches its side through addends, as in _spans (no masked minimum or maximum), and
+    # a sample's empty span leaves the row's hull through infinities likewise.
     work = np.float64 if in_float else np.int64
-    edges = []  # per edge: (dy > 0, dy < 0, horizontal rows or None, dx, dy, num at the centre, den), (R,) each
+    edges = []  # per edge: (upper, lower, horizontal rows or None, dx, dy, num at the centre, den), (R,) each
     c_rows, dy_rows = [], []
     for edge, (xp, yp, xq, yq) in enumerate(((bx, by, cx, cy), (cx, cy, ax, ay), (ax, ay, bx, by))):
         dx_t, dy_t = xq - xp, yq - yp
@@ -376,33 +381,54 @@ def _sample_spans(ax, ay, bx, by, cx, cy, x_lo: np.ndarray, x_hi: np.ndarray, y:
             dy_rows.append(dy)
         flat = None if dy_t.all() else dy == 0
         den = each(SUBPIXEL * np.maximum(np.abs(dy_t), 1))
-        edges.append((dy > 0, dy < 0, flat, each(dx_t).astype(work), dy.astype(work),
+        if in_float:  # addends by side: 0 where the edge bounds it, an infinity where it does not
+            side = np.sign(dy_t)
+            side += 1
+            upper, lower = each(gather(_UPPER_ADDEND, side)), each(gather(_LOWER_ADDEND, side))
+        else:  # masks: dy > 0 bounds the last pixel, dy < 0 the first
+            upper, lower = dy > 0, dy < 0
+        edges.append((upper, lower, flat, each(dx_t).astype(work), dy.astype(work),
                       (c - each(bias_t + HALF * dy_t)).astype(work), den.astype(work)))
-    lo = np.full(y.size, np.iinfo(np.int64).max, dtype=np.int64)
-    hi = np.full(y.size, np.iinfo(np.int64).min, dtype=np.int64)
+    first_x, last_x = x_lo.astype(work), x_hi.astype(work)
+    if in_float:
+        lo = np.full(y.size, np.inf)
+        hi = np.full(y.size, -np.inf)
+    else:
+        lo = np.full(y.size, np.iinfo(np.int64).max, dtype=np.int64)
+        hi = np.full(y.size, np.iinfo(np.int64).min, dtype=np.int64)
     spans = np.empty((2, y.size, samples.shape[0]), dtype=np.int64)  # each sample's (x0, x1) per row
     for s, (ox, oy) in enumerate((samples - HALF).tolist()):
-        x0, x1 = x_lo.astype(work), x_hi.astype(work)
-        for pos, neg, flat, dx, dy, num_centre, den in edges:
+        x0, x1 = first_x.copy(), last_x.copy()
+        for upper, lower, flat, dx, dy, num_centre, den in edges:
             num = dx * oy
             num -= dy * ox
             num += num_centre
             if in_float:
                 q = num / den
                 np.floor(q, out=q)
+                bound = q + upper
+                np.minimum(x1, bound, out=x1)
+                np.subtract(lower, q, out=q)
+                np.maximum(x0, q, out=x0)
             else:
                 q = num // den
-            np.minimum(x1, q, out=x1, where=pos)
-            np.negative(q, out=q)
-            np.maximum(x0, q, out=x0, where=neg)
+                np.minimum(x1, q, out=x1, where=upper)
+                np.negative(q, out=q)
+                np.maximum(x0, q, out=x0, where=lower)
             if flat is not None:  # horizontal edges: the sample row is empty when its points fail them
                 empty = np.flatnonzero(flat & (num < 0))
                 x1[empty] = x0[empty] - 1
         spans[0, :, s], spans[1, :, s] = x0, x1
-        x0, x1 = spans[0, :, s], spans[1, :, s]
-        some = x1 >= x0
-        np.minimum(lo, x0, out=lo, where=some)
-        np.maximum(hi, x1, out=hi, where=some)
+        if in_float:
+            covered = gather(_EMPTY_ADDEND, (x1 >= x0).astype(np.intp))  # 0 where covered, else inf
+            x0 += covered
+            np.minimum(lo, x0, out=lo)
+            np.subtract(x1, covered, out=x1)
+            np.maximum(hi, x1, out=hi)
+        else:
+            some = x1 >= x0
+            np.minimum(lo, x0, out=lo, where=some)
+            np.maximum(hi, x1, out=hi, where=some)
     keep = np.flatnonzero(hi >= lo)
     of_row = np.arange(y.size, dtype=np.int64)
     if keep.size != y.size:
@@ -410,6 +436,8 @@ def _sample_spans(ax, ay, bx, by, cx, cy, x_lo: np.ndarray, x_hi: np.ndarray, y:
         c_rows = [gather(v, keep) for v in c_rows]
         dy_rows = [gather(v, keep) for v in dy_rows]
         spans = spans.take(keep, axis=1)
+    if in_float:  # every kept row has a covered sample: finite bounds
+        lo, hi = lo.astype(np.int64), hi.astype(np.int64)
 
     def per_row(per_triangle: np.ndarray) -> np.ndarray:
         return each(per_triangle).take(of_row)

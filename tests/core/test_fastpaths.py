@@ -780,13 +780,15 @@ def test_frame_output_split_over_threads_equals_one_thread(hdr):
     np.testing.assert_array_equal(one[1][0], (buf.depth.reshape(301, 37)[-1] / (2**24 - 1)).astype(np.float32))
 
 
+@pytest.mark.parametrize("samples", [1, 4, 8])
 @pytest.mark.parametrize("reach", [1 << 12, 1 << 22])
-def test_span_ends_by_float_division_equal_integer_division(reach, monkeypatch):
+def test_span_ends_by_float_division_equal_integer_division(reach, samples, monkeypatch):
     """Span ends come from a float64 floor division when that is exact (numerators below
     2**53): equal, field by field, to the int64 division path on random triangles whose
     corners lie up to ``reach`` subpixels away (far outside a 40x32 frame: guard-band sized),
-    with horizontal, vertical and near-degenerate edges and both windings."""
-    from blendlib.core import raster
+    with horizontal, vertical and near-degenerate edges and both windings; with MSAA, each
+    sample's span and the rows' hulls of them too."""
+    from blendlib.core import msaa, raster
 
     rng = np.random.default_rng(int(reach).bit_length())
     n = 4000
@@ -801,10 +803,13 @@ def test_span_ends_by_float_division_equal_integer_division(reach, monkeypatch):
     keep = area2 != 0
     X, Y, area2 = X[keep], Y[keep], area2[keep]
     labels = np.arange(area2.size, dtype=np.int64)
-    fast = raster._spans(X, Y, area2, labels, W, H)
+    offsets = None if samples == 1 else msaa.sample_offsets(samples)
+    fast = raster._spans(X, Y, area2, labels, W, H, samples=offsets)
     monkeypatch.setattr(raster, "FLOAT_DIVISION_LIMIT", 0)
-    exact = raster._spans(X, Y, area2, labels, W, H)
+    exact = raster._spans(X, Y, area2, labels, W, H, samples=offsets)
     assert fast.count > 1000 and int(fast.length.sum()) > 10000 and fast.swap.any() and not fast.swap.all()
+    if offsets is not None:  # some rows' samples are not all covered (or none of a pixel's)
+        assert (fast.sample_x0 > fast.sample_x1).any() and (fast.sample_x0 != fast.x0[:, None]).any()
     for name in raster.Rows.__dataclass_fields__:
         np.testing.assert_array_equal(getattr(fast, name), getattr(exact, name), err_msg=name)
 
