@@ -867,11 +867,23 @@ def test_distant_texels_average_with_mipmaps_and_alias_without():
     assert spread[0] < spread[1] / 2
 
 
-def test_numpy_log2_is_c_log2_on_this_machine():
-    """The LOD's log2 (docs/pipeline.md §7): numpy's float64 log2 must equal C's for the core to equal
-    the scalar reference bit for bit (numpy builds with AVX-512 SVML kernels may differ in the last bit)."""
+@pytest.mark.parametrize("numpy_path", [None, False])
+def test_lod_log2_is_c_log2(numpy_path, monkeypatch):
+    """The LOD's log2 (docs/pipeline.md §7) is C's, element by element, so that the core equals the
+    scalar reference bit for bit on every machine: numpy's own where it agrees with C's (checked
+    once per process), else C's per run of equal values (numpy builds with AVX-512 SVML kernels
+    differ in the last bit). ``numpy_path`` False forces the second path on any machine."""
+    from blendlib.core import mips
+
+    if numpy_path is not None:
+        monkeypatch.setattr(mips, "_NUMPY_LOG2_IS_C", numpy_path)
     x = np.exp(np.random.default_rng(1).uniform(-40, 40, 20000))
-    assert np.array_equal(np.log2(x), np.array([math.log2(v) for v in x.tolist()]))
+    x[100:140] = x[99]  # a run of equal values (one triangle's quads)
+    x[200:204] = [0.0, np.inf, np.nan, 5e-324]  # the scalar reference's special cases, and a subnormal
+    expected = [-math.inf if v == 0.0 else math.inf if v == math.inf else math.nan if v != v else math.log2(v)
+                for v in x.tolist()]
+    np.testing.assert_array_equal(mips.log2(x), np.array(expected))
+    assert np.isnan(mips.log2(np.array([-1.0, -np.inf]))).all()
 
 
 # ------------------------------------------------------------------ outline vertex program
