@@ -320,12 +320,10 @@ def _spans(X: np.ndarray, Y: np.ndarray, area2: np.ndarray, selected: np.ndarray
         if in_float:
             q = np.divide(num, den, dtype=np.float64)
             np.floor(q, out=q)
-            side = np.sign(dy_t)
-            side += 1  # 0, 1, 2 for dy < 0, = 0, > 0 (np.where over mixed signs costs several gathers)
-            upper = each(gather(_UPPER_ADDEND, side))
+            upper, lower = _bound_addends(dy_t, each)
             upper += q
             np.minimum(x1, upper, out=x1)
-            np.subtract(each(gather(_LOWER_ADDEND, side)), q, out=q)
+            np.subtract(lower, q, out=q)
             np.maximum(x0, q, out=x0)
         else:
             q = num // den
@@ -351,6 +349,16 @@ def _spans(X: np.ndarray, Y: np.ndarray, area2: np.ndarray, selected: np.ndarray
         c0, c1 = c_rows
     return Rows(tri=each(selected), y=y, x0=x0, length=length, c0=c0, c1=c1, dy0=each(dy_t_all[0]),
                 dy1=each(dy_t_all[1]), swap=each(swap), area=each(np.abs(area2)))
+
+
+def _bound_addends(dy_t: np.ndarray, each: Callable[[np.ndarray], np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Per row (``each`` expands per-triangle values to rows), an edge's float64 addends by the
+    sign of its ``dy_t`` (n,) int64: (added to its bound on the last pixel, from which its bound
+    on the first pixel is subtracted), :data:`_UPPER_ADDEND` and :data:`_LOWER_ADDEND`. The sign
+    indexes the tables (np.where over mixed signs costs several gathers)."""
+    side = np.sign(dy_t)
+    side += 1  # 0, 1, 2 for dy < 0, = 0, > 0
+    return each(gather(_UPPER_ADDEND, side)), each(gather(_LOWER_ADDEND, side))
 
 
 def _sample_spans(ax, ay, bx, by, cx, cy, x_lo: np.ndarray, x_hi: np.ndarray, y: np.ndarray, py: np.ndarray,
@@ -382,9 +390,7 @@ def _sample_spans(ax, ay, bx, by, cx, cy, x_lo: np.ndarray, x_hi: np.ndarray, y:
         flat = None if dy_t.all() else dy == 0
         den = each(SUBPIXEL * np.maximum(np.abs(dy_t), 1))
         if in_float:  # addends by side: 0 where the edge bounds it, an infinity where it does not
-            side = np.sign(dy_t)
-            side += 1
-            upper, lower = each(gather(_UPPER_ADDEND, side)), each(gather(_LOWER_ADDEND, side))
+            upper, lower = _bound_addends(dy_t, each)
         else:  # masks: dy > 0 bounds the last pixel, dy < 0 the first
             upper, lower = dy > 0, dy < 0
         edges.append((upper, lower, flat, each(dx_t).astype(work), dy.astype(work),
