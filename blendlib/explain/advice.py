@@ -78,6 +78,12 @@ ADVICE_WEIGHT = 0.35
 
 Key = tuple[str, int]
 
+#: Measurements whose second longest draws at least this many fragments (about half a second of
+#: one thread's work here) are shared between two processes from the first
+#: (:class:`MeasureMap`'s ``at_once``): the first one alone would gain about a third of its time
+#: from a second thread while the others wait (docs/benchmark.md, round twenty-seven).
+AT_ONCE_FRAGMENTS = 2_000_000
+
 
 class MaterialSettings(Protocol):
     """Where a material's Unity state comes from when that is not its Unity settings (e.g. the VRM
@@ -356,7 +362,9 @@ class MeasureMap(Protocol):
 
     def __call__(self, fn: Callable[[Any, int], Any], items: list,
                  should_cancel: Callable[[], bool] | None = None,
-                 on_done: Callable[[int], None] | None = None) -> list: ...
+                 on_done: Callable[[int], None] | None = None, at_once: bool = False) -> list:
+        """``at_once``: the items are long (two or more of at least :data:`AT_ONCE_FRAGMENTS`),
+        longest first: share them from the first rather than time one alone first."""
 
 
 class _Measurer:
@@ -390,6 +398,7 @@ class _Measurer:
         self.prefix_counts: dict[tuple, int] = {}
         self.prefix_step1: dict[tuple, FrameBuffers] = {}
         self._opaque_counts: Counter | None = None
+        self._row_fragments: np.ndarray | None = None  # fragments_within's cumulated rows
         self._draw_lists: dict[int, tuple[DrawScene, list[DrawCall], tuple]] = {}
         #: Renderers checked, textures converted and vertex setups made once for every measurement:
         #: the changed scenes share the renderers a change leaves alone, and the camera.
@@ -445,6 +454,21 @@ class _Measurer:
                      should_cancel=self.should_cancel, calls=calls, output=False, memo=self.memo)
         return snapshot.buffers if snapshot.buffers is not None else _cleared(scene)
 
+    def _band_of(self, changed: DrawScene) -> tuple[int, int] | None:
+        """:meth:`band` of a changed scene, its opaque queue as :meth:`measure` resumes it."""
+        calls, signature = self._draw_list(changed)
+        prefix = self._opaque_prefix(signature, calls)
+        return self.band(signature, calls, int(changed.camera.height), len(prefix) if self._opaque_kept(prefix) else 0)
+
+    def fragments_within(self, band: tuple[int, int] | None) -> int:
+        """The fragments the analysed frame rasterised in a band's rows (None: the frame): about
+        what a measurement there draws, and so what it costs."""
+        if self._row_fragments is None:  # per image row (top first), cumulated from the bottom row
+            per_row = self.analysis.overdraw[::-1, :, 0].sum(axis=1, dtype=np.int64)
+            self._row_fragments = np.concatenate(([0], np.cumsum(per_row)))
+        y0, y1 = (0, self._row_fragments.size - 1) if band is None else band
+        return int(self._row_fragments[max(y1, y0)] - self._row_fragments[y0])
+
     def measure(self, changed: DrawScene, workers: int | None = None) -> tuple[dict[tuple[Key, Key], int], int]:
         """(inverted pixels per advised pair, pixels differing from the original reference);
         ``workers``: the render's threads (default the measurer's)."""
@@ -458,7 +482,7 @@ class _Measurer:
         width, height = int(changed.camera.width), int(changed.camera.height)
         prefix = self._opaque_prefix(signature, calls)
         kept = self._opaque_kept(prefix)
-        band = self.band(signature, calls, height, len(prefix) if kept else 0)
+        band = self._band_of(changed)
         if band is not None and band[0] >= band[1]:  # nothing it moves is drawn: the frame as analysed
             self.cache[signature] = self.as_analysed()
             return self.cache[signature]
@@ -517,9 +541,12 @@ class _Measurer:
             calls, signature = self._draw_list(changed)
             prefix = self._opaque_prefix(signature, calls)
             self._resume(changed, calls, prefix, self._opaque_kept(prefix))
+        work = {signature: self.fragments_within(self._band_of(changed)) for signature, changed in todo.items()}
+        todo = dict(sorted(todo.items(), key=lambda item: -work[item[0]]))  # stable: ties keep their order
+        at_once = sorted(work.values())[-2] >= AT_ONCE_FRAGMENTS
         results = measure_map(lambda changed, processes: self.measure(changed, 1 if processes > 1 else None),
                               list(todo.values()), self.should_cancel,
-                              None if progress is None else (lambda n: progress(n / len(todo))))
+                              None if progress is None else (lambda n: progress(n / len(todo))), at_once=at_once)
         self.cache.update(zip(todo, results, strict=True))
 
     def as_analysed(self) -> tuple[dict[tuple[Key, Key], int], int]:

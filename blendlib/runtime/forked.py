@@ -23,9 +23,15 @@ handlers or touching its files. The parent polls ``should_cancel`` while it wait
 cancel, an error or a child that dies, the child is killed and reaped, and items the child took
 but did not answer are computed here — the results are the same either way, only slower.
 
+A caller that knows its items are long (the advice's measurements of a frame of millions of
+fragments) asks for them shared ``at_once``: the child is forked before the first item, and
+each process takes items from the start, the first included. Run here alone, the first would
+draw with two threads, which gain about a third of its time over one, while every other item
+waits; shared at once, two items run side by side from the start.
+
 Where forking is not safe or not possible (not Linux: macOS's system frameworks are not
-fork-safe, Windows has no fork; one core), with fewer than three items, or where the items
-after the first would be quick, ``fn`` runs over the items here, in order.
+fork-safe, Windows has no fork; one core), with fewer than three items (two ``at_once``), or
+where the items after the first would be quick, ``fn`` runs over the items here, in order.
 """
 
 from __future__ import annotations
@@ -74,12 +80,14 @@ class ForkedMap:
 
     def __call__(self, fn: Callable[[Any, int], Any], items: Sequence[Any],
                  should_cancel: Callable[[], bool] | None = None,
-                 on_done: Callable[[int], None] | None = None) -> list:
+                 on_done: Callable[[int], None] | None = None, at_once: bool = False) -> list:
         """``[fn(item, processes) for item in items]``, ``processes`` being how many processes
         share the machine while that item runs (1 or 2: an item may size its own threads by
         it). Raises what ``fn`` raises here (an error in the child's items is raised again by
         computing them here). ``on_done(n)``: called in this process only, with how many items
-        are done, as they get done here or come back."""
+        are done, as they get done here or come back. ``at_once``: the caller knows the items
+        are long; two or more are shared from the first, none run here alone first (module
+        doc). Items are taken in their order: the longest first shares them best."""
         items = list(items)
         done: dict[int, Any] = {}
         parent = os.getpid()
@@ -91,11 +99,14 @@ class ForkedMap:
 
         if not items:
             return []
-        start = time.perf_counter()
-        run(0)
-        rest = len(items) - 1
-        if self.processes >= 2 and rest >= 2 and (time.perf_counter() - start) * rest >= self.min_work_s:
-            self._shared(run, done, items, should_cancel, on_done)
+        if at_once and self.processes >= 2 and len(items) >= 2:
+            self._shared(run, done, items, should_cancel, on_done, first=0)
+        else:
+            start = time.perf_counter()
+            run(0)
+            rest = len(items) - 1
+            if self.processes >= 2 and rest >= 2 and (time.perf_counter() - start) * rest >= self.min_work_s:
+                self._shared(run, done, items, should_cancel, on_done)
         for index in range(len(items)):  # here: all of them, or the child's it did not answer
             if index not in done:
                 run(index)
@@ -103,11 +114,12 @@ class ForkedMap:
 
     @staticmethod
     def _shared(run: Callable[[int, int], None], done: dict[int, Any], items: list,
-                should_cancel: Callable[[], bool] | None, on_done: Callable[[int], None] | None) -> None:
-        """Items 1 on, shared with a forked child; ``done`` gets what both computed (the
+                should_cancel: Callable[[], bool] | None, on_done: Callable[[int], None] | None,
+                first: int = 1) -> None:
+        """Items ``first`` on, shared with a forked child; ``done`` gets what both computed (the
         child's missing where it died or failed)."""
         queue_read, queue_write = os.pipe()
-        os.write(queue_write, b"".join(_INDEX.pack(i) for i in range(1, len(items))))  # far below 64 KB
+        os.write(queue_write, b"".join(_INDEX.pack(i) for i in range(first, len(items))))  # far below 64 KB
         os.close(queue_write)  # an empty queue reads as end of file
         result_read, result_write = os.pipe()
         # Freed memory this process keeps (allocator.keep_freed_memory) would be shared with the

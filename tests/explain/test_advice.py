@@ -270,9 +270,10 @@ def test_a_change_that_leaves_nothing_after_the_opaque_queue_measures_as_a_full_
 class _SpyMap(ForkedMap):
     """A ForkedMap that notes which process measured each draw list and how many shared the machine."""
 
-    def __call__(self, fn, items, should_cancel=None, on_done=None):
+    def __call__(self, fn, items, should_cancel=None, on_done=None, at_once=False):
+        self.at_once = at_once
         marked = super().__call__(lambda item, processes: (fn(item, processes), os.getpid(), processes),
-                                  items, should_cancel, on_done)
+                                  items, should_cancel, on_done, at_once)
         self.pids = [pid for _, pid, _ in marked]
         self.shares = [processes for _, _, processes in marked]
         return [result for result, _, _ in marked]
@@ -301,3 +302,42 @@ def test_advice_measured_in_two_processes_equals_advice_measured_here(monkeypatc
     assert threads[0] is None  # the first one here, alone: the measurer's threads
     assert threads[1:] and set(threads[1:]) == {1}  # this process's others, while the child runs
     assert len(threads) < len(spy.pids)  # the child measured the rest
+
+
+def test_measurements_band_fragments_are_the_analysed_frames_in_those_rows():
+    """A measurement's work is estimated by the fragments the analysed frame rasterised in its
+    band's rows (buffer rows from the bottom): in the strips scene rows 86–92 hold only the Back
+    quad (20 × 6 pixels), rows 4–10 the first strip's near quad and two rows of its far one."""
+    scene = _strips_scene(0)
+    original = analyze(scene, keep_step1=True)
+    measurer = advice._Measurer(scene, original, [], None, None)
+    assert measurer.fragments_within(None) == 40 * 32 + 8 * 24 * 12 + 20 * 12
+    assert measurer.fragments_within((86, 92)) == 20 * 6
+    assert measurer.fragments_within((4, 10)) == 24 * 6 + 24 * 2
+    assert measurer.fragments_within((0, 4)) == measurer.fragments_within((50, 50)) == 0
+
+
+@pytest.mark.parametrize("threshold", [0, 10**9])
+def test_measurements_go_longest_first_and_long_ones_at_once(monkeypatch, threshold):
+    """The distinct draw lists go to the map longest first (by their bands' fragments); when the
+    second longest has AT_ONCE_FRAGMENTS or more they are shared from the first, each drawn with
+    one thread in two processes; the advice is the same."""
+    scene = _strips_scene(0)
+    here = analyze_and_advise(scene, max_advice=1)
+    monkeypatch.setattr(advice, "AT_ONCE_FRAGMENTS", threshold)
+    items = []
+
+    class Spy(_SpyMap):
+        def __call__(self, fn, todo, *args, **kwargs):
+            items.extend(todo)
+            return super().__call__(fn, todo, *args, **kwargs)
+
+    spy = Spy(2, min_work_s=0.0)
+    assert analyze_and_advise(scene, max_advice=1, measure_map=spy).advice == here.advice
+    original = analyze(scene, keep_step1=True)
+    measurer = advice._Measurer(scene, original, [(i.front, i.behind) for i in original.inversions[:1]], None, None)
+    work = [measurer.fragments_within(measurer._band_of(changed)) for changed in items]
+    assert len(items) >= 2 and len(set(work)) >= 2
+    assert work == sorted(work, reverse=True)
+    assert spy.at_once is (threshold == 0)
+    assert (set(spy.shares) == {2}) if threshold == 0 else (spy.shares[0] == 1)

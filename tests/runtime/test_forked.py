@@ -51,6 +51,25 @@ def test_fewer_than_three_items_or_one_process_stay_here(processes):
     assert {r[1:] for r in results} == {(os.getpid(), 1)}
 
 
+@pytest.mark.parametrize("count", [2, 5])
+def test_items_at_once_are_shared_from_the_first(count):
+    """Long items (``at_once``): none runs here alone first; two items are shared too."""
+    def slower_square(item: int, processes: int) -> tuple[int, int, int]:
+        time.sleep(0.15)  # the child has time to take the second item before this one is done
+        return _slow_square(item, processes)
+
+    results = ForkedMap(2, min_work_s=10.0)(slower_square, list(range(count)), at_once=True)
+    assert [r[0] for r in results] == [k * k for k in range(count)]
+    assert all(p == 2 for _, _, p in results)  # every item shared the machine, the first included
+    assert len({r[1] for r in results}) == 2
+    assert _no_children()
+
+
+def test_items_at_once_stay_here_with_one_process_or_one_item():
+    assert [r[1:] for r in ForkedMap(1)(_slow_square, list(range(3)), at_once=True)] == [(os.getpid(), 1)] * 3
+    assert [r[1:] for r in ForkedMap(2)(_slow_square, [7], at_once=True)] == [(os.getpid(), 1)]
+
+
 def test_progress_comes_from_this_process_alone(tmp_path):
     log = tmp_path / "progress.txt"
 
