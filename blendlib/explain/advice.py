@@ -251,37 +251,32 @@ class _PairWatch(FrameObserver):
                 pix -= self.first
             depth = frags.depth.take(kept).astype(np.int32)
         if frags.disjoint:
-            before = None  # one fragment per pixel in this chunk
-        else:  # each fragment's nearest earlier one of the chunk at its pixel, as a pixel order
+            running = None  # one fragment per pixel in this chunk
+        else:  # in pixel order, each fragment's nearest of the chunk at its pixel up to it, itself included
             order = np.argsort(pix, kind="stable")
             pix, depth = pix.take(order), depth.take(order)
-            start = np.ones(pix.size, dtype=bool)
-            np.not_equal(pix[1:], pix[:-1], out=start[1:])
-            offset = np.cumsum(start)  # the pixel's group, from 1
-            offset *= np.int64(1 << 31)
-            running = np.subtract(depth, offset)
+            # Pixel p's fragments less p·2³¹: every earlier pixel's values lie above, so one running
+            # minimum over the chunk restarts at each pixel (depth codes are below 2³⁰).
+            shift = np.left_shift(pix, 31)
+            running = np.subtract(depth, shift)
             np.minimum.accumulate(running, out=running)
-            running += offset  # the running minimum within each pixel
-            before = np.full(pix.size, self.NONE, dtype=np.int32)
-            later = np.flatnonzero(~start)
-            before[later] = running.take(later - 1)
+            running += shift
+        near = self.nearest.get(key)
+        own = None
+        if near is not None:  # the key's nearest at each fragment's pixel before this chunk...
+            own = near.take(pix)
+            if running is not None:  # ...and in it, up to the fragment itself: below its depth
+                np.minimum(own, running, out=own)  # exactly when an earlier one's is
         for (front, behind), hit in self.inverted.items():
-            if behind != key:
-                continue
-            nearest = self.nearest[front].take(pix)
-            if front == key and before is not None:
-                np.minimum(nearest, before, out=nearest)
-            hit[pix.compress(nearest < depth)] = True
-        if key in self.nearest:
-            near = self.nearest[key]
-            if before is None:
-                near[pix] = np.minimum(near.take(pix), depth)
-            else:  # the chunk's nearest at each of its pixels (each pixel's last fragment)
-                last = np.flatnonzero(np.append(start[1:], True))
-                at = pix.take(last)
-                low = np.minimum(before.take(last), depth.take(last))
-                np.minimum(low, near.take(at), out=low)
-                near[at] = low
+            if behind == key:
+                nearest = own if front == key else self.nearest[front].take(pix)
+                hit[pix.compress(nearest < depth)] = True
+        if near is not None:
+            if running is None:
+                near[pix] = np.minimum(own, depth)
+            else:  # each pixel's last fragment holds the nearest there
+                last = np.append(np.flatnonzero(pix[1:] != pix[:-1]), pix.size - 1)
+                near[pix.take(last)] = own.take(last)
 
     def draw_end(self, call, buffers, triangles) -> None:
         self.buffers = buffers  # after the last call: the changed frame's buffers

@@ -341,3 +341,44 @@ def test_measurements_go_longest_first_and_long_ones_at_once(monkeypatch, thresh
     assert work == sorted(work, reverse=True)
     assert spy.at_once is (threshold == 0)
     assert (set(spy.shares) == {2}) if threshold == 0 else (spy.shares[0] == 1)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_pair_watch_counts_as_fragments_applied_one_by_one(seed):
+    """Chunks of three renderers' fragments, most sharing pixels within a chunk and between
+    chunks, some not written: the watch's inverted pixels per pair (a self-overlap among them)
+    equal those found fragment by fragment in draw order, and a band's offset is honoured."""
+    from types import SimpleNamespace
+
+    from blendlib.core.merger import Outcome
+
+    rng = np.random.default_rng(seed)
+    keys = [("A", 0), ("B", 0), ("C", 1)]
+    pairs = [(("A", 0), ("B", 0)), (("B", 0), ("B", 0)), (("C", 1), ("A", 0)), (("A", 0), ("C", 1))]
+    calls = [SimpleNamespace(index=k + 1, queue=3000, state=SimpleNamespace(color_mask="RGBA"),
+                             renderer=SimpleNamespace(name=name, slot=slot)) for k, (name, slot) in enumerate(keys)]
+    pixels, first = 120, 100
+    watch = advice._PairWatch(pairs, calls, pixels, first=first)
+    nearest = {key: [1 << 30] * pixels for key in keys}
+    expected = {pair: set() for pair in pairs}
+    for _ in range(30):
+        call = calls[int(rng.integers(0, 3))]
+        key = (call.renderer.name, call.renderer.slot)
+        n = int(rng.integers(1, 200))
+        pix = rng.integers(0, pixels, n).astype(np.int64) + first
+        disjoint = bool(rng.integers(0, 4) == 0)
+        if disjoint:
+            pix = rng.permutation(pixels)[:min(n, pixels)].astype(np.int64) + first
+        depth = rng.integers(0, 50, pix.size).astype(np.int64)
+        outcome = np.where(rng.random(pix.size) < 0.8, Outcome.WRITTEN, Outcome.DEPTH).astype(np.int8)
+        watch.fragments(call, SimpleNamespace(coverage=None, pix=pix, depth=depth, disjoint=disjoint), outcome)
+        for p, d, o in zip((pix - first).tolist(), depth.tolist(), outcome.tolist(), strict=True):
+            if o != Outcome.WRITTEN:
+                continue
+            for front, behind in pairs:
+                if behind == key and nearest[front][p] < d:
+                    expected[(front, behind)].add(p)
+            nearest[key][p] = min(nearest[key][p], d)
+    counts = watch.counts()
+    assert counts == {pair: len(found) for pair, found in expected.items()}
+    assert all(counts.values())
