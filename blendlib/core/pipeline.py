@@ -134,14 +134,16 @@ def render_scene(
     if resume is not None:
         if resume[0].samples != samples:
             raise SceneError(f"resume: buffers of {resume[0].samples} samples per pixel, the scene has {samples}")
-        buf, first = resume[0].copy(band), int(resume[1])
-    else:
-        clear = shade.gamma_color_to_shading(scene.clear_color[:3], cs) + (float(scene.clear_color[3]),)
-        buf, first = FrameBuffers(width, height, scene.hdr, cs, clear, band, samples), 0
-    lights = shade.frame_lights(scene)
+    first = 0 if resume is None else int(resume[1])
     calls = draw_calls(scene) if calls is None else calls
     last = len(calls) if until_draw is None else min(int(until_draw), len(calls))
     todo = [c for c in calls if first < c.index <= last]
+    if resume is not None:  # depth and stencil shared where no call writes them (read only)
+        buf = resume[0].copy(band, colors_only=not any(_writes_depth_or_stencil(c) for c in todo))
+    else:
+        clear = shade.gamma_color_to_shading(scene.clear_color[:3], cs) + (float(scene.clear_color[3]),)
+        buf = FrameBuffers(width, height, scene.hdr, cs, clear, band, samples)
+    lights = shade.frame_lights(scene)
     if workers is None:
         workers = 1 if width * height < SMALL_FRAME_PIXELS else min(2, os.cpu_count() or 1)
     pool = ThreadPoolExecutor(max_workers=workers) if workers > 1 else None
@@ -155,7 +157,7 @@ def render_scene(
     if shaded_cache is not None and call_keys is not None:
         frame.shaded_cache = shaded_cache
         frame.shaded_slots = call_slots(shaded_cache, todo, call_keys,
-                                        lambda c: bool(c.state.zwrite or c.state.stencil),
+                                        _writes_depth_or_stencil,
                                         None if resume is None else resume[0])
     try:
         _draw_all(frame, todo, should_cancel, progress, observer)
@@ -180,6 +182,12 @@ def render_scene(
 # ---------------------------------------------------------------------------------------------
 # The loop
 # ---------------------------------------------------------------------------------------------
+
+
+def _writes_depth_or_stencil(call: DrawCall) -> bool:
+    """Whether a draw call may change the depth or stencil buffer (ZWrite On, or a stencil
+    block: the merger writes neither otherwise)."""
+    return bool(call.state.zwrite or call.state.stencil)
 
 
 def _draw_all(frame: FrameContext, todo: list[DrawCall], should_cancel: Callable[[], bool] | None,

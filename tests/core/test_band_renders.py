@@ -86,6 +86,33 @@ def test_band_renders_resume_from_buffers(seed, msaa):
         np.testing.assert_array_equal(part.stencil, full.stencil[height - y1:height - y0])
 
 
+@pytest.mark.parametrize(("seed", "msaa"), [(4, 1), (8, 1), (15, 1), (18, 1), (8, 4)])
+def test_resumed_renders_leave_the_buffers_they_resume_from_as_they_were(seed, msaa):
+    """From every draw call on: a resumed render shares the depth and stencil buffers it
+    resumes from when no later call writes either (ZWrite On or a stencil block), and copies
+    them when one does; either way those buffers are left bit for bit as they were, and the
+    frame (in a band too) is the whole render's."""
+    draw = dataclasses.replace(scene_at(seed), msaa=msaa)
+    calls = draw_calls(draw)
+    full = render_scene(draw, workers=1)
+    height = draw.camera.height
+    shared = 0
+    for k in range(1, len(calls)):
+        after = _After(k)
+        render_scene(draw, workers=1, observer=after)
+        kept = {name: rows.copy() for name, rows in after.buffers.by_row().items()}
+        shared += not any(c.state.zwrite or c.state.stencil for c in calls[k:])
+        frame = render_scene(draw, workers=1, resume=(after.buffers, k))
+        part = render_scene(draw, workers=2, resume=(after.buffers, k), band=(3, height - 5))
+        for name, rows in after.buffers.by_row().items():
+            np.testing.assert_array_equal(rows, kept[name], err_msg=f"{name} after resuming from draw {k}")
+        for got, want in ((frame.color, full.color), (frame.depth, full.depth), (frame.stencil, full.stencil)):
+            np.testing.assert_array_equal(got, want)
+        np.testing.assert_array_equal(part.color, full.color[5:height - 3])
+        np.testing.assert_array_equal(part.depth, full.depth[5:height - 3])
+    assert 0 < shared < len(calls) - 1  # both kinds of resume
+
+
 def test_bad_bands_are_one_line_errors():
     draw = scene_at(2)
     for band in ((0, 0), (-1, 4), (10, 49), (30, 20)):

@@ -192,9 +192,11 @@ class FrameBuffers:
     """
 
     def __init__(self, width: int, height: int, hdr: bool, color_space: ColorSpace, clear_rgba,
-                 band: tuple[int, int] | None = None, samples: int = 1) -> None:
+                 band: tuple[int, int] | None = None, samples: int = 1,
+                 shared: tuple[np.ndarray, np.ndarray] | None = None) -> None:
         """Buffers cleared to ``clear_rgba``, depth 1.0 and stencil 0; with ``band`` (y0, y1)
-        only those rows are cleared (a band render never reads the others)."""
+        only those rows are cleared (a band render never reads the others). ``shared``: (depth,
+        stencil) arrays to hold as they are instead (:meth:`copy`'s ``colors_only``)."""
         self.width, self.height = int(width), int(height)
         self.hdr = bool(hdr)
         self.linear = color_space is ColorSpace.Linear
@@ -210,10 +212,13 @@ class FrameBuffers:
         # One fill of whole packed pixels (a (1, 4) broadcast copies byte by byte), in every plane.
         self.packed().reshape(self.samples, pixels)[:, lo:hi].fill(
             np.ascontiguousarray(self.encode(clear)).view(self.packed().dtype)[0, 0])
-        self.depth = np.empty(n, dtype=np.int64 if self.samples == 1 else np.int32)
-        self.depth.reshape(self.samples, pixels)[:, lo:hi] = DEPTH_MAX
-        self.stencil = np.empty(n, dtype=np.uint8)
-        self.stencil.reshape(self.samples, pixels)[:, lo:hi] = 0
+        if shared is not None:
+            self.depth, self.stencil = shared
+        else:
+            self.depth = np.empty(n, dtype=np.int64 if self.samples == 1 else np.int32)
+            self.depth.reshape(self.samples, pixels)[:, lo:hi] = DEPTH_MAX
+            self.stencil = np.empty(n, dtype=np.uint8)
+            self.stencil.reshape(self.samples, pixels)[:, lo:hi] = 0
         self.uniform = None if self.samples == 1 else np.ones(pixels, dtype=bool)
         self._peel = None
         self._peel_lock = threading.Lock()
@@ -271,11 +276,13 @@ class FrameBuffers:
             return self.color.view(_PIXEL16).reshape(-1)
         return self.color.view(_PIXEL4).reshape(-1)
 
-    def copy(self, band: tuple[int, int] | None = None) -> FrameBuffers:
+    def copy(self, band: tuple[int, int] | None = None, colors_only: bool = False) -> FrameBuffers:
         """An independent copy (a snapshot to resume from); with ``band`` (y0, y1) only those rows
-        are copied, the others left unset (what a band render resumed from it reads)."""
-        other = self.blank()
-        self.copy_rows(other, *(band or (0, self.height)))
+        are copied, the others left unset (what a band render resumed from it reads).
+        ``colors_only``: the depth and stencil arrays are these buffers' own, shared, not copied:
+        for a render that never writes them (no ZWrite, no stencil)."""
+        other = self.blank() if not colors_only else FrameBuffers.unset(self.kind, shared=(self.depth, self.stencil))
+        self.copy_rows(other, *(band or (0, self.height)), colors_only=colors_only)
         return other
 
     @property
@@ -284,11 +291,13 @@ class FrameBuffers:
         return self.width, self.height, self.hdr, self.linear, self.samples
 
     @classmethod
-    def unset(cls, kind: tuple[int, int, bool, bool, int]) -> FrameBuffers:
-        """Buffers of :attr:`kind` ``kind``, every array unset (rows to be filled by :meth:`copy_rows`)."""
+    def unset(cls, kind: tuple[int, int, bool, bool, int],
+              shared: tuple[np.ndarray, np.ndarray] | None = None) -> FrameBuffers:
+        """Buffers of :attr:`kind` ``kind``, every array unset (rows to be filled by :meth:`copy_rows`);
+        ``shared``: (depth, stencil) arrays of buffers of that kind to hold instead of new ones."""
         width, height, hdr, linear, samples = kind
         return cls(width, height, hdr, ColorSpace.Linear if linear else ColorSpace.Gamma, (0.0, 0.0, 0.0, 0.0),
-                   band=(0, 0), samples=samples)
+                   band=(0, 0), samples=samples, shared=shared)
 
     def blank(self) -> FrameBuffers:
         """Buffers of the same size and kind, every array unset."""
@@ -304,11 +313,13 @@ class FrameBuffers:
             views["uniform"] = self.uniform.reshape(1, self.height, self.width)
         return views
 
-    def copy_rows(self, other: FrameBuffers, y0: int, y1: int) -> None:
-        """Copy rows ``[y0, y1)`` (every sample plane) of these buffers into ``other`` (same kind)."""
+    def copy_rows(self, other: FrameBuffers, y0: int, y1: int, colors_only: bool = False) -> None:
+        """Copy rows ``[y0, y1)`` (every sample plane) of these buffers into ``other`` (same kind);
+        ``colors_only``: the colour (and MSAA's uniform flags) alone."""
         into = other.by_row()
         for name, rows in self.by_row().items():
-            into[name][:, y0:y1] = rows[:, y0:y1]
+            if not (colors_only and name in ("depth", "stencil")):
+                into[name][:, y0:y1] = rows[:, y0:y1]
 
     def encode(self, rgba: np.ndarray) -> np.ndarray:
         """Shading-space values (N, 4) float64 → what the colour buffer stores."""
