@@ -613,19 +613,28 @@ class _Measurer:
         changed = np.flatnonzero(new != old) + y0 * width  # buffer pixels
         if changed.size == 0:
             return self.differing_before
-        color = np.divide(np.take(codes, changed, axis=0), np.float32(255.0), dtype=np.float32)
         height = original.frame.color.shape[0]
-        return self._differing_at(color, (height - 1 - changed // width) * width + changed % width)
+        # sort_error takes the codes back from the colours (rint(code / 255 · 255) is the code,
+        # for every code): the codes themselves, with the reference's taken as it takes them.
+        return self._differing_at(np.take(codes, changed, axis=0), (height - 1 - changed // width) * width
+                                  + changed % width)
 
     def _differing_at(self, color: np.ndarray, at: np.ndarray) -> int:
         """The differing pixels of the analysed frame with the colours ``color`` (K, 4) float32
-        at pixels ``at`` (K,) (top row first) instead of its own."""
+        at pixels ``at`` (K,) (top row first) instead of its own; for 8-bit frames ``color``
+        may be the stored codes (K, 4) uint8 instead (their steps against the reference's
+        ``rint(value · 255)``, as :func:`.sorted_reference.sort_error` counts them)."""
         original = self.analysis
         reference = np.take(original.reference.reshape(-1, 4), at, axis=0)
         now = 0
-        # Each piece as one row: as (K, 1) pixels, sort_error would take them 256 rows at a time.
         for k in range(0, at.size, ERROR_PIXELS):
-            piece = sort_error(color[None, k:k + ERROR_PIXELS], reference[None, k:k + ERROR_PIXELS], original.hdr)
+            if color.dtype == np.uint8:
+                theirs = np.rint(reference[k:k + ERROR_PIXELS] * np.float32(255)).astype(np.int16)
+                theirs -= color[k:k + ERROR_PIXELS]
+                piece = np.abs(theirs, out=theirs).max(axis=1)
+            else:  # each piece as one row: as (K, 1) pixels, sort_error would take them 256 rows at a time
+                piece = sort_error(color[None, k:k + ERROR_PIXELS], reference[None, k:k + ERROR_PIXELS],
+                                   original.hdr)
             now += int(np.count_nonzero(piece > original.step))
         before = original.error.reshape(-1)[at]
         return self.differing_before - int(np.count_nonzero(before > original.step)) + now

@@ -382,3 +382,21 @@ def test_the_pair_watch_counts_as_fragments_applied_one_by_one(seed):
     counts = watch.counts()
     assert counts == {pair: len(found) for pair, found in expected.items()}
     assert all(counts.values())
+
+
+def test_differing_pixels_from_codes_equal_those_from_colours():
+    """A changed 8-bit frame's differing pixels counted from its stored codes equal those
+    counted from its colours (code / 255 in float32, as FrameBuffers.output makes them), at
+    random codes near the reference's (errors of 0 to 3 steps) and far from them."""
+    scene = _strips_scene(1)
+    original = analyze(scene, keep_step1=True)
+    measurer = advice._Measurer(scene, original, [], None, None)
+    rng = np.random.default_rng(3)
+    at = rng.choice(original.error.size, 2000, replace=False)
+    near = np.rint(original.reference.reshape(-1, 4)[at] * 255) + rng.integers(-3, 4, (at.size, 4))
+    codes = np.clip(near, 0, 255).astype(np.uint8)
+    codes[::7] = rng.integers(0, 256, (codes[::7].shape[0], 4))
+    colors = np.divide(codes, np.float32(255.0), dtype=np.float32)
+    counted = measurer._differing_at(codes, at)
+    assert counted == measurer._differing_at(colors, at)
+    assert counted != measurer.differing_before  # the codes do change which pixels differ
