@@ -631,7 +631,8 @@ class _Measurer:
             if color.dtype == np.uint8:
                 theirs = np.rint(reference[k:k + ERROR_PIXELS] * np.float32(255)).astype(np.int16)
                 theirs -= color[k:k + ERROR_PIXELS]
-                piece = np.abs(theirs, out=theirs).max(axis=1)
+                steps = np.abs(theirs, out=theirs)  # the largest over RGBA: columns, not a short-axis reduction
+                piece = np.maximum(np.maximum(steps[:, 0], steps[:, 1]), np.maximum(steps[:, 2], steps[:, 3]))
             else:  # each piece as one row: as (K, 1) pixels, sort_error would take them 256 rows at a time
                 piece = sort_error(color[None, k:k + ERROR_PIXELS], reference[None, k:k + ERROR_PIXELS],
                                    original.hdr)
