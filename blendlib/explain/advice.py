@@ -69,7 +69,7 @@ from ..core.shaded_cache import ShadedCache
 from ..core.vocabulary import LAST_OPAQUE_QUEUE, Cull, Material, SortMode, preset, queue_text
 from .fragment_store import is_sorted_queue, union_box
 from .progress import Progress
-from .sorted_reference import ERROR_ROWS, Analysis, LastBuffers, analyze, sort_error
+from .sorted_reference import ERROR_ROWS, Analysis, LastBuffers, analyze, largest_step, sort_error
 
 PREPASS_PRESET = "Alpha Blend ZWrite"
 #: Share of the progress bar the analysis takes in :func:`analyze_and_advise`, per advised pair
@@ -631,8 +631,7 @@ class _Measurer:
             if color.dtype == np.uint8:
                 theirs = np.rint(reference[k:k + ERROR_PIXELS] * np.float32(255)).astype(np.int16)
                 theirs -= color[k:k + ERROR_PIXELS]
-                steps = np.abs(theirs, out=theirs)  # the largest over RGBA: columns, not a short-axis reduction
-                piece = np.maximum(np.maximum(steps[:, 0], steps[:, 1]), np.maximum(steps[:, 2], steps[:, 3]))
+                piece = largest_step(np.abs(theirs, out=theirs))
             else:  # each piece as one row: as (K, 1) pixels, sort_error would take them 256 rows at a time
                 piece = sort_error(color[None, k:k + ERROR_PIXELS], reference[None, k:k + ERROR_PIXELS],
                                    original.hdr)
