@@ -394,7 +394,7 @@ class _Measurer:
         self.prefix_step1: dict[tuple, FrameBuffers] = {}
         self._opaque_counts: Counter | None = None
         self._row_fragments: np.ndarray | None = None  # fragments_within's cumulated rows
-        self._draw_lists: dict[int, tuple[DrawScene, list[DrawCall], tuple]] = {}
+        self._draw_lists: dict[int, tuple[DrawScene, list[DrawCall], tuple, tuple, bool]] = {}
         #: Renderers checked, textures converted and vertex setups made once for every measurement:
         #: the changed scenes share the renderers a change leaves alone, and the camera.
         self.memo = SceneMemo()
@@ -407,18 +407,22 @@ class _Measurer:
         them share (sort settings reorder it, SPEC: one distance for both) is drawn once, and each
         of them resumes from its buffers."""
         for changed in scenes:
-            calls, signature = self._draw_list(changed)
-            prefix = self._opaque_prefix(signature, calls)
-            if not self._opaque_kept(prefix):
+            _, _, prefix, kept = self._draw_list(changed)
+            if not kept:
                 self.prefix_counts[prefix] = self.prefix_counts.get(prefix, 0) + 1
 
-    def _draw_list(self, changed: DrawScene) -> tuple[list[DrawCall], tuple]:
-        """A changed scene's draw calls and their signature, made once per scene object."""
+    def _draw_list(self, changed: DrawScene) -> tuple[list[DrawCall], tuple, tuple, bool]:
+        """A changed scene's draw calls, their signature, its opaque queue's signature
+        (:meth:`_opaque_prefix`) and whether that queue leaves the analysed step-1 buffers
+        (:meth:`_opaque_kept`), made once per scene object."""
         hit = self._draw_lists.get(id(changed))
         if hit is None or hit[0] is not changed:
             calls = draw_calls(changed)
-            hit = self._draw_lists[id(changed)] = (changed, calls, _signature(changed, calls))  # keeps it alive
-        return hit[1], hit[2]
+            signature = _signature(changed, calls)
+            prefix = self._opaque_prefix(signature, calls)
+            hit = self._draw_lists[id(changed)] = (changed, calls, signature, prefix,  # keeps the scene alive
+                                                   self._opaque_kept(prefix))
+        return hit[1:]
 
     @staticmethod
     def _opaque_prefix(signature: tuple, calls: list[DrawCall]) -> tuple:
@@ -451,9 +455,8 @@ class _Measurer:
 
     def _band_of(self, changed: DrawScene) -> tuple[int, int] | None:
         """:meth:`band` of a changed scene, its opaque queue as :meth:`measure` resumes it."""
-        calls, signature = self._draw_list(changed)
-        prefix = self._opaque_prefix(signature, calls)
-        return self.band(signature, calls, int(changed.camera.height), len(prefix) if self._opaque_kept(prefix) else 0)
+        calls, signature, prefix, kept = self._draw_list(changed)
+        return self.band(signature, calls, int(changed.camera.height), len(prefix) if kept else 0)
 
     def fragments_within(self, band: tuple[int, int] | None) -> int:
         """The fragments the analysed frame rasterised in a band's rows (None: the frame): about
@@ -469,14 +472,12 @@ class _Measurer:
         ``workers``: the render's threads (default the measurer's)."""
         if self.should_cancel is not None and self.should_cancel():
             raise RenderCancelled("render cancelled")
-        calls, signature = self._draw_list(changed)
+        calls, signature, prefix, kept = self._draw_list(changed)
         if signature == self.signature:
             return self.as_analysed()
         if signature in self.cache:
             return self.cache[signature]
         width, height = int(changed.camera.width), int(changed.camera.height)
-        prefix = self._opaque_prefix(signature, calls)
-        kept = self._opaque_kept(prefix)
         band = self._band_of(changed)
         if band is not None and band[0] >= band[1]:  # nothing it moves is drawn: the frame as analysed
             self.cache[signature] = self.as_analysed()
@@ -521,21 +522,21 @@ class _Measurer:
         ``measure_map`` (:class:`MeasureMap`; None: one after the other as they are asked for),
         their results cached for :meth:`measure`. The opaque queues several of them share are
         drawn first, here, so no process draws one twice; a measurement that shares the
-        machine with another process draws with one thread. ``progress``: the fraction of them
-        measured."""
+        machine with another process draws with one thread. They go to the map longest first
+        (by :meth:`fragments_within` their bands), shared at once when the second longest has
+        :data:`AT_ONCE_FRAGMENTS` or more. ``progress``: the fraction of them measured."""
         if measure_map is None or measure_map.processes < 2:
             return
         todo: dict[tuple, DrawScene] = {}
         for changed in scenes:
-            calls, signature = self._draw_list(changed)
+            signature = self._draw_list(changed)[1]
             if signature != self.signature and signature not in self.cache:
                 todo.setdefault(signature, changed)
         if len(todo) < 2:
             return
         for changed in todo.values():  # the buffers they resume from, drawn here before they split
-            calls, signature = self._draw_list(changed)
-            prefix = self._opaque_prefix(signature, calls)
-            self._resume(changed, calls, prefix, self._opaque_kept(prefix))
+            calls, _, prefix, kept = self._draw_list(changed)
+            self._resume(changed, calls, prefix, kept)
         work = {signature: self.fragments_within(self._band_of(changed)) for signature, changed in todo.items()}
         todo = dict(sorted(todo.items(), key=lambda item: -work[item[0]]))  # stable: ties keep their order
         at_once = sorted(work.values())[-2] >= AT_ONCE_FRAGMENTS
