@@ -281,7 +281,7 @@ class FrameBuffers:
         are copied, the others left unset (what a band render resumed from it reads).
         ``colors_only``: the depth and stencil arrays are these buffers' own, shared, not copied:
         for a render that never writes them (no ZWrite, no stencil)."""
-        other = self.blank() if not colors_only else FrameBuffers.unset(self.kind, shared=(self.depth, self.stencil))
+        other = FrameBuffers.unset(self.kind, shared=(self.depth, self.stencil) if colors_only else None)
         self.copy_rows(other, *(band or (0, self.height)), colors_only=colors_only)
         return other
 
