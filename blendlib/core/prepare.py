@@ -268,8 +268,9 @@ MEMO_SETUP_BUDGET = 1 << 21
 
 @dataclass(eq=False)
 class _Geometry:
-    """A renderer's triangle setup through one camera and, in whole frames, its passes' rows
-    by (Cull, MSAA samples) ((selected triangles, rows)), kept in a memo (:data:`MEMO_SETUP_TRIANGLES`)."""
+    """A mesh's triangle setup through one camera and placement (:func:`_setup_key`) and its
+    passes' rows by (Cull, MSAA samples): (band or None, selected triangles, rows) of the last
+    band drawn (:func:`_keep_rows`), kept in a memo (:data:`MEMO_SETUP_TRIANGLES`)."""
 
     setup: TriangleSetup
     rows: dict = field(default_factory=dict)
@@ -281,11 +282,14 @@ def _camera_key(camera) -> tuple:
 
 
 def _kept_geometry(frame: FrameContext, renderer) -> dict | None:
-    """The memo's geometry of ``renderer`` by camera key, or None when it is not kept (too big,
-    or the memo is this render's own: keeping every setup to the end would raise its peak)."""
+    """The memo's geometries of ``renderer``'s mesh by :func:`_setup_key`, or None when they are
+    not kept (too big, or the memo is this render's own: keeping every setup to the end would
+    raise its peak). Keyed by the mesh, not the renderer: a renderer that differs from a kept
+    one in its material alone (a changed queue, pass or colour: the advice's fixes, an edit in
+    the viewport) places the same triangles and finds their setup."""
     if not frame.keep_setups or renderer.mesh.triangle_count > MEMO_SETUP_TRIANGLES:
         return None
-    return frame.memo.lookup("geometry", renderer, dict)
+    return frame.memo.lookup("geometry", renderer.mesh, dict)
 
 
 def _setups(frame: FrameContext, items: list[tuple], pool=None, parts: int = 1) -> list[_Geometry]:
@@ -294,7 +298,7 @@ def _setups(frame: FrameContext, items: list[tuple], pool=None, parts: int = 1) 
     together (:func:`vertex.setup_renderers`: each equals its own setup) and kept for the next
     frame (:func:`_setup_key`)."""
     kept = [_kept_geometry(frame, r) for r, _, _ in items]
-    keys = [_setup_key(frame, colors, program) for _, colors, program in items]
+    keys = [_setup_key(frame, r, colors, program) for r, colors, program in items]
     out = [None if k is None else k.get(key) for k, key in zip(kept, keys, strict=True)]
     todo = [i for i, g in enumerate(out) if g is None]
     if todo:
@@ -307,7 +311,7 @@ def _setups(frame: FrameContext, items: list[tuple], pool=None, parts: int = 1) 
             if kept[i] is None:
                 continue
             if held is None:
-                held = sum(r.mesh.triangle_count * len(d) for r, d in frame.memo.entries("geometry"))
+                held = sum(mesh.triangle_count * len(d) for mesh, d in frame.memo.entries("geometry"))
             triangles = items[i][0].mesh.triangle_count
             cameras = list(dict.fromkeys(key[0] for key in kept[i]))
             if keys[i][0] not in cameras and len(cameras) >= MEMO_CAMERAS:  # the oldest camera's setups go
@@ -317,19 +321,22 @@ def _setups(frame: FrameContext, items: list[tuple], pool=None, parts: int = 1) 
             if held + triangles <= MEMO_SETUP_BUDGET:
                 kept[i][keys[i]] = out[i]
                 held += triangles
-    if frame.band is not None:  # a band's rows are its own (the cut moves frame to frame): not kept
-        out = [_Geometry(g.setup) for g in out]
     return out
 
 
-def _setup_key(frame: FrameContext, colors: np.ndarray | None, program: Pass | None) -> tuple:
-    """What a kept vertex setup of a renderer is for: the frame's camera (first), the colour
-    space when the setup holds values converted into it (vertex colours, an outline's width
-    factors) and the vertex program (:func:`.outline.outline_key`; all else the program reads
-    is the renderer's own)."""
+def _setup_key(frame: FrameContext, renderer, colors: np.ndarray | None, program: Pass | None) -> tuple:
+    """What a kept vertex setup of a mesh (:func:`_kept_geometry`) is for: the frame's camera
+    (first), the renderer's placement (its matrix's bytes), the attributes shading reads
+    (:func:`setup_input`: normals, UVs, vertex colours), the colour space when the setup holds
+    values converted into it (vertex colours, an outline's width factors) and the vertex
+    program (:func:`.outline.outline_key`), with the material when its outline-width texture
+    scales the program's corners (all else the program reads is the mesh's own)."""
+    material = renderer.material
     converted = colors is not None or program is not None
-    return (frame.camera_key, frame.color_space if converted else None,
-            None if program is None else outline_key(program))
+    widths = material if program is not None and material.outline_width_tex is not None else None
+    return (frame.camera_key, np.asarray(renderer.matrix_world, dtype=np.float64).tobytes(),
+            material.lighting is not Lighting.Unlit, material.main_tex is not None, colors is not None,
+            frame.color_space if converted else None, None if program is None else outline_key(program), widths)
 
 
 def _draw_state(frame: FrameContext, call: DrawCall, setup, inputs: CallInputs,
@@ -374,16 +381,33 @@ def _prepare(frame: FrameContext, call: DrawCall, geometry: _Geometry, inputs: C
     """Cull, coverage and derived state of one draw call. Passes of a renderer with one Cull
     cover the same pixels: their rows are computed once (``geometry.rows``; in a memo across
     frames when the frame is whole)."""
-    setup, key = geometry.setup, (call.state.cull, frame.samples)  # rows by Cull (and MSAA: other rows)
-    known = geometry.rows.get(key)
+    setup = geometry.setup
+    known = _kept_rows(frame, geometry, call)
     state, selected = _draw_state(frame, call, setup, inputs, selected=None if known is None else known[0])
     shade = _shading_of(frame, call.state)
     if known is not None:
         return PreparedCall(call, setup, selected, raster.Rows(**vars(known[1])), state, shade)
     rows = raster.coverage_rows(setup, selected, frame.width, frame.height, pool=pool, parts=parts, band=frame.band,
                                 samples=frame.sample_offsets)
-    geometry.rows[key] = (selected, rows)
+    _keep_rows(frame, geometry, call, selected, rows)
     return PreparedCall(call, setup, selected, rows, state, shade)
+
+
+def _kept_rows(frame: FrameContext, geometry: _Geometry, call: DrawCall) -> tuple | None:
+    """(selected triangles, rows) of ``geometry`` kept for the call's Cull, the frame's MSAA
+    samples and band, or None. Passes of a renderer with one Cull cover the same pixels."""
+    known = geometry.rows.get((call.state.cull, frame.samples))
+    return None if known is None or known[0] != frame.band else known[1:]
+
+
+def _keep_rows(frame: FrameContext, geometry: _Geometry, call: DrawCall, selected, rows: raster.Rows) -> None:
+    """Keep the rows of ``geometry`` for :func:`_kept_rows`: one band's a Cull and sample count
+    (a band render's replace another band's: the cut of the viewport's frames split between
+    processes moves, the advice's measurements of one fix after another share theirs)."""
+    key = (call.state.cull, frame.samples)
+    known = geometry.rows.get(key)
+    if known is None or known[0] != frame.band:
+        geometry.rows[key] = (frame.band, selected, rows)
 
 
 def _run_geometries(frame: FrameContext, runs: list[list[DrawCall]], colors: list, pool=None,
@@ -413,7 +437,7 @@ def _prepare_together(frame: FrameContext, runs: list[list[DrawCall]], inputs, c
     for run, by_key, run_inputs in zip(runs, geometries, inputs, strict=True):
         for call, found in zip(run, run_inputs, strict=True):
             geometry = by_key[outline_key(call.state)]
-            known = geometry.rows.get((call.state.cull, frame.samples))
+            known = _kept_rows(frame, geometry, call)
             state, selected = _draw_state(frame, call, geometry.setup, found,
                                           selected=None if known is None else known[0])
             items.append((call, geometry, state, selected, None if known is None else known[1]))
@@ -424,7 +448,8 @@ def _prepare_together(frame: FrameContext, runs: list[list[DrawCall]], inputs, c
     for k, r in zip(todo, made, strict=True):
         rows[k] = r
         call, geometry, _, selected, _ = items[k]
-        geometry.rows.setdefault((call.state.cull, frame.samples), (selected, r))
+        if _kept_rows(frame, geometry, call) is None:
+            _keep_rows(frame, geometry, call, selected, r)
     return [PreparedCall(call, geometry.setup, selected, r if kept is None else raster.Rows(**vars(r)), state,
                          _shading_of(frame, call.state))
             for (call, geometry, state, selected, kept), r in zip(items, rows, strict=True)]
