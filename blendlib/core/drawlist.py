@@ -151,3 +151,9 @@ def draw_calls(scene: DrawScene) -> list[DrawCall]:
                 for light in lights:
                     calls.append(DrawCall(len(calls) + 1, r, k, p, r.material.render_queue, distance, light))
     return calls
+
+
+def writes_depth_or_stencil(call: DrawCall) -> bool:
+    """Whether a draw call may change the depth or stencil buffer (ZWrite On, or a stencil
+    block: the merger writes neither otherwise)."""
+    return bool(call.state.zwrite or call.state.stencil)

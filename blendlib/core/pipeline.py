@@ -23,7 +23,7 @@ from dataclasses import replace
 import numpy as np
 
 from . import fragment, msaa, raster, shade
-from .drawlist import DrawCall, draw_calls
+from .drawlist import DrawCall, draw_calls, writes_depth_or_stencil
 from .fuse import fuse_constant_calls, fuse_shared_shading
 from .gather import gather
 from .merger import FrameBuffers, Outcome, compare, lut_eligible, merge
@@ -139,7 +139,7 @@ def render_scene(
     last = len(calls) if until_draw is None else min(int(until_draw), len(calls))
     todo = [c for c in calls if first < c.index <= last]
     if resume is not None:  # depth and stencil shared where no call writes them (read only)
-        buf = resume[0].copy(band, colors_only=not any(_writes_depth_or_stencil(c) for c in todo))
+        buf = resume[0].copy(band, colors_only=not any(writes_depth_or_stencil(c) for c in todo))
     else:
         clear = shade.gamma_color_to_shading(scene.clear_color[:3], cs) + (float(scene.clear_color[3]),)
         buf = FrameBuffers(width, height, scene.hdr, cs, clear, band, samples)
@@ -157,7 +157,7 @@ def render_scene(
     if shaded_cache is not None and call_keys is not None:
         frame.shaded_cache = shaded_cache
         frame.shaded_slots = call_slots(shaded_cache, todo, call_keys,
-                                        _writes_depth_or_stencil,
+                                        writes_depth_or_stencil,
                                         None if resume is None else resume[0])
     try:
         _draw_all(frame, todo, should_cancel, progress, observer)
@@ -182,12 +182,6 @@ def render_scene(
 # ---------------------------------------------------------------------------------------------
 # The loop
 # ---------------------------------------------------------------------------------------------
-
-
-def _writes_depth_or_stencil(call: DrawCall) -> bool:
-    """Whether a draw call may change the depth or stencil buffer (ZWrite On, or a stencil
-    block: the merger writes neither otherwise)."""
-    return bool(call.state.zwrite or call.state.stencil)
 
 
 def _draw_all(frame: FrameContext, todo: list[DrawCall], should_cancel: Callable[[], bool] | None,

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.drawlist import DrawCall
+from ..core.drawlist import DrawCall, writes_depth_or_stencil
 from ..core.gather import gather
 from ..core.merger import FrameBuffers, Outcome
 from ..core.records import FrameObserver, ShadedFragments
@@ -174,6 +174,12 @@ class FragmentCollector(FrameObserver):
         self.sorted_calls = frozenset(c.index for c in calls if is_sorted_queue(c.queue) and c.state.color_mask)
         firsts = [c.index for c in calls if c.queue > LAST_OPAQUE_QUEUE]
         self.first_after_opaque = min(firsts) if firsts and overdraw else None
+        #: Whether the step-1 snapshot shares the frame's depth and stencil arrays rather than
+        #: copying them: no call from the first after the opaque queue on writes either
+        #: (:func:`.drawlist.writes_depth_or_stencil`), so they stay step 1's to the end, and
+        #: the reference replayed onto the snapshot writes no depth (:class:`.layering.ReferenceBlender`).
+        self.step1_shares_depth = self.first_after_opaque is not None and not any(
+            writes_depth_or_stencil(c) for c in calls if c.index >= self.first_after_opaque)
         self.step1: FrameBuffers | None = None
         self.final: FrameBuffers | None = None
         self.lock = threading.Lock()
@@ -222,7 +228,7 @@ class FragmentCollector(FrameObserver):
 
     def draw_begin(self, call, buffers) -> None:
         if call.index == self.first_after_opaque:
-            self.step1 = buffers.copy()
+            self.step1 = buffers.copy(colors_only=self.step1_shares_depth)
 
     def draw_end(self, call, buffers, triangles) -> None:
         if self.overdraw:

@@ -494,7 +494,7 @@ def analyze(
         error = np.zeros((height, width), dtype=np.float32)
     else:
         buf = collector.step1
-        step1 = buf.copy() if keep_step1 else None
+        step1 = buf.copy(colors_only=collector.step1_shares_depth) if keep_step1 else None  # depth unwritten: shared
         blocks = _Blocks(calls, renderer_of_call, nrend, threads, should_cancel,
                          counts.final if lone_fragments_as_frame(calls, samples) else None)
         while True:
