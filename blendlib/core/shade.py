@@ -341,6 +341,8 @@ def sample(texels: Texels, uv: np.ndarray, filt: TextureFilter, wrap: TextureWra
         c = uniform[k]
         if c is None:
             varying.append((row, k))
+        elif c == 1.0 or c == 0.0:  # exactly c at every fragment (exact_uniform_sample): a fill
+            out[row] = c
         elif c.hex() in made:  # the same value in another channel: the same samples
             out[row] = out[made[c.hex()]]
         else:  # t00 = t01 = t10 = t11 = c, so hi = lo: each operation once
@@ -464,10 +466,11 @@ def shade(
     at the base level (a mipmapped texture's levels are sampled by :mod:`.mips`); ``color``,
     ``position`` and ``outline``: as :func:`shade_texels`.
     """
-    tex = None
+    tex = ones = None
     if texels is not None:
         tex = sample(texels, texture_uv(material, uv), material.main_tex_filter, material.main_tex_wrap)
-    return shade_texels(material, tex, lights, color_space, normal, color, position, outline)
+        ones = tuple(c == 1.0 for c in texels.uniform())  # sampled to exactly 1 (sample)
+    return shade_texels(material, tex, lights, color_space, normal, color, position, outline, ones)
 
 
 def texel_palette(
@@ -510,6 +513,7 @@ def _unit_normals(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarra
 def shade_texels(
     material: Material, tex: np.ndarray | None, lights: Lights, color_space: ColorSpace, normal: np.ndarray,
     color: np.ndarray | None = None, position: np.ndarray | None = None, outline: OutlineColor | None = None,
+    ones: tuple[bool, ...] | None = None,
 ) -> np.ndarray:
     """The fragment program after the texture fetch: ``tex`` (N, 4) float64 sampled texels
     (None: no texture), ``normal`` (N, 3) float64, ``color`` (N, 4) float64 the interpolated
@@ -528,8 +532,12 @@ def shade_texels(
     is computed one channel at a time on contiguous arrays, each operation as written (the same
     rounding). With ``outline`` (MToon's outline pass) the lit rgb becomes ``outline.rgb[c] * (1 +
     mix * (lit - 1))`` (HLSL's ``lerp(1, lit, mix)``); alpha stays.
+
+    ``ones``: per channel (four), whether ``tex`` holds exactly 1.0 there in every row (a white
+    or opaque texture's channel, :func:`sample`): its products are left out (x * 1.0 is x, bit
+    for bit), as for no texture.
     """
-    out = _lit(material, tex, lights, color_space, normal, color, position)
+    out = _lit(material, tex, lights, color_space, normal, color, position, ones)
     if outline is not None:
         for c in range(3):
             v = out[:, c]
@@ -571,17 +579,20 @@ def alpha_of(material: Material, tex_alpha: np.ndarray | None, color_alpha: np.n
 
 def _lit(
     material: Material, tex: np.ndarray | None, lights: Lights, color_space: ColorSpace, normal: np.ndarray,
-    color: np.ndarray | None, position: np.ndarray | None,
+    color: np.ndarray | None, position: np.ndarray | None, ones: tuple[bool, ...] | None = None,
 ) -> np.ndarray:
     """:func:`shade_texels` before the outline colour."""
     n = normal.shape[0]
     mode = material.vertex_color
     out = np.empty((n, 4), dtype=np.float64)
-    alpha_of(material, None if tex is None else tex[:, 3], None if color is None else color[:, 3], n, out=out[:, 3])
+    # A channel of exactly 1.0 multiplies nothing: read as no texture there.
+    texture = [None if tex is None or (ones is not None and ones[c]) else tex[:, c] for c in range(4)]
+    untextured = all(t is None for t in texture[:3])
+    alpha_of(material, texture[3], None if color is None else color[:, 3], n, out=out[:, 3])
     constant = None  # the albedo (3,) as Python floats when it is the same for every fragment
     if mode is VertexColor.Particle:
         tint = gamma_color_to_shading(material.tint_color[:3], color_space) + (float(material.tint_color[3]),)
-        if color is None and tex is None:
+        if color is None and untextured:
             constant = tuple(2.0 * tint[c] for c in range(3))
 
         def base(c: int) -> np.ndarray:  # (2 * i.color) * _TintColor, white when there is no colour
@@ -593,17 +604,17 @@ def _lit(
 
         def albedo(c: int) -> np.ndarray:
             v = base(c)
-            if tex is not None:
-                v *= tex[:, c]
+            if texture[c] is not None:
+                v *= texture[c]
             return v
     else:
         col = gamma_color_to_shading(material.color[:3], color_space) + (float(material.color[3]),)
         tinted = mode is VertexColor.Multiply and color is not None
-        if tex is None and not tinted:
+        if untextured and not tinted:
             constant = tuple(float(col[c]) for c in range(3))
 
         def albedo(c: int) -> np.ndarray:
-            v = np.full(n, col[c], dtype=np.float64) if tex is None else np.multiply(tex[:, c], col[c])
+            v = np.full(n, col[c], dtype=np.float64) if texture[c] is None else np.multiply(texture[c], col[c])
             if tinted:
                 v *= color[:, c]
             return v

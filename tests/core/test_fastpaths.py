@@ -470,17 +470,17 @@ def test_scatter_rows_of_one_row_equals_scalar_assignment(columns):
     assert not np.signbit(dest[4]).any() and np.isnan(dest[5:]).sum() == 0
 
 
-def _sprite_like(h: int, w: int, byte: bool) -> np.ndarray:
+def _sprite_like(h: int, w: int, byte: bool, alpha: float = 0.2) -> np.ndarray:
     """(h, w, 4) float32: red and green white everywhere, blue varying (but along its first
-    row), alpha 0.2 everywhere — the uniform channels of a particle sprite, and two channels
-    sharing one uniform value."""
+    row), alpha ``alpha`` everywhere (0.2, or 0 as 8 bits hold it) — the uniform channels of a
+    particle sprite, and two channels sharing one uniform value."""
     rng = np.random.default_rng(h * 100 + w)
     px = rng.uniform(0.0, 1.0, (h, w, 4)).astype(np.float32)
     if byte:
         px = (np.rint(px * 255.0) / np.float32(255.0)).astype(np.float32)
     px[..., 0] = 1.0
     px[..., 1] = 1.0
-    px[..., 3] = np.float32(51.0 / 255.0) if byte else np.float32(0.2)
+    px[..., 3] = np.float32(round(alpha * 255.0) / 255.0) if byte else np.float32(alpha)
     px[0, :, 2] = 0.6  # blue uniform along the first row only
     return px
 
@@ -488,19 +488,21 @@ def _sprite_like(h: int, w: int, byte: bool) -> np.ndarray:
 @pytest.mark.parametrize("wrap", [TextureWrap.Repeat, TextureWrap.Clamp])
 @pytest.mark.parametrize("byte", [True, False], ids=["byte", "float"])
 @pytest.mark.parametrize("quads", [True, False], ids=["quads", "texels"])
-def test_bilinear_samples_equal_the_scalar_formula(wrap, byte, quads, monkeypatch):
+@pytest.mark.parametrize("alpha", [0.2, 0.0])
+def test_bilinear_samples_equal_the_scalar_formula(wrap, byte, quads, alpha, monkeypatch):
     """Bilinear sampling (§7) through each texel's kept neighbourhood (``Texels.quads``) or four
-    texel gathers, with uniform channels computed once: the same bits as the scalar reference's
-    ``lo = t00*(1-au) + t01*au``, ``hi = t10*(1-au) + t11*au``, ``lo*(1-av) + hi*av`` for
-    coordinates inside, on and far beyond the border (the corners' extended rows), non-finite
-    ones, ones 2**52 texels away, a non-square texture and any subset of channels."""
+    texel gathers, with uniform channels computed once (those of 1 and 0 filled): the same bits
+    as the scalar reference's ``lo = t00*(1-au) + t01*au``, ``hi = t10*(1-au) + t11*au``,
+    ``lo*(1-av) + hi*av`` for coordinates inside, on and far beyond the border (the corners'
+    extended rows), non-finite ones, ones 2**52 texels away, a non-square texture and any subset
+    of channels."""
     from blendlib.core import shade
     from tests.reference.scalar_shading import sample_rows
 
     if not quads:
         monkeypatch.setattr(shade.Texels, "QUAD_TEXELS", 0)
     h, w = 5, 12
-    px = _sprite_like(h, w, byte)
+    px = _sprite_like(h, w, byte, alpha)
     texels = shade.Texels(px, None)
     assert (texels.codes is not None) == byte
     assert texels.uniform() == (1.0, 1.0, None, float(px[0, 0, 3]))
@@ -518,6 +520,21 @@ def test_bilinear_samples_equal_the_scalar_formula(wrap, byte, quads, monkeypatc
         for channels in ((0, 1, 2, 3), (2,), (3, 0), (1, 2), (2, 0, 1)):
             got = shade.sample(texels, uv, TextureFilter.Bilinear, wrap, channels)
             np.testing.assert_array_equal(got.view(np.int64), expected[:, list(channels)].view(np.int64))
+
+
+def test_a_bilinear_weight_and_its_complement_sum_to_exactly_one():
+    """Why a channel of texels all 1 samples to exactly 1 (``shade.sample`` fills it): for a
+    fraction ``a`` in [0, 1), ``(1 - a) + a`` rounds to 1 in float64, so ``lo = 1*(1-au) + 1*au``
+    is 1 and ``lo*(1-av) + lo*av`` is 1 again. Checked on fractions near 0, 1/2 and 1 (where
+    ``1 - a`` rounds) and a million random ones; a value like 0.7 does not stay exact."""
+    rng = np.random.default_rng(11)
+    tiny = 2.0 ** -np.arange(1, 80, dtype=np.float64)
+    edges = np.concatenate([[0.0, 0.5, 0.25, 0.75], tiny, 0.5 - tiny[tiny < 0.5], np.nextafter(1.0, 0.0) - tiny[:60],
+                            np.nextafter(np.float64(0.5), 0.0) - tiny[:60], [np.nextafter(1.0, 0.0)]])
+    a = np.concatenate([edges[(edges >= 0.0) & (edges < 1.0)], rng.uniform(0.0, 1.0, 1_000_000),
+                        rng.uniform(0.0, 2.0 ** -20, 100_000)])
+    assert ((1.0 - a) + a == 1.0).all()
+    assert (np.multiply(1.0 - a, 0.7) + np.multiply(a, 0.7) != 0.7).any()
 
 
 @pytest.mark.parametrize("src, dst, op", FACTOR_CASES)

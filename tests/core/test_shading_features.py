@@ -1187,3 +1187,32 @@ def test_rows_holding_an_unsaturated_alpha_are_found_span_by_span(apart, monkeyp
     monkeypatch.setattr(raster, "rasterize_rows", lambda *a, **k: rasterised.append(1) or real(*a, **k))
     assert np.array_equal(fragment._unsaturated(alpha, width, rows), expected)
     assert bool(rasterised) == apart
+
+
+@pytest.mark.parametrize("color_space", [ColorSpace.Gamma, ColorSpace.Linear])
+@pytest.mark.parametrize("filt", [TextureFilter.Point, TextureFilter.Bilinear])
+def test_texture_channels_of_exactly_one_shade_as_the_reference(color_space, filt, monkeypatch):
+    """A white texture with a varying alpha (a particle sprite) and a varying one that is opaque:
+    their channels of 1.0 sample to exactly 1 and ``shade.shade`` leaves their products out
+    (``ones``). Every vertex colour mode, lighting and encoding of the vertex colour sweep, drawn
+    with either texture: the frame equals the scalar reference's bit for bit."""
+    from tests.reference.feature_sweeps import vertex_color_sweep
+
+    rng = np.random.default_rng(31)
+    sprite = rng.uniform(0.1, 1.0, size=(4, 4, 4)).astype(np.float32)
+    sprite[..., :3] = 1.0
+    opaque = rng.uniform(0.1, 1.0, size=(4, 4, 4)).astype(np.float32)
+    opaque[..., 3] = 1.0
+    textures = [Texture(sprite, encoding="sRGB", name="sprite"), Texture(opaque, encoding="sRGB", name="opaque")]
+    scene = vertex_color_sweep(color_space)
+    renderers = []
+    for k, r in enumerate(scene.renderers):
+        if r.material.main_tex is not None:
+            r = replace(r, material=replace(r.material, main_tex=textures[k % 2], main_tex_filter=filt))
+        renderers.append(r)
+    seen = []
+    real = shade.shade_texels
+    monkeypatch.setattr(shade, "shade_texels", lambda *a, **k: seen.append(a[8] if len(a) > 8 else k.get("ones"))
+                        or real(*a, **k))
+    _assert_equal_to_reference(replace(scene, renderers=tuple(renderers)))
+    assert {(True, True, True, False), (False, False, False, True)} <= set(seen)
