@@ -522,6 +522,34 @@ def test_bilinear_samples_equal_the_scalar_formula(wrap, byte, quads, alpha, mon
             np.testing.assert_array_equal(got.view(np.int64), expected[:, list(channels)].view(np.int64))
 
 
+@pytest.mark.parametrize("filt", [TextureFilter.Point, TextureFilter.Bilinear, TextureFilter.Trilinear])
+@pytest.mark.parametrize("wrap", [TextureWrap.Repeat, TextureWrap.Clamp])
+def test_identity_tiling_samples_the_mesh_uvs_as_the_formula_would(filt, wrap):
+    """``shade.texture_uv`` with tiling (1, 1) and offset (0, 0) hands the mesh UVs on as they are,
+    where ``u * 1 + 0`` would turn a -0.0 into +0.0: sampling (each filter and wrap, through
+    the mip chain too) takes both zeros to the same bits, so the frame is the formula's. Another
+    tiling or offset is applied."""
+    from blendlib.core import mips, shade
+    from blendlib.core.vocabulary import Material, Texture
+
+    px = np.random.default_rng(3).uniform(0.0, 1.0, (8, 8, 4)).astype(np.float32)
+    material = Material(main_tex=Texture(px, encoding="Linear", name="t"), main_tex_filter=filt, main_tex_wrap=wrap,
+                        main_tex_mipmaps=True)
+    texels = shade.texture_texels(material.main_tex, ColorSpace.Gamma)
+    chain = mips.build_chain(texels)
+    zeros = np.array([[-0.0, 0.3], [0.7, -0.0], [-0.0, -0.0], [0.0, 0.0], [-0.0, 1.0], [1e-300, -0.0]])
+    assert shade.texture_uv(material, zeros) is zeros
+    positive = zeros + 0.0  # what u * 1 + 0 gives: every -0.0 made +0.0
+    assert np.signbit(zeros).any() and not np.signbit(positive).any()
+    lod = np.array([0.0, 0.5, 1.2, 2.0, 0.0, 3.0])
+    for sampled in (lambda uv: shade.sample(texels, uv, filt, wrap),
+                    lambda uv: mips.sample_mipmapped(chain, uv, lod, filt, wrap)):
+        np.testing.assert_array_equal(sampled(zeros).view(np.int64), sampled(positive).view(np.int64))
+    moved = replace(material, main_tex_tiling=(2.0, 1.0), main_tex_offset=(0.0, 0.25))
+    expected = np.stack([zeros[:, 0] * 2.0 + 0.0, zeros[:, 1] * 1.0 + 0.25], axis=1)
+    np.testing.assert_array_equal(shade.texture_uv(moved, zeros), expected)
+
+
 def test_a_bilinear_weight_and_its_complement_sum_to_exactly_one():
     """Why a channel of texels all 1 samples to exactly 1 (``shade.sample`` fills it): for a
     fraction ``a`` in [0, 1), ``(1 - a) + a`` rounds to 1 in float64, so ``lo = 1*(1-au) + 1*au``
