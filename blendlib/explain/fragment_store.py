@@ -240,7 +240,9 @@ class FragmentCollector(FrameObserver):
             first, last = int(frags.pix.min()), int(frags.pix.max())
             box = (first // width, last // width + 1, first % width, last % width + 1)
             if box[1] - box[0] > 1:  # more than one row: the columns of every fragment
-                columns = np.remainder(frags.pix, width)
+                columns = np.floor_divide(frags.pix, width)  # pix - (pix // width) * width: int64
+                columns *= width  # remainder costs twice these three (a division by a constant is fast)
+                np.subtract(frags.pix, columns, out=columns)
                 box = (box[0], box[1], int(columns.min()), int(columns.max()) + 1)
             with self.lock:
                 old = self.call_boxes.get(call.index)
