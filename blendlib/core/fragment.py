@@ -279,9 +279,18 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
                                      channels)
 
     def shade_at(uv: np.ndarray | None, normal: np.ndarray | None, color: np.ndarray | None,
-                 position: np.ndarray | None, count: int, lod: np.ndarray | None = None) -> np.ndarray:
+                 position: np.ndarray | None, count: int, lod: np.ndarray | None = None,
+                 alpha: np.ndarray | None = None) -> np.ndarray:
+        """Colours (count, 4) of fragments; ``alpha`` (count,): the texture's alpha there, sampled
+        already (the alpha test's): only red, green and blue are sampled again."""
         uv = np.zeros((count, 2), dtype=np.float64) if uv is None else uv
         normal = np.zeros((count, 3), dtype=np.float64) if normal is None else normal
+        if alpha is not None and texels is not None:
+            tex = np.empty((4, count), dtype=np.float64)  # channels first: rows copied whole
+            tex[:3] = sample_at(uv, lod, (0, 1, 2)).T
+            tex[3] = alpha
+            return shade.shade_texels(material, tex.T, state.lights, state.color_space, normal, color, position,
+                                      outline, shade.sampled_ones(texels) if lod is None else None)
         if lod is None:
             return shade.shade(material, texels, state.lights, state.color_space, uv, normal, color, position,
                                outline)
@@ -373,6 +382,7 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
                 if state.dark_skip and position is not None and not reach_cut:
                     skip = _dark(state, position, frags.pix[at], [c[keep] for c in (normals, colors) if c is not None])
             color = None  # the vertex colours, when interpolated for the alpha first
+            tex_alpha = None  # (M,) the texture's alpha, when sampled for the alpha first
             if p.alpha_test and not state.observed and uv is not None:
                 # Alpha first (it reads neither lighting nor the outline): fragments the alpha test
                 # discards are not shaded further; an observer would be told of their colours.
@@ -394,7 +404,7 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
                 # than the others gathered out and scattered back.
                 shaded_rgba = shade_at(None if uv is None else uv.T, varying(normals, normal_flat),
                                        varying(colors, color_flat) if color is None else color, position,
-                                       w.shape[1], lod)
+                                       w.shape[1], lod, tex_alpha)
                 if isinstance(at, slice):
                     rgba[at] = shaded_rgba
                 else:
@@ -431,7 +441,7 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
                     varying_lit(colors, color_flat) if color is None else gather(color.T, lit, axis=1).T,
                     lit_position if known is not None else None if position is None
                     else gather(position.T, lit, axis=1).T, lit.size,
-                    None if lod is None else gather(lod, lit)))
+                    None if lod is None else gather(lod, lit), None if tex_alpha is None else gather(tex_alpha, lit)))
     palette = None
     if palettes:
         palette = palettes[0] if len(palettes) == 1 else np.concatenate(palettes)

@@ -475,8 +475,14 @@ def shade(
     tex = ones = None
     if texels is not None:
         tex = sample(texels, texture_uv(material, uv), material.main_tex_filter, material.main_tex_wrap)
-        ones = tuple(c == 1.0 for c in texels.uniform())  # sampled to exactly 1 (sample)
+        ones = sampled_ones(texels)
     return shade_texels(material, tex, lights, color_space, normal, color, position, outline, ones)
+
+
+def sampled_ones(texels: Texels) -> tuple[bool, ...]:
+    """Per channel (four), whether :func:`sample` gives exactly 1.0 there at every coordinate:
+    every texel holds 1 (a fill, see :func:`sample`; Point fetches the texel)."""
+    return tuple(c == 1.0 for c in texels.uniform())
 
 
 def texel_palette(

@@ -130,7 +130,7 @@ def test_alpha_is_tested_before_the_rest_is_shaded(mode, mipmaps, monkeypatch):
     alpha test samples the texture's alpha first and shades only the fragments that pass; the
     frame equals the scalar reference. Observed, every fragment is shaded (the frame debugger
     shows discarded fragments' colours)."""
-    from blendlib.core import pipeline, shade
+    from blendlib.core import mips, pipeline, shade
     from blendlib.core.vocabulary import VertexColor
 
     scene = _cutout_scene(VertexColor[mode], mipmaps)
@@ -138,12 +138,20 @@ def test_alpha_is_tested_before_the_rest_is_shaded(mode, mipmaps, monkeypatch):
     original = shade.shade_texels
     monkeypatch.setattr(shade, "shade_texels", lambda material, tex, lights, space, normal, *args, **kw: shaded.append(
         (material.name, normal.shape[0])) or original(material, tex, lights, space, normal, *args, **kw))
+    sampled = []  # (channels, fragments) of each texture sample (the backdrop has no texture)
+    module, name = (mips, "sample_mipmapped") if mipmaps else (shade, "sample")
+    real = getattr(module, name)
+    monkeypatch.setattr(module, name, lambda *a, **kw: sampled.append((tuple(a[-1]), a[1].shape[0]))
+                        or real(*a, **kw))
     frame = render_scene(scene, workers=1)
+    # The alpha is sampled once, for every fragment; the survivors' red, green and blue alone after it.
+    assert [n for channels, n in sampled if 3 in channels] == [48 * 40]
     color, depth, _ = render_reference(scene)
     np.testing.assert_array_equal(frame.color, color)
     np.testing.assert_array_equal(frame.depth, depth)
     cut = sum(count for name, count in shaded if name == "Cutout")
     assert 0.2 * 48 * 40 < cut < 0.8 * 48 * 40, cut  # the survivors only
+    assert sum(n for channels, n in sampled if channels == (0, 1, 2)) == cut
     # They are exactly the fragments that passed: the pixels where the quad changed the frame.
     backdrop = render_scene(DrawScene(camera=scene.camera, light=scene.light, ambient=scene.ambient,
                                       renderers=scene.renderers[:1]), workers=1)
@@ -151,3 +159,31 @@ def test_alpha_is_tested_before_the_rest_is_shaded(mode, mipmaps, monkeypatch):
     shaded.clear()
     render_scene(scene, workers=1, observer=pipeline.FrameObserver())
     assert sum(count for name, count in shaded if name == "Cutout") == 48 * 40
+
+
+@pytest.mark.parametrize("mipmaps", [False, True])
+def test_a_few_discarded_fragments_are_shaded_with_the_rest_from_the_alpha_sampled_once(mipmaps, monkeypatch):
+    """When the alpha test discards only a few fragments, all are shaded (a discarded one's colour
+    is never read) rather than the survivors gathered out: the texture's alpha, sampled for the
+    test, is not sampled again, and the frame equals the scalar reference."""
+    from dataclasses import replace
+
+    from blendlib.core import mips, shade
+    from blendlib.core.vocabulary import VertexColor
+
+    scene = _cutout_scene(VertexColor.Multiply, mipmaps)
+    cut = replace(scene.renderers[1].material, cutoff=0.1)
+    scene = replace(scene, renderers=(scene.renderers[0], replace(scene.renderers[1], material=cut)))
+    sampled = []
+    module, name = (mips, "sample_mipmapped") if mipmaps else (shade, "sample")
+    real = getattr(module, name)
+    monkeypatch.setattr(module, name, lambda *a, **kw: sampled.append((tuple(a[-1]), a[1].shape[0]))
+                        or real(*a, **kw))
+    frame = render_scene(scene, workers=1)
+    color, depth, _ = render_reference(scene)
+    np.testing.assert_array_equal(frame.color, color)
+    np.testing.assert_array_equal(frame.depth, depth)
+    backdrop = render_scene(replace(scene, renderers=scene.renderers[:1]), workers=1)
+    survivors = int(np.any(frame.color != backdrop.color, axis=-1).sum())
+    assert 0 < 48 * 40 - survivors < 48 * 40 // 8  # a few discarded
+    assert sampled == [((3,), 48 * 40), ((0, 1, 2), 48 * 40)]
