@@ -154,6 +154,9 @@ def render_scene(
                          reads_call=None if observer is None else observer.reads_call,
                          reads_hidden=None if observer is None else observer.reads_hidden,
                          colors_read=None if observer is None else observer.colors_read)
+    if keep_setups:  # where the scene places each mesh: kept setups of other placements go
+        for r in scene.renderers:
+            frame.placements.setdefault(id(r.mesh), set()).add(np.asarray(r.matrix_world, dtype=np.float64).tobytes())
     if shaded_cache is not None and call_keys is not None:
         frame.shaded_cache = shaded_cache
         frame.shaded_slots = call_slots(shaded_cache, todo, call_keys,

@@ -64,6 +64,12 @@ class FrameContext:
     memo: SceneMemo = field(default_factory=SceneMemo)
     #: Whether setups go into the memo (it outlives this render: render_scene was given one).
     keep_setups: bool = False
+    #: With ``keep_setups``: per mesh (by id) the matrices (bytes) the scene's renderers place it
+    #: at; a kept setup of another placement through this camera is dropped (:func:`_setups`).
+    placements: dict = field(default_factory=dict)
+    #: Held while the memo's setups are looked up and stored: renderers sharing a mesh may be
+    #: prepared on several threads at once (:func:`prepare_batch`).
+    memo_lock: threading.Lock = field(default_factory=threading.Lock)
     warnings: list[str] = field(default_factory=list)
     degenerate: list[tuple[str, int]] = field(default_factory=list)  # (object, zero-area triangles)
     #: The shading-space lights of ForwardAdd draws, by light: id → (light, :class:`shade.Lights`).
@@ -252,13 +258,13 @@ def _setup_notes(renderer, setup) -> tuple[list[str], tuple[str, int] | None]:
     return notes, ((renderer.name, setup.degenerate) if setup.degenerate else None)
 
 
-#: A memo keeps the vertex setup of renderers of at most this many triangles per camera (and,
-#: for whole frames, their passes' coverage rows): the viewport's next frame through the same
+#: A memo keeps the vertex setup of meshes of at most this many triangles per camera (and their
+#: passes' coverage rows for the last band drawn): the viewport's next frame through the same
 #: view redraws the renderers a change left alone without setting them up again (a moved
 #: object, an edited material). Bigger meshes are set up again: their setup is a small part of
 #: their frame, and keeping it would hold 100+ bytes a triangle.
 MEMO_SETUP_TRIANGLES = 1 << 17
-#: Cameras per renderer whose setups a memo keeps: the viewport's reduced and full frame sizes.
+#: Cameras per mesh whose setups a memo keeps: the viewport's reduced and full frame sizes.
 MEMO_CAMERAS = 2
 #: At most this many triangles' setups (over all renderers and cameras) in one memo: about
 #: 120-200 bytes each, 72 more with world normals kept (:data:`.vertex.KEPT_WORLD_NORMALS`), so
@@ -297,14 +303,17 @@ def _setups(frame: FrameContext, items: list[tuple], pool=None, parts: int = 1) 
     or None, the pass of its vertex program or None): kept ones from the memo, the others set up
     together (:func:`vertex.setup_renderers`: each equals its own setup) and kept for the next
     frame (:func:`_setup_key`)."""
-    kept = [_kept_geometry(frame, r) for r, _, _ in items]
     keys = [_setup_key(frame, r, colors, program) for r, colors, program in items]
-    out = [None if k is None else k.get(key) for k, key in zip(kept, keys, strict=True)]
+    with frame.memo_lock:
+        kept = [_kept_geometry(frame, r) for r, _, _ in items]
+        out = [None if k is None else k.get(key) for k, key in zip(kept, keys, strict=True)]
     todo = [i for i, g in enumerate(out) if g is None]
-    if todo:
-        made = vertex.setup_renderers([setup_input(*items[i], color_space=frame.color_space,
-                                                   texels_of=frame.texture_texels) for i in todo],
-                                      frame.camera, pool=pool, parts=parts)
+    if not todo:
+        return out
+    made = vertex.setup_renderers([setup_input(*items[i], color_space=frame.color_space,
+                                               texels_of=frame.texture_texels) for i in todo],
+                                  frame.camera, pool=pool, parts=parts)
+    with frame.memo_lock:
         held = None  # triangles whose setups the memo holds (counted once something is to be kept)
         for i, setup in zip(todo, made, strict=True):
             out[i] = _Geometry(setup)
@@ -312,15 +321,19 @@ def _setups(frame: FrameContext, items: list[tuple], pool=None, parts: int = 1) 
                 continue
             if held is None:
                 held = sum(mesh.triangle_count * len(d) for mesh, d in frame.memo.entries("geometry"))
-            triangles = items[i][0].mesh.triangle_count
+            mesh = items[i][0].mesh
+            placed = frame.placements.get(id(mesh), ())
             cameras = list(dict.fromkeys(key[0] for key in kept[i]))
             if keys[i][0] not in cameras and len(cameras) >= MEMO_CAMERAS:  # the oldest camera's setups go
-                for key in [key for key in kept[i] if key[0] == cameras[0]]:
-                    del kept[i][key]
-                    held -= triangles
-            if held + triangles <= MEMO_SETUP_BUDGET:
+                gone = [key for key in kept[i] if key[0] == cameras[0]]
+            else:  # placements through this camera that no renderer of the scene has (a moved object's old one)
+                gone = [key for key in kept[i] if key[0] == keys[i][0] and key[1] not in placed]
+            for key in gone:
+                del kept[i][key]
+                held -= mesh.triangle_count
+            if held + mesh.triangle_count <= MEMO_SETUP_BUDGET:
                 kept[i][keys[i]] = out[i]
-                held += triangles
+                held += mesh.triangle_count
     return out
 
 
@@ -380,7 +393,7 @@ def _prepare(frame: FrameContext, call: DrawCall, geometry: _Geometry, inputs: C
              parts: int) -> PreparedCall:
     """Cull, coverage and derived state of one draw call. Passes of a renderer with one Cull
     cover the same pixels: their rows are computed once (``geometry.rows``; in a memo across
-    frames when the frame is whole)."""
+    frames, those of the last band drawn: :func:`_kept_rows`)."""
     setup = geometry.setup
     known = _kept_rows(frame, geometry, call)
     state, selected = _draw_state(frame, call, setup, inputs, selected=None if known is None else known[0])
@@ -401,9 +414,10 @@ def _kept_rows(frame: FrameContext, geometry: _Geometry, call: DrawCall) -> tupl
 
 
 def _keep_rows(frame: FrameContext, geometry: _Geometry, call: DrawCall, selected, rows: raster.Rows) -> None:
-    """Keep the rows of ``geometry`` for :func:`_kept_rows`: one band's a Cull and sample count
-    (a band render's replace another band's: the cut of the viewport's frames split between
-    processes moves, the advice's measurements of one fix after another share theirs)."""
+    """Keep the rows of ``geometry`` for :func:`_kept_rows`, those of one band per Cull and
+    sample count: a band render's replace another band's (the cut of the viewport's frames
+    split between processes moves; the advice's measurements of one fix after another share
+    theirs)."""
     key = (call.state.cull, frame.samples)
     known = geometry.rows.get(key)
     if known is None or known[0] != frame.band:

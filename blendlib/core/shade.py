@@ -341,7 +341,10 @@ def sample(texels: Texels, uv: np.ndarray, filt: TextureFilter, wrap: TextureWra
         c = uniform[k]
         if c is None:
             varying.append((row, k))
-        elif c == 1.0 or c == 0.0:  # exactly c at every fragment (exact_uniform_sample): a fill
+        elif c == 1.0 or c == 0.0:
+            # Exactly c at every fragment: (1 - au) + au rounds to 1 for au in [0, 1] (1 - au is
+            # exact from 1/2 up, else off by at most 2**-54, which the sum's rounding absorbs), so
+            # lo = c*(1-au) + c*au = c and lo*(1-av) + lo*av = c; 0 times a finite weight is 0.
             out[row] = c
         elif c.hex() in made:  # the same value in another channel: the same samples
             out[row] = out[made[c.hex()]]

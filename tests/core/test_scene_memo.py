@@ -329,9 +329,6 @@ def test_setups_are_kept_per_mesh_placement_and_attributes(monkeypatch):
     requeued = with_renderer(draw, 0, material=dataclasses.replace(material, queue=Queue.Transparent,
                                                                    queue_offset=material.queue_offset + 7))
     assert frame(requeued) == 0
-    matrix = np.array(draw.renderers[1].matrix_world, dtype=np.float64)
-    matrix[1, 3] += 0.1
-    assert frame(with_renderer(draw, 1, matrix_world=matrix)) == 1
     other = draw.renderers[2].material
     relit = Lighting.Unlit if other.lighting is not Lighting.Unlit else Lighting.Lambert
     assert frame(with_renderer(draw, 2, material=dataclasses.replace(other, lighting=relit))) == 1
@@ -339,6 +336,50 @@ def test_setups_are_kept_per_mesh_placement_and_attributes(monkeypatch):
     twin = dataclasses.replace(draw.renderers[3], name="twin")
     assert frame(dataclasses.replace(draw, renderers=(*draw.renderers, twin))) == 0
     assert frame(draw) == 0
+    matrix = np.array(draw.renderers[1].matrix_world, dtype=np.float64)
+    matrix[1, 3] += 0.1
+    assert frame(with_renderer(draw, 1, matrix_world=matrix)) == 1
+    # A placement no renderer of the scene has is dropped when another is kept: back at its
+    # place, the renderer is set up again.
+    assert frame(draw) == 1
+
+
+def test_a_dragged_object_keeps_one_setup_per_placement_the_scene_has(monkeypatch):
+    """An object moved frame after frame through one view (a drag in the viewport) keeps the
+    setups of its current placement only, not one per position it passed; an instance of
+    its mesh placed elsewhere keeps its own. Every frame sets up the moved renderer alone and
+    equals a plain render."""
+    from blendlib.core import vertex
+
+    draw = seeded_scene(8)
+    mesh = draw.renderers[0].mesh
+    instance = dataclasses.replace(draw.renderers[0], name="instance",
+                                   matrix_world=np.array(draw.renderers[0].matrix_world) @ sc_translate(0.0, 0.3, 0.0))
+    draw = dataclasses.replace(draw, renderers=(*draw.renderers, instance))
+    placements = {np.asarray(r.matrix_world, dtype=np.float64).tobytes() for r in draw.renderers if r.mesh is mesh}
+    set_up = []
+    real = vertex.setup_renderers
+    monkeypatch.setattr(vertex, "setup_renderers",
+                        lambda items, *a, **k: set_up.append(len(items)) or real(items, *a, **k))
+    memo = SceneMemo()
+    render_scene(draw, memo=memo)
+    scene = draw
+    for step in range(12):
+        matrix = np.array(draw.renderers[0].matrix_world, dtype=np.float64)
+        matrix[0, 3] += 0.01 * (step + 1)
+        scene = with_renderer(draw, 0, matrix_world=matrix)
+        set_up.clear()
+        assert_same(render_scene(scene, memo=memo), render_scene(scene))
+        assert sum(set_up[: len(set_up) // 2]) == 1  # the moved renderer alone
+        kept = memo.lookup("geometry", mesh, dict)
+        assert len(kept) <= len(placements)  # the instance's and the moved one's current place
+    assert len(memo.lookup("geometry", mesh, dict)) == len(placements)
+
+
+def sc_translate(x: float, y: float, z: float) -> np.ndarray:
+    m = np.eye(4)
+    m[:3, 3] = (x, y, z)
+    return m
 
 
 def test_band_rows_are_kept_for_the_last_band(monkeypatch):
