@@ -27,7 +27,7 @@ from .drawlist import DrawCall, draw_calls, writes_depth_or_stencil
 from .fuse import fuse_constant_calls, fuse_shared_shading
 from .gather import gather
 from .merger import FrameBuffers, Outcome, compare, lut_eligible, merge
-from .prepare import FrameContext, Member, PreparedCall, prepare_batch
+from .prepare import FrameContext, Member, PreparedCall, placements_of, prepare_batch
 from .records import DrawState, Frame, FrameObserver, RenderCancelled, ShadedFragments
 from .scene import DrawScene, SceneError, SceneMemo, validate_scene
 from .shaded_cache import ShadedCache, call_slots, state_key
@@ -155,8 +155,7 @@ def render_scene(
                          reads_hidden=None if observer is None else observer.reads_hidden,
                          colors_read=None if observer is None else observer.colors_read)
     if keep_setups:  # where the scene places each mesh: kept setups of other placements go
-        for r in scene.renderers:
-            frame.placements.setdefault(id(r.mesh), set()).add(np.asarray(r.matrix_world, dtype=np.float64).tobytes())
+        frame.placements = placements_of(scene.renderers)
     if shaded_cache is not None and call_keys is not None:
         frame.shaded_cache = shaded_cache
         frame.shaded_slots = call_slots(shaded_cache, todo, call_keys,

@@ -347,9 +347,23 @@ def _setup_key(frame: FrameContext, renderer, colors: np.ndarray | None, program
     material = renderer.material
     converted = colors is not None or program is not None
     widths = material if program is not None and material.outline_width_tex is not None else None
-    return (frame.camera_key, np.asarray(renderer.matrix_world, dtype=np.float64).tobytes(),
+    return (frame.camera_key, placement(renderer),
             material.lighting is not Lighting.Unlit, material.main_tex is not None, colors is not None,
             frame.color_space if converted else None, None if program is None else outline_key(program), widths)
+
+
+def placement(renderer) -> bytes:
+    """Where a renderer places its mesh, as a kept setup's key holds it: its matrix's bytes."""
+    return np.asarray(renderer.matrix_world, dtype=np.float64).tobytes()
+
+
+def placements_of(renderers) -> dict[int, set[bytes]]:
+    """Per mesh (by id) the placements (:func:`placement`) of ``renderers``
+    (:attr:`FrameContext.placements`)."""
+    out: dict[int, set[bytes]] = {}
+    for r in renderers:
+        out.setdefault(id(r.mesh), set()).add(placement(r))
+    return out
 
 
 def _draw_state(frame: FrameContext, call: DrawCall, setup, inputs: CallInputs,
@@ -462,8 +476,7 @@ def _prepare_together(frame: FrameContext, runs: list[list[DrawCall]], inputs, c
     for k, r in zip(todo, made, strict=True):
         rows[k] = r
         call, geometry, _, selected, _ = items[k]
-        if _kept_rows(frame, geometry, call) is None:
-            _keep_rows(frame, geometry, call, selected, r)
+        _keep_rows(frame, geometry, call, selected, r)
     return [PreparedCall(call, geometry.setup, selected, r if kept is None else raster.Rows(**vars(r)), state,
                          _shading_of(frame, call.state))
             for (call, geometry, state, selected, kept), r in zip(items, rows, strict=True)]
