@@ -285,17 +285,18 @@ def shade_chunk(setup, rows, start: int, stop: int, state: DrawState) -> ShadedF
         already (the alpha test's): only red, green and blue are sampled again."""
         uv = np.zeros((count, 2), dtype=np.float64) if uv is None else uv
         normal = np.zeros((count, 3), dtype=np.float64) if normal is None else normal
-        if alpha is not None and texels is not None:
+        if lod is None and alpha is None:
+            return shade.shade(material, texels, state.lights, state.color_space, uv, normal, color, position,
+                               outline)
+        if alpha is None:
+            tex = sample_at(uv, lod, (0, 1, 2, 3))
+        else:
             tex = np.empty((4, count), dtype=np.float64)  # channels first: rows copied whole
             tex[:3] = sample_at(uv, lod, (0, 1, 2)).T
             tex[3] = alpha
-            return shade.shade_texels(material, tex.T, state.lights, state.color_space, normal, color, position,
-                                      outline, shade.sampled_ones(texels) if lod is None else None)
-        if lod is None:
-            return shade.shade(material, texels, state.lights, state.color_space, uv, normal, color, position,
-                               outline)
-        tex = sample_at(uv, lod, (0, 1, 2, 3))
-        return shade.shade_texels(material, tex, state.lights, state.color_space, normal, color, position, outline)
+            tex = tex.T
+        return shade.shade_texels(material, tex, state.lights, state.color_space, normal, color, position, outline,
+                                  shade.sampled_ones(texels) if lod is None else None)
 
     def first_corner(corners: np.ndarray | None, index: np.ndarray) -> np.ndarray | None:
         return None if corners is None else corners[index, 0]
