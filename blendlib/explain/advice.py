@@ -69,7 +69,7 @@ from ..core.shaded_cache import ShadedCache
 from ..core.vocabulary import LAST_OPAQUE_QUEUE, Cull, Material, SortMode, preset, queue_text
 from .fragment_store import is_sorted_queue, union_box
 from .progress import Progress
-from .sorted_reference import ERROR_ROWS, Analysis, LastBuffers, analyze, largest_step, sort_error
+from .sorted_reference import ERROR_ROWS, Analysis, LastBuffers, analyze, largest_step, ldr_codes, sort_error
 
 PREPASS_PRESET = "Alpha Blend ZWrite"
 #: Share of the progress bar the analysis takes in :func:`analyze_and_advise`, per advised pair
@@ -630,7 +630,7 @@ class _Measurer:
         now = 0
         for k in range(0, at.size, ERROR_PIXELS):
             if color.dtype == np.uint8:
-                theirs = np.rint(reference[k:k + ERROR_PIXELS] * np.float32(255)).astype(np.int16)
+                theirs = ldr_codes(reference[k:k + ERROR_PIXELS])
                 theirs -= color[k:k + ERROR_PIXELS]
                 piece = largest_step(np.abs(theirs, out=theirs))
             else:  # each piece as one row: as (K, 1) pixels, sort_error would take them 256 rows at a time

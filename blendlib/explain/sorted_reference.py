@@ -291,6 +291,12 @@ def largest_step(steps: np.ndarray) -> np.ndarray:
     return np.maximum(np.maximum(steps[:, 0], steps[:, 1]), np.maximum(steps[:, 2], steps[:, 3]))
 
 
+def ldr_codes(values: np.ndarray) -> np.ndarray:
+    """8-bit output values (float32, code / 255) → their codes as int16 (``rint(value · 255)``,
+    exact for every code), as :func:`sort_error` compares them."""
+    return np.rint(values * np.float32(255)).astype(np.int16)
+
+
 def sort_error(frame_color: np.ndarray, reference: np.ndarray, hdr: bool, pool=None, parts: int = 1) -> np.ndarray:
     """(H, W) float32: the largest absolute difference over RGBA (8-bit steps on the codes for
     LDR); ``pool`` / ``parts``: a thread pool to take row ranges on."""
@@ -301,7 +307,7 @@ def sort_error(frame_color: np.ndarray, reference: np.ndarray, hdr: bool, pool=N
         if hdr:
             diff = np.abs(a.astype(np.float64) - b.astype(np.float64))
         else:
-            diff = np.abs(np.rint(a * np.float32(255)).astype(np.int16) - np.rint(b * np.float32(255)).astype(np.int16))
+            diff = np.abs(ldr_codes(a) - ldr_codes(b))
         out[lo:hi] = diff.max(axis=-1)
 
     run_parts(pool, parts, out.shape[0], rows, min_part=ERROR_ROWS, piece=ERROR_ROWS)
