@@ -14,6 +14,7 @@ from blendlib.core import scene as scene_module
 from blendlib.core import shade
 from blendlib.core.scene import SceneError, SceneMemo, reuse_unchanged, scene_parts
 from tests.reference.random_scenes import seeded_scene
+from tests.reference.scenes import translate
 
 
 def textured_seed() -> int:
@@ -354,7 +355,7 @@ def test_a_dragged_object_keeps_one_setup_per_placement_the_scene_has(monkeypatc
     draw = seeded_scene(8)
     mesh = draw.renderers[0].mesh
     instance = dataclasses.replace(draw.renderers[0], name="instance",
-                                   matrix_world=np.array(draw.renderers[0].matrix_world) @ sc_translate(0.0, 0.3, 0.0))
+                                   matrix_world=np.array(draw.renderers[0].matrix_world) @ translate(0.0, 0.3, 0.0))
     draw = dataclasses.replace(draw, renderers=(*draw.renderers, instance))
     placements = {np.asarray(r.matrix_world, dtype=np.float64).tobytes() for r in draw.renderers if r.mesh is mesh}
     set_up = []
@@ -375,11 +376,6 @@ def test_a_dragged_object_keeps_one_setup_per_placement_the_scene_has(monkeypatc
         assert len(kept) <= len(placements)  # the instance's and the moved one's current place
     assert len(memo.lookup("geometry", mesh, dict)) == len(placements)
 
-
-def sc_translate(x: float, y: float, z: float) -> np.ndarray:
-    m = np.eye(4)
-    m[:3, 3] = (x, y, z)
-    return m
 
 
 def test_band_rows_are_kept_for_the_last_band(monkeypatch):
