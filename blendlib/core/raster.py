@@ -524,6 +524,20 @@ def run_expander(counts: np.ndarray, n: int) -> Callable[[np.ndarray], np.ndarra
 GLOBAL_INDEX_FRAGMENTS = 1 << 22
 
 
+def _float_exact(a0: np.ndarray, a1: np.ndarray, s0: np.ndarray, s1: np.ndarray, area: np.ndarray,
+                 last_step: int) -> bool:
+    """Whether :func:`rasterize_rows`' edge functions ``E = a - s*step`` (rows' (R,) int64 ``a``,
+    ``s``; steps 0..``last_step``), their doubled areas ``area`` (R,) int64 and every product and
+    sum on the way — ``s*step``, ``area - E0`` and ``area - E0 - E1`` (a pixel centre outside the
+    triangle, as an MSAA span's may be, has an E below 0) — stay below 2**53 in magnitude: then
+    float64 computes them exactly."""
+    if a0.size == 0:
+        return True
+    reach = max(int(np.abs(a0).max()), int(np.abs(a1).max()))
+    slope = max(int(np.abs(s0).max()), int(np.abs(s1).max()))
+    return 2 * (reach + slope * max(last_step, 0)) + int(area.max()) < FLOAT_DIVISION_LIMIT
+
+
 def rasterize_rows(rows: Rows, start: int, stop: int, width: int, bary: bool = True) -> Fragments:
     """The covered pixels of rows ``[start, stop)`` with their barycentrics (docs/pipeline.md §4).
 
@@ -563,18 +577,34 @@ def rasterize_rows(rows: Rows, start: int, stop: int, width: int, bary: bool = T
         # fragments need no swap of their own; the third weight (area - E0 - E1) is then E1.
         c1 = np.where(swap, row_area - c0 - c1, c1)
         dy1 = np.where(swap, -(dy0 + dy1), dy1)
-    area = each(row_area)
-    ea = each(c0 - dy0 * p0)
-    ea -= each(dy0 * SUBPIXEL) * step
-    eb = each(c1 - dy1 * p0)
-    eb -= each(dy1 * SUBPIXEL) * step
-    ec = area - ea
-    ec -= eb  # the three edge functions sum to the doubled area
-    farea = area.astype(np.float64)
+    a0, a1 = c0 - dy0 * p0, c1 - dy1 * p0  # (R,) each edge's E at step 0 of its row's run
+    s0, s1 = dy0 * SUBPIXEL, dy1 * SUBPIXEL  # (R,) what one pixel to the right takes from it
     weights = np.empty((3, n), dtype=np.float64)
-    np.divide(ea, farea, out=weights[0])
-    np.divide(eb, farea, out=weights[1])
-    np.divide(ec, farea, out=weights[2])
+    last_step = n - 1 if n <= GLOBAL_INDEX_FRAGMENTS else int(length.max()) - 1
+    if _float_exact(a0, a1, s0, s1, row_area, last_step):
+        # Every value below is an integer under 2**53 in magnitude (_float_exact), so float64
+        # holds it exactly: the same E as the int64 path, converted as its division converts
+        # them, with no int64 product per fragment and no mixed-type division.
+        steps = step.astype(np.float64)
+        for k, (a, s) in enumerate(((a0, s0), (a1, s1))):
+            np.multiply(each(s.astype(np.float64)), steps, out=weights[k])
+            np.subtract(each(a.astype(np.float64)), weights[k], out=weights[k])
+        farea = each(row_area.astype(np.float64))
+        np.subtract(farea, weights[0], out=weights[2])
+        weights[2] -= weights[1]  # the three edge functions sum to the doubled area
+        weights /= farea
+    else:
+        area = each(row_area)
+        ea = each(a0)
+        ea -= each(s0) * step
+        eb = each(a1)
+        eb -= each(s1) * step
+        ec = area - ea
+        ec -= eb  # the three edge functions sum to the doubled area
+        farea = area.astype(np.float64)
+        np.divide(ea, farea, out=weights[0])
+        np.divide(eb, farea, out=weights[1])
+        np.divide(ec, farea, out=weights[2])
     return Fragments(pix=pix, tri=tri, bary=weights, row_tri=row_tri, row_length=length)
 
 
@@ -617,12 +647,25 @@ def interpolate(
     b0, b1, b2 = frags.bary
     codes = None
     if depth:
+        # (b0*z0 + b1*z1) + b2*z2, clamped into [0, 1], floor(z*DEPTH_MAX + 0.5): each operation in
+        # that order, made in place in the per-fragment arrays (each() gives new ones).
         zw = setup.zw
-        z = (b0 * each(zw[:, 0]) + b1 * each(zw[:, 1])) + b2 * each(zw[:, 2])
+        z = each(zw[:, 0])
+        z *= b0
+        term = each(zw[:, 1])
+        term *= b1
+        z += term
+        np.multiply(b2, each(zw[:, 2]), out=term)
+        z += term
+        del term
         if offset_factor != 0.0 or offset_units != 0.0:
-            z = z + (float(offset_factor) * each(setup.slope()) + float(offset_units) * 2.0**-24)
-        z = np.minimum(np.maximum(z, 0.0), 1.0)
-        codes = np.floor(z * DEPTH_MAX + 0.5).astype(np.int64)
+            z += float(offset_factor) * each(setup.slope()) + float(offset_units) * 2.0**-24
+        np.maximum(z, 0.0, out=z)
+        np.minimum(z, 1.0, out=z)
+        z *= DEPTH_MAX
+        z += 0.5
+        np.floor(z, out=z)
+        codes = z.astype(np.int64)
     if not weights:
         return codes, None
 

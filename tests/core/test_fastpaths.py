@@ -1194,15 +1194,21 @@ def _barycentrics_pixel_by_pixel(rows: raster.Rows, width: int) -> tuple[np.ndar
     return np.concatenate(pix), np.concatenate(weights, axis=1)
 
 
+@pytest.mark.parametrize("arithmetic", ["float64", "int64"])
 @pytest.mark.parametrize("global_index", [True, False])
 @pytest.mark.parametrize("seed", [0, 1])
-def test_rasterized_barycentrics_equal_the_per_pixel_formula(global_index, seed, monkeypatch):
+def test_rasterized_barycentrics_equal_the_per_pixel_formula(arithmetic, global_index, seed, monkeypatch):
     # Row coefficients stand in for the per-fragment x, Px and swap; chunks past
-    # GLOBAL_INDEX_FRAGMENTS count from each row's start. Both give the formula's bits.
+    # GLOBAL_INDEX_FRAGMENTS count from each row's start. The edge functions are made in float64
+    # where that is exact (these rows' values are: below 2**53), else in int64. All give the
+    # formula's bits.
     if not global_index:
         monkeypatch.setattr(raster, "GLOBAL_INDEX_FRAGMENTS", 0)
     width = 1000
     rows = _rows_at_random(seed, 400, width)
+    assert raster._float_exact(rows.c0, rows.c1, rows.dy0 * SUBPIXEL, rows.dy1 * SUBPIXEL, rows.area, 0)
+    if arithmetic == "int64":
+        monkeypatch.setattr(raster, "FLOAT_DIVISION_LIMIT", 0)
     pix, weights = _barycentrics_pixel_by_pixel(rows, width)
     for start, stop in ((0, rows.count), (37, 250), (5, 6)):
         first = int(rows.length[:start].sum())
@@ -1210,6 +1216,24 @@ def test_rasterized_barycentrics_equal_the_per_pixel_formula(global_index, seed,
         frags = raster.rasterize_rows(rows, start, stop, width)
         np.testing.assert_array_equal(frags.pix, pix[first:first + n])
         assert frags.bary.view(np.uint64).tolist() == weights[:, first:first + n].view(np.uint64).tolist()
+
+
+def test_rasterized_barycentrics_of_edge_functions_past_float64_s_integers_are_made_in_int64(monkeypatch):
+    # Slopes of 2**42 subpixels a pixel over thousands of pixels: s*step passes 2**53, where
+    # float64 no longer holds every integer. The bound sends these rows to int64, which gives the
+    # formula's bits; made in float64 anyway, they would not be.
+    width = 1000
+    rows = _rows_at_random(3, 400, width)
+    rng = np.random.default_rng(4)
+    rows.dy0 = rng.integers(-(2**34), 2**34, rows.count).astype(np.int64)
+    rows.c0 = rng.integers(-(2**50), 2**50, rows.count).astype(np.int64)
+    rows.area = rng.integers(2**50, 2**52, rows.count).astype(np.int64)
+    pix, weights = _barycentrics_pixel_by_pixel(rows, width)
+    frags = raster.rasterize_rows(rows, 0, rows.count, width)
+    np.testing.assert_array_equal(frags.pix, pix)
+    assert frags.bary.view(np.uint64).tolist() == weights.view(np.uint64).tolist()
+    monkeypatch.setattr(raster, "_float_exact", lambda *args: True)
+    assert not np.array_equal(raster.rasterize_rows(rows, 0, rows.count, width).bary, weights)
 
 
 def test_kept_world_normals_equal_the_normals_of_each_chunk_s_triangles(monkeypatch):
