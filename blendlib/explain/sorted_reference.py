@@ -308,7 +308,7 @@ def sort_error(frame_color: np.ndarray, reference: np.ndarray, hdr: bool, pool=N
             diff = np.abs(a.astype(np.float64) - b.astype(np.float64))
         else:
             diff = np.abs(ldr_codes(a) - ldr_codes(b))
-        out[lo:hi] = diff.max(axis=-1)
+        out[lo:hi] = largest_step(diff.reshape(-1, 4)).reshape(hi - lo, -1)
 
     run_parts(pool, parts, out.shape[0], rows, min_part=ERROR_ROWS, piece=ERROR_ROWS)
     return out
