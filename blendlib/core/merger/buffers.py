@@ -299,10 +299,6 @@ class FrameBuffers:
         return cls(width, height, hdr, ColorSpace.Linear if linear else ColorSpace.Gamma, (0.0, 0.0, 0.0, 0.0),
                    band=(0, 0), samples=samples, shared=shared)
 
-    def blank(self) -> FrameBuffers:
-        """Buffers of the same size and kind, every array unset."""
-        return FrameBuffers.unset(self.kind)
-
     def by_row(self) -> dict[str, np.ndarray]:
         """Every buffer as a (planes, H, W, ...) view, so rows are the second axis: ``color``,
         ``depth`` and ``stencil`` with a plane per sample, and with MSAA ``uniform`` (one plane)."""
