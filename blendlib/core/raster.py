@@ -6,6 +6,11 @@
 - :func:`interpolate`: fragments → 24-bit depth and perspective-correct weights.
 
 Work is proportional to covered pixels plus rows (spans), not to bounding boxes.
+
+One concern in one module, over 700 lines: the integer edge functions of §4, from the spans they
+bound to the barycentrics and depth they give, with the bounds under which each step computes
+them in float64 or int64 (2**53, 2**63) beside the arithmetic they guard; split, a bound would
+live apart from the arithmetic whose exactness it proves.
 """
 
 from __future__ import annotations
