@@ -584,32 +584,25 @@ def rasterize_rows(rows: Rows, start: int, stop: int, width: int, bary: bool = T
         dy1 = np.where(swap, -(dy0 + dy1), dy1)
     a0, a1 = c0 - dy0 * p0, c1 - dy1 * p0  # (R,) each edge's E at step 0 of its row's run
     s0, s1 = dy0 * SUBPIXEL, dy1 * SUBPIXEL  # (R,) what one pixel to the right takes from it
-    weights = np.empty((3, n), dtype=np.float64)
     last_step = n - 1 if n <= GLOBAL_INDEX_FRAGMENTS else int(length.max()) - 1
-    if _float_exact(a0, a1, s0, s1, row_area, last_step):
-        # Every value below is an integer under 2**53 in magnitude (_float_exact), so float64
-        # holds it exactly: the same E as the int64 path, converted as its division converts
-        # them, with no int64 product per fragment and no mixed-type division.
-        steps = step.astype(np.float64)
-        for k, (a, s) in enumerate(((a0, s0), (a1, s1))):
-            np.multiply(each(s.astype(np.float64)), steps, out=weights[k])
-            np.subtract(each(a.astype(np.float64)), weights[k], out=weights[k])
-        farea = each(row_area.astype(np.float64))
-        np.subtract(farea, weights[0], out=weights[2])
-        weights[2] -= weights[1]  # the three edge functions sum to the doubled area
-        weights /= farea
-    else:
-        area = each(row_area)
-        ea = each(a0)
-        ea -= each(s0) * step
-        eb = each(a1)
-        eb -= each(s1) * step
-        ec = area - ea
-        ec -= eb  # the three edge functions sum to the doubled area
-        farea = area.astype(np.float64)
-        np.divide(ea, farea, out=weights[0])
-        np.divide(eb, farea, out=weights[1])
-        np.divide(ec, farea, out=weights[2])
+    # Every value below is an integer: in float64 when all stay under 2**53 in magnitude
+    # (_float_exact), where float64 holds them exactly (the same E, converted as the int64
+    # division converts them, with no int64 product per fragment and no mixed-type division),
+    # else in int64.
+    kind = np.float64 if _float_exact(a0, a1, s0, s1, row_area, last_step) else np.int64
+    steps = step.astype(kind, copy=False)
+    area = each(row_area.astype(kind, copy=False))
+    ea = each(a0.astype(kind, copy=False))
+    ea -= each(s0.astype(kind, copy=False)) * steps
+    eb = each(a1.astype(kind, copy=False))
+    eb -= each(s1.astype(kind, copy=False)) * steps
+    ec = area - ea
+    ec -= eb  # the three edge functions sum to the doubled area
+    farea = area.astype(np.float64, copy=False)
+    weights = np.empty((3, n), dtype=np.float64)
+    np.divide(ea, farea, out=weights[0])
+    np.divide(eb, farea, out=weights[1])
+    np.divide(ec, farea, out=weights[2])
     return Fragments(pix=pix, tri=tri, bary=weights, row_tri=row_tri, row_length=length)
 
 
